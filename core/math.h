@@ -1,0 +1,82 @@
+// Vector math on GLM, plus the few renderer-specific helpers every module needs.
+#pragma once
+
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_inverse.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace theia {
+
+using glm::dvec3;
+using glm::ivec2;
+using glm::mat3;
+using glm::mat4;
+using glm::uvec2;
+using glm::vec2;
+using glm::vec3;
+using glm::vec4;
+
+// Linear RGB radiance / reflectance (the renderer's colour space: linear sRGB primaries).
+using RGB = glm::vec3;
+
+inline constexpr float kPi = 3.14159265358979323846f;
+inline constexpr float kInvPi = 0.31830988618379067154f;
+inline constexpr float kInv2Pi = 0.15915494309189533577f;
+inline constexpr float kInv4Pi = 0.07957747154594766788f;
+inline constexpr float kInfinity = std::numeric_limits<float>::infinity();
+inline constexpr float kOneMinusEpsilon = 0x1.fffffep-1f;
+
+inline float sqr(float x) { return x * x; }
+inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
+inline float safe_acos(float x) { return std::acos(std::clamp(x, -1.0f, 1.0f)); }
+inline float radians(float deg) { return deg * (kPi / 180.0f); }
+
+inline float luminance(const RGB& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+inline float max_component(const RGB& c) { return std::max(c.x, std::max(c.y, c.z)); }
+inline bool is_black(const RGB& c) { return c.x == 0.0f && c.y == 0.0f && c.z == 0.0f; }
+inline bool is_finite(const RGB& c) {
+  return std::isfinite(c.x) && std::isfinite(c.y) && std::isfinite(c.z);
+}
+
+// Orthonormal basis around a unit vector (Duff et al. 2017, branchless).
+struct Frame {
+  vec3 s, t, n;
+
+  static Frame from_z(const vec3& n) {
+    float sign = std::copysign(1.0f, n.z);
+    float a = -1.0f / (sign + n.z);
+    float b = n.x * n.y * a;
+    return {vec3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), vec3(b, sign + n.y * n.y * a, -n.y), n};
+  }
+  vec3 to_local(const vec3& v) const { return {glm::dot(v, s), glm::dot(v, t), glm::dot(v, n)}; }
+  vec3 from_local(const vec3& v) const { return s * v.x + t * v.y + n * v.z; }
+};
+
+// Affine transform with its inverse kept alongside, as pbrt-v4 does, so that
+// normals and inverse mappings never need a fresh matrix inversion.
+struct Transform {
+  mat4 m{1.0f};
+  mat4 m_inv{1.0f};
+
+  Transform() = default;
+  explicit Transform(const mat4& mat) : m(mat), m_inv(glm::inverse(mat)) {}
+  Transform(const mat4& mat, const mat4& inv) : m(mat), m_inv(inv) {}
+
+  vec3 point(const vec3& p) const {
+    vec4 r = m * vec4(p, 1.0f);
+    return r.w == 1.0f ? vec3(r) : vec3(r) / r.w;
+  }
+  vec3 vector(const vec3& v) const { return mat3(m) * v; }
+  // Normals transform by the inverse transpose.
+  vec3 normal(const vec3& n) const { return glm::transpose(mat3(m_inv)) * n; }
+  Transform inverse() const { return {m_inv, m}; }
+  bool swaps_handedness() const { return glm::determinant(mat3(m)) < 0.0f; }
+  bool is_identity() const { return m == mat4(1.0f); }
+  friend Transform operator*(const Transform& a, const Transform& b) { return {a.m * b.m, b.m_inv * a.m_inv}; }
+};
+
+}  // namespace theia

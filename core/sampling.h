@@ -1,0 +1,114 @@
+// Warps from the unit square to the domains a renderer samples, with their
+// pdfs, and tabulated 1D distributions.  Every warp here has a chi-square test
+// against its pdf in tests/unit/test_sampling.cpp.
+#pragma once
+
+#include "core/math.h"
+
+#include <span>
+#include <vector>
+
+namespace theia {
+
+// ---------------------------------------------------------------- warps
+
+inline vec2 sample_uniform_disk_concentric(vec2 u) {
+  vec2 o = 2.0f * u - vec2(1.0f);
+  if (o.x == 0.0f && o.y == 0.0f) return vec2(0.0f);
+  float r, theta;
+  if (std::abs(o.x) > std::abs(o.y)) {
+    r = o.x;
+    theta = (kPi / 4.0f) * (o.y / o.x);
+  } else {
+    r = o.y;
+    theta = (kPi / 2.0f) - (kPi / 4.0f) * (o.x / o.y);
+  }
+  return r * vec2(std::cos(theta), std::sin(theta));
+}
+
+inline vec3 sample_cosine_hemisphere(vec2 u) {
+  vec2 d = sample_uniform_disk_concentric(u);
+  float z = safe_sqrt(1.0f - d.x * d.x - d.y * d.y);
+  return {d.x, d.y, z};
+}
+inline float cosine_hemisphere_pdf(float cos_theta) { return std::max(cos_theta, 0.0f) * kInvPi; }
+
+inline vec3 sample_uniform_sphere(vec2 u) {
+  float z = 1.0f - 2.0f * u.x;
+  float r = safe_sqrt(1.0f - z * z);
+  float phi = 2.0f * kPi * u.y;
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+inline constexpr float uniform_sphere_pdf() { return kInv4Pi; }
+
+inline vec3 sample_uniform_hemisphere(vec2 u) {
+  float z = u.x;
+  float r = safe_sqrt(1.0f - z * z);
+  float phi = 2.0f * kPi * u.y;
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+inline constexpr float uniform_hemisphere_pdf() { return kInv2Pi; }
+
+// Uniform over the cone of directions within acos(cos_theta_max) of +z.
+inline vec3 sample_uniform_cone(vec2 u, float cos_theta_max) {
+  float cos_theta = (1.0f - u.x) + u.x * cos_theta_max;
+  float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
+  float phi = u.y * 2.0f * kPi;
+  return {std::cos(phi) * sin_theta, std::sin(phi) * sin_theta, cos_theta};
+}
+inline float uniform_cone_pdf(float cos_theta_max) { return 1.0f / (2.0f * kPi * (1.0f - cos_theta_max)); }
+
+// Barycentrics (b0, b1) uniform over a triangle (Heitz 2019: low distortion).
+inline vec2 sample_uniform_triangle(vec2 u) {
+  float b0, b1;
+  if (u.x < u.y) {
+    b0 = u.x / 2.0f;
+    b1 = u.y - b0;
+  } else {
+    b1 = u.y / 2.0f;
+    b0 = u.x - b1;
+  }
+  return {b0, b1};
+}
+
+// Tent on [-r, r] (the triangle filter's shape).
+inline float sample_tent(float u, float r) {
+  if (u < 0.5f) {
+    float up = u * 2.0f;
+    return -r + r * safe_sqrt(up);
+  }
+  float up = (u - 0.5f) * 2.0f;
+  return r - r * safe_sqrt(1.0f - up);
+}
+inline float tent_pdf(float x, float r) { return std::abs(x) >= r ? 0.0f : (1.0f / r - std::abs(x) / (r * r)); }
+
+// ---------------------------------------------------------------- MIS
+
+inline float power_heuristic(float nf, float f_pdf, float ng, float g_pdf) {
+  float f = nf * f_pdf, g = ng * g_pdf;
+  if (std::isinf(f * f)) return 1.0f;
+  if (f == 0.0f && g == 0.0f) return 0.0f;
+  return (f * f) / (f * f + g * g);
+}
+
+// ---------------------------------------------------------------- tabulated distributions
+
+// Piecewise-constant distribution over [0, 1) from non-negative weights.
+// Zero total weight falls back to uniform, so sampling never divides by zero.
+struct Distribution1D {
+  std::vector<float> func;  // |f| per cell
+  std::vector<float> cdf;   // size n + 1, cdf[n] == 1
+  float integral = 0.0f;    // integral of func over [0, 1)
+
+  Distribution1D() = default;
+  explicit Distribution1D(std::span<const float> f);
+
+  size_t size() const { return func.size(); }
+  // Returns x in [0, 1); writes the density at x and the cell index.
+  float sample_continuous(float u, float* pdf, int* offset = nullptr) const;
+  // Returns a cell index with probability func[i] / sum(func).
+  int sample_discrete(float u, float* pmf = nullptr, float* u_remapped = nullptr) const;
+  float discrete_pmf(int i) const;
+};
+
+}  // namespace theia

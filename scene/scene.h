@@ -1,0 +1,181 @@
+// The scene as plain data: what the parser produces and everything else reads.
+//
+// Everything here is in render space (= pbrt's world space) unless a field says
+// otherwise.  Indices into the Scene's vectors link the parts together; -1
+// means "none".  No behaviour lives here: shapes are made traceable by
+// scene/accel.h, textures evaluated by scene/texture.h, materials by
+// scene/bsdf.h, lights sampled by scene/lights.h.
+#pragma once
+
+#include "core/math.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace theia {
+
+// Where a scene element came from, for messages that name file and line.
+struct SourceLoc {
+  std::string file;
+  int line = 0;
+  int column = 0;
+};
+
+// ---------------------------------------------------------------- textures
+
+enum class TextureKind { Constant, ImageMap, Checkerboard, Scale, Mix };
+enum class WrapMode { Repeat, Black, Clamp, OctahedralSphere };
+
+// pbrt-v4 "uv" mapping: st = (su * u + du, sv * v + dv).
+struct UVMapping {
+  float su = 1, sv = 1, du = 0, dv = 0;
+};
+
+// A loaded image: linear float RGB(A), row 0 at the top, as OpenImageIO reads it.
+struct Image {
+  std::string filename;
+  std::string encoding;       // "sRGB", "linear" or "gamma G"; empty = the file type's default
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> pixels;  // width * height * channels, linear
+};
+
+// One texture node.  Float textures use only the first component of the RGB
+// values; `is_float` records which kind the scene declared.
+struct Texture {
+  std::string name;
+  TextureKind kind = TextureKind::Constant;
+  bool is_float = false;
+  UVMapping mapping;
+  RGB value{0.0f};             // Constant
+  int image = -1;              // ImageMap: index into Scene::images
+  WrapMode wrap = WrapMode::Repeat;
+  float scale = 1.0f;          // ImageMap "scale"
+  bool invert = false;         // ImageMap "invert"
+  int tex1 = -1, tex2 = -1;    // Checkerboard (tex1, tex2), Scale (tex, scale), Mix (tex1, tex2)
+  int amount = -1;             // Mix amount (float texture)
+  SourceLoc loc;
+};
+
+// ---------------------------------------------------------------- materials
+
+enum class MaterialKind { Diffuse };
+
+struct Material {
+  std::string name;
+  MaterialKind kind = MaterialKind::Diffuse;
+  int reflectance = -1;        // texture index (spectrum)
+  SourceLoc loc;
+};
+
+// ---------------------------------------------------------------- shapes
+
+enum class ShapeKind { TriangleMesh, Sphere, Disk };
+
+// Indexed triangles.  Top-level meshes are stored in render space; meshes of
+// an object prototype are stored in the prototype's object space.
+struct TriangleMesh {
+  std::vector<vec3> p;
+  std::vector<vec3> n;              // empty, or one per vertex
+  std::vector<vec2> uv;             // empty, or one per vertex
+  std::vector<uint32_t> indices;    // 3 per triangle
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+struct SphereParams {
+  float radius = 1, zmin = -1, zmax = 1, phimax = 360;  // pbrt-v4 semantics (degrees)
+};
+struct DiskParams {
+  float height = 0, radius = 1, innerradius = 0, phimax = 360;
+};
+
+struct Shape {
+  ShapeKind kind = ShapeKind::TriangleMesh;
+  int mesh = -1;                    // TriangleMesh: index into Scene::meshes
+  SphereParams sphere;
+  DiskParams disk;
+  // Quadrics are intersected in object space; meshes are already baked.
+  Transform render_from_object;
+  bool reverse_orientation = false; // ReverseOrientation in effect (flips the normal)
+  bool transform_swaps_handedness = false;  // of the transform in effect when the shape was declared
+  int material = -1;                // index into Scene::materials
+  int area_light = -1;              // index into Scene::lights, if emissive
+  int alpha = -1;                   // float texture: cut-out where < 1 (issue 3)
+  SourceLoc loc;
+};
+
+// ObjectBegin/ObjectEnd: shapes in object space, instanced by ObjectInstance.
+struct ObjectPrototype {
+  std::string name;
+  std::vector<int> shapes;          // indices into Scene::shapes
+};
+struct Instance {
+  int prototype = -1;               // index into Scene::prototypes
+  Transform render_from_instance;
+};
+
+// ---------------------------------------------------------------- lights
+
+enum class LightKind { Area, Point, Infinite };
+
+struct Light {
+  LightKind kind = LightKind::Area;
+  RGB L{0.0f};                      // radiance (area, infinite) or intensity (point), scale applied
+  bool two_sided = false;           // area
+  int shape = -1;                   // area: the emitting shape (index into Scene::shapes)
+  vec3 position{0.0f};              // point, in render space
+  int image = -1;                   // infinite: environment image (index into Scene::images), or -1
+  Transform render_from_light;      // infinite: orientation of the environment map
+  SourceLoc loc;
+};
+
+// ---------------------------------------------------------------- camera & film
+
+enum class FilterKind { Box, Triangle, Gaussian };
+
+struct FilterParams {
+  FilterKind kind = FilterKind::Gaussian;   // pbrt-v4's default
+  vec2 radius{1.5f, 1.5f};
+  float sigma = 0.5f;                        // gaussian
+};
+
+struct CameraParams {
+  Transform render_from_camera;              // camera space: +z forward, pbrt-v4 conventions
+  float fov = 90.0f;                         // degrees, along the shorter image axis
+  float lens_radius = 0.0f;
+  float focal_distance = 1e6f;
+  float screen_window[4] = {0, 0, 0, 0};     // xmin xmax ymin ymax; all zero = derive from aspect
+  bool has_screen_window = false;
+};
+
+struct FilmParams {
+  int width = 1280, height = 720;
+  std::string filename = "pbrt.exr";
+};
+
+struct RenderSettings {
+  int spp = 16;                              // Sampler "pixelsamples"
+  int max_depth = 5;                         // Integrator "maxdepth"
+};
+
+// ---------------------------------------------------------------- the scene
+
+struct Scene {
+  std::string path;                          // the file it was loaded from
+  CameraParams camera;
+  FilmParams film;
+  FilterParams filter;
+  RenderSettings settings;
+
+  std::vector<TriangleMesh> meshes;
+  std::vector<Shape> shapes;                 // every shape, top-level and prototype
+  std::vector<int> top_level_shapes;         // indices into shapes that are in the world directly
+  std::vector<ObjectPrototype> prototypes;
+  std::vector<Instance> instances;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
+  std::vector<Image> images;
+  std::vector<Light> lights;
+};
+
+}  // namespace theia

@@ -86,9 +86,16 @@ inline float tent_pdf(float x, float r) { return std::abs(x) >= r ? 0.0f : (1.0f
 
 inline float power_heuristic(float nf, float f_pdf, float ng, float g_pdf) {
   float f = nf * f_pdf, g = ng * g_pdf;
-  if (std::isinf(f * f)) return 1.0f;
+  if (std::isinf(f)) return 1.0f;
   if (f == 0.0f && g == 0.0f) return 0.0f;
-  return (f * f) / (f * f + g * g);
+  // In ratio form: f * f overflows above ~1e19 and underflows below ~1e-19,
+  // which gave weights of 1 + 1 or 0 / 0.
+  if (f >= g) {
+    float r = g / f;
+    return 1.0f / (1.0f + r * r);
+  }
+  float r = f / g;
+  return (r * r) / (1.0f + r * r);
 }
 
 // ---------------------------------------------------------------- tabulated distributions

@@ -122,6 +122,7 @@ struct Light {
   LightKind kind = LightKind::Area;
   RGB L{0.0f};                      // radiance (area, infinite) or intensity (point), scale applied
   bool two_sided = false;           // area
+  bool is_virtual = false;          // area: the scene's "bool virtual" parameter
   int shape = -1;                   // area: the emitting shape (index into Scene::shapes)
   vec3 position{0.0f};              // point, in render space
   int image = -1;                   // infinite: environment image (index into Scene::images), or -1

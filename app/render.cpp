@@ -1,0 +1,155 @@
+#include "app/render.h"
+
+#include "app/progress.h"
+#include "cachepoints/light_sampler.h"
+#include "core/log.h"
+#include "core/stats.h"
+#include "scene/accel.h"
+#include "scene/camera.h"
+#include "scene/filter.h"
+#include "scene/lights.h"
+#include "scene/parser.h"
+#include "scene/texture.h"
+#include "wavefront/engine.h"
+
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+namespace theia {
+
+namespace fs = std::filesystem;
+
+static void check_config(const RenderConfig& c) {
+  if (c.spp == 0 || c.spp < -1) throw_error("--spp must be positive, got {}", c.spp);
+  if (c.max_depth < -1) throw_error("--max-depth must be zero or positive, got {}", c.max_depth);
+  if (c.threads < 0) throw_error("--threads must be zero (all cores) or positive, got {}", c.threads);
+  if (c.batch_size == 0) throw_error("--batch-size must be positive");
+  if (c.max_paths == 0) throw_error("--max-paths must be positive");
+}
+
+RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
+  check_config(config);
+  std::unique_ptr<tbb::global_control> threads;
+  if (config.threads > 0)
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, config.threads);
+
+  const int spp = config.spp > 0 ? config.spp : scene.settings.spp;
+  const int max_depth = config.max_depth >= 0 ? config.max_depth : scene.settings.max_depth;
+  if (spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, spp);
+
+  auto t0 = std::chrono::steady_clock::now();
+  Accel accel(scene);
+  double accel_seconds = seconds_since(t0);
+  LightSet lights(scene, accel);
+  auto light_sampler = make_light_sampler(config.light_sampler, lights);
+  Camera camera = make_camera(scene.camera, scene.film);
+  Filter filter = make_filter(scene.filter);
+  Film film(scene.film.width, scene.film.height);
+
+  EngineOptions opt;
+  opt.max_depth = max_depth;
+  opt.seed = config.seed;
+  opt.batch_size = config.batch_size;
+  opt.max_paths = config.max_paths;
+  opt.sort = config.sort;
+  WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt);
+
+  ProgressBar bar(config.progress);
+  const EngineStats& st = engine.stats();
+  engine.render(0, uint32_t(spp), [&](double fraction) { bar.update(fraction, st.total_rays()); });
+  bar.finish();
+
+  RenderResult result;
+  result.image = resolve_film(film);
+
+  nlohmann::json& log = result.log;
+  log["scene"] = scene.path;
+  log["resolution"] = {scene.film.width, scene.film.height};
+  log["options"] = {{"spp", spp},
+                    {"max_depth", max_depth},
+                    {"seed", config.seed},
+                    {"threads", config.threads > 0 ? config.threads : tbb::info::default_concurrency()},
+                    {"batch_size", config.batch_size},
+                    {"max_paths", config.max_paths},
+                    {"sort", config.sort},
+                    {"light_sampler", light_sampler->name()}};
+  nlohmann::json phases;
+  for (size_t p = 0; p < size_t(Phase::Count); ++p) phases[kPhaseNames[p]] = st.phases.seconds[p];
+  phases["accel_build"] = accel_seconds;
+  log["time"] = {{"render", st.render_seconds}, {"phases", phases}};
+  log["rays"] = {{"camera", st.camera_rays},
+                 {"continuation", st.continuation_rays},
+                 {"shadow", st.shadow_rays},
+                 {"total", st.total_rays()},
+                 {"batches", st.batches},
+                 {"shadow_batches", st.shadow_batches}};
+  double trace_seconds = st.phases[Phase::Trace] + st.phases[Phase::TraceShadow];
+  log["mrays_per_second"] = {
+      {"render", st.render_seconds > 0 ? double(st.total_rays()) / st.render_seconds * 1e-6 : 0.0},
+      {"trace_only", trace_seconds > 0 ? double(st.total_rays()) / trace_seconds * 1e-6 : 0.0}};
+  log["paths"] = {{"count", st.paths},
+                  {"vertices", st.path_vertices},
+                  {"average_length", st.paths ? double(st.path_vertices) / double(st.paths) : 0.0},
+                  {"peak_live", st.peak_live_paths}};
+  log["memory"] = {{"peak_rss", peak_rss_bytes()},
+                   {"accel", accel.memory_bytes()},
+                   {"film", film.memory_bytes()},
+                   {"wavefront", engine.memory_bytes()},
+                   {"peak_queued_rays", st.peak_queued_rays},
+                   {"peak_queued_shadow_rays", st.peak_queued_shadow_rays}};
+  log["dropped_samples"] = film.dropped.load();
+  log["warnings"] = warning_count();
+  return result;
+}
+
+static void write_text_atomically(const std::string& path, const std::string& text) {
+  std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f) throw_error("{}: cannot open for writing", tmp);
+    f << text;
+    f.flush();
+    if (!f) throw_error("{}: write failed", tmp);
+  }
+  fs::rename(tmp, path);
+}
+
+int run_render(const RenderConfig& in) {
+  RenderConfig config = in;
+  check_config(config);
+  auto t0 = std::chrono::steady_clock::now();
+  Scene scene = load_scene(config.scene_path);
+  load_images(scene);
+  double load_seconds = seconds_since(t0);
+  log_info("loaded {} in {:.2f} s: {} shapes, {} lights, {}x{}", config.scene_path, load_seconds, scene.shapes.size(),
+           scene.lights.size(), scene.film.width, scene.film.height);
+
+  if (config.output.empty()) config.output = fs::path(scene.film.filename).replace_extension(".exr").string();
+  if (fs::path(config.output).extension() != ".exr") throw_error("-o {}: the output must be an .exr file", config.output);
+  if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
+
+  RenderResult result = render_scene(scene, config);
+  std::string png = fs::path(config.output).replace_extension(".png").string();
+  write_exr(config.output, result.image);
+  write_png_srgb(png, result.image, 0, 1, 2);
+
+  result.log["time"]["load"] = load_seconds;
+  result.log["time"]["total"] = seconds_since(t0);
+  result.log["outputs"] = {config.output, png};
+  write_text_atomically(config.log_path, result.log.dump(2) + "\n");
+
+  const auto& log = result.log;
+  log_info("rendered {} spp in {:.2f} s ({:.2f} Mrays/s); wrote {}, {}, {}", log["options"]["spp"].get<int>(),
+           log["time"]["render"].get<double>(), log["mrays_per_second"]["render"].get<double>(), config.output, png,
+           config.log_path);
+  if (log["dropped_samples"].get<uint64_t>() > 0)
+    log_warning("{} non-finite samples were dropped", log["dropped_samples"].get<uint64_t>());
+  return 0;
+}
+
+}  // namespace theia

@@ -1,0 +1,41 @@
+// `theia render`: load a scene, render it with the wavefront engine, write
+// the EXR, the PNG preview and the JSON log.  Tests call render_scene()
+// in-process; the command line calls run_render().
+#pragma once
+
+#include "core/image.h"
+#include "scene/scene.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace theia {
+
+struct RenderConfig {
+  std::string scene_path;
+  std::string output;               // .exr path; empty: the scene's Film filename
+  int spp = -1;                     // -1: the scene's Sampler pixelsamples
+  int threads = 0;                  // 0: all cores
+  uint32_t seed = 0;
+  int max_depth = -1;               // -1: the scene's Integrator maxdepth
+  size_t batch_size = size_t(1) << 16;
+  size_t max_paths = size_t(1) << 19;
+  bool sort = true;
+  std::string light_sampler = "power";
+  std::string log_path;             // empty: OUTPUT with .json
+  bool progress = false;            // progress bar (the command line turns it on for a terminal)
+};
+
+struct RenderResult {
+  ImageBuffer image;                // R G B A albedo.* N.* depth.Z
+  nlohmann::json log;
+};
+
+// Renders an already-loaded scene (images must be loaded).  Throws theia::Error on bad options.
+RenderResult render_scene(const Scene& scene, const RenderConfig& config);
+
+// The whole command: load, render, write outputs atomically.  Returns the process exit code.
+int run_render(const RenderConfig& config);
+
+}  // namespace theia

@@ -1,0 +1,41 @@
+#include "cachepoints/light_sampler.h"
+
+#include "core/log.h"
+
+namespace theia {
+
+std::optional<SampledLight> UniformLightSampler::sample(const LightSampleContext&, float u) const {
+  if (count_ == 0) return std::nullopt;
+  int i = std::min(int(u * float(count_)), count_ - 1);
+  return SampledLight{i, 1.0f / float(count_)};
+}
+
+float UniformLightSampler::pmf(const LightSampleContext&, int light) const {
+  return count_ > 0 && light >= 0 && light < count_ ? 1.0f / float(count_) : 0.0f;
+}
+
+PowerLightSampler::PowerLightSampler(const LightSet& lights) {
+  std::vector<float> power(lights.scene->lights.size());
+  for (size_t i = 0; i < power.size(); ++i) power[i] = light_power(lights, int(i));
+  distribution_ = Distribution1D(power);
+}
+
+std::optional<SampledLight> PowerLightSampler::sample(const LightSampleContext&, float u) const {
+  if (distribution_.size() == 0) return std::nullopt;
+  float pmf;
+  int i = distribution_.sample_discrete(u, &pmf);
+  if (pmf == 0.0f) return std::nullopt;
+  return SampledLight{i, pmf};
+}
+
+float PowerLightSampler::pmf(const LightSampleContext&, int light) const {
+  return light >= 0 && size_t(light) < distribution_.size() ? distribution_.discrete_pmf(light) : 0.0f;
+}
+
+std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights) {
+  if (name == "uniform") return std::make_unique<UniformLightSampler>(int(lights.scene->lights.size()));
+  if (name == "power") return std::make_unique<PowerLightSampler>(lights);
+  throw_error("unknown light sampler '{}', expected 'uniform' or 'power'", name);
+}
+
+}  // namespace theia

@@ -1,0 +1,39 @@
+// Integer hashing: the source of every random number in theia.  Random values
+// are pure functions of integer keys (seed, pixel, sample, dimension), never
+// of a stateful generator, so results do not depend on scheduling.
+#pragma once
+
+#include "core/math.h"
+
+#include <cstdint>
+#include <type_traits>
+
+namespace theia {
+
+// A bijective 64-bit finaliser (pbrt-v4's MixBits, a splitmix64 variant):
+// every input bit affects every output bit with probability close to 1/2.
+constexpr uint64_t mix_bits(uint64_t v) {
+  v ^= v >> 31;
+  v *= 0x7fb5d329728ea185ull;
+  v ^= v >> 27;
+  v *= 0x81dadef4bc2dd44dull;
+  v ^= v >> 33;
+  return v;
+}
+
+// Hash of a few integers.  Order matters: hash(a, b) != hash(b, a), and
+// hash(a) != hash(a, 0), because each argument adds a mixing round.
+template <typename... Args>
+constexpr uint64_t hash(Args... args) {
+  static_assert(sizeof...(Args) > 0 && (std::is_integral_v<Args> && ...), "hash() takes integers");
+  uint64_t h = 0x9e3779b97f4a7c15ull;
+  ((h = mix_bits(h ^ (static_cast<uint64_t>(args) * 0xbf58476d1ce4e5b9ull + 0x94d049bb133111ebull))), ...);
+  return h;
+}
+
+// Uniform float in [0, 1).  Only the top 24 bits are used so that the
+// conversion is exact: v / 2^32 rounded to float could round up to 1, or
+// across a stratum boundary, and break the stratification of a (0,2)-net.
+constexpr float to_unit_float(uint32_t v) { return float(v >> 8) * 0x1p-24f; }
+
+}  // namespace theia

@@ -1,0 +1,78 @@
+// Image buffers and image files.  Everything in memory is linear float,
+// interleaved, row 0 at the top (OpenImageIO's and pbrt-v4's raster order).
+// Files are read and written through OpenImageIO; its headers stay in
+// image.cpp so that this header is cheap to include.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace theia {
+
+struct ImageBuffer {
+  int width = 0, height = 0;
+  std::vector<std::string> channels;  // e.g. R G B A albedo.R ...
+  std::vector<float> data;            // width * height * channels.size(), interleaved
+
+  ImageBuffer() = default;
+  ImageBuffer(int w, int h, std::vector<std::string> names, float fill = 0.0f)
+      : width(w), height(h), channels(std::move(names)),
+        data(size_t(w) * size_t(h) * channels.size(), fill) {}
+
+  int num_channels() const { return int(channels.size()); }
+  size_t pixel_count() const { return size_t(width) * size_t(height); }
+  size_t offset(int x, int y, int c) const {
+    return (size_t(y) * size_t(width) + size_t(x)) * channels.size() + size_t(c);
+  }
+  float& at(int x, int y, int c) { return data[offset(x, y, c)]; }
+  float at(int x, int y, int c) const { return data[offset(x, y, c)]; }
+  // Index of the channel with this exact name, or -1.
+  int channel_index(const std::string& name) const;
+  // Indices of R, G, B by name, falling back to the first three channels
+  // (fewer if the image has fewer); the convention every metric and preview uses.
+  std::vector<int> rgb_channel_indices() const;
+};
+
+// What the file held before conversion to float: decides the default
+// colour encoding of textures (8/16-bit integer files are display-encoded).
+struct ImageFileInfo {
+  std::string format_name;    // OpenImageIO's plugin name: "openexr", "png", "pfm", ...
+  bool float_pixels = false;  // half/float/double samples in the file
+};
+
+// Any format OpenImageIO reads (EXR, PFM, PNG, TGA, JPEG, HDR), first subimage,
+// all channels, values as stored (no colour conversion, alpha not premultiplied).
+// Throws theia::Error("path: reason").
+ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info = nullptr);
+
+// Multi-channel float32 OpenEXR (zip), channel names as given.  Written to
+// path + ".tmp" and renamed, so a crash never leaves a truncated file at path.
+void write_exr(const std::string& path, const ImageBuffer& img);
+
+// 8-bit sRGB-encoded preview of channels r, g, b (indices into img.channels),
+// clamped to [0, 1]; NaN becomes 0.  Atomic like write_exr.
+void write_png_srgb(const std::string& path, const ImageBuffer& img, int r, int g, int b);
+
+// The sRGB transfer function (IEC 61966-2-1), exact rather than a 2.2 power.
+inline float srgb_to_linear(float v) {
+  if (v <= 0.04045f) return v * (1.0f / 12.92f);
+  return std::pow((v + 0.055f) * (1.0f / 1.055f), 2.4f);
+}
+inline float linear_to_srgb(float v) {
+  if (v <= 0.0031308f) return 12.92f * v;
+  return 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+// Clamped, rounded to nearest; NaN maps to 0.
+inline uint8_t linear_to_srgb8(float v) {
+  if (!(v > 0.0f)) return 0;
+  if (v >= 1.0f) return 255;
+  return uint8_t(std::lround(linear_to_srgb(v) * 255.0f));
+}
+// Decodes an 8-bit sRGB code value through a table (exact to float rounding).
+float srgb8_to_linear(uint8_t v);
+
+}  // namespace theia

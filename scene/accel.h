@@ -1,0 +1,64 @@
+// The traceable scene: every shape of a theia::Scene turned into Embree
+// geometry, object prototypes into instanced sub-scenes.
+//
+// The Accel shares the Scene's vertex and index arrays, so the Scene must
+// outlive it and stay unmodified.  Embree headers stay out of this header.
+#pragma once
+
+#include "core/bounds.h"
+#include "core/math.h"
+#include "scene/scene.h"
+
+#include <cstdint>
+#include <memory>
+#include <span>
+
+namespace theia {
+
+inline constexpr uint32_t kInvalidId = 0xffffffffu;  // == RTC_INVALID_GEOMETRY_ID
+
+struct Ray {
+  vec3 o;
+  float tmin = 0;
+  vec3 d;
+  float tmax = kInfinity;
+};
+
+// What tracing returns; geom == kInvalidId means a miss.  geom/prim name the
+// Embree geometry and primitive in the scene that was hit (the prototype's
+// scene for instanced hits), inst the top-level instance geometry.
+//   triangles: (u, v) are Embree's barycentrics: p = (1-u-v) p0 + u p1 + v p2
+//   spheres:   (u, v) = object-space (phi, theta)
+//   disks:     (u, v) = object-space (x, y)
+struct Hit {
+  float t = kInfinity;
+  float u = 0, v = 0;
+  uint32_t geom = kInvalidId, prim = 0, inst = kInvalidId;
+  bool hit() const { return geom != kInvalidId; }
+};
+
+class Accel {
+ public:
+  explicit Accel(const Scene& scene);
+  ~Accel();
+  Accel(const Accel&) = delete;
+  Accel& operator=(const Accel&) = delete;
+
+  // Closest hits.  Single-threaded over the span; safe to call concurrently.
+  void intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent) const;
+  // Any hit in [tmin, tmax]: blocked[i] = 1 if ray i is occluded.
+  void occluded(std::span<const Ray> rays, std::span<uint8_t> blocked) const;
+  Hit intersect1(const Ray& ray) const;  // convenience for tests and one-off queries
+  bool occluded1(const Ray& ray) const;
+
+  int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
+  int instance_index(const Hit& hit) const;  // index into Scene::instances, or -1
+  Bounds3 bounds() const;                    // render-space bounds of all geometry
+  size_t memory_bytes() const;               // what the built scene keeps allocated (Embree + tables)
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace theia

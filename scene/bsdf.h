@@ -1,0 +1,66 @@
+// Materials evaluated at a hit: a BSDF is plain data made per shading point,
+// and free functions evaluate, sample and give the pdf of it.
+//
+// A BSDF is a small set of lobes.  Sampling reports which lobe produced the
+// direction, its kind (diffuse / glossy / specular, reflection / transmission)
+// and its roughness: path guiding needs these to decide where to guide, to
+// label scattering events and to roughen.
+#pragma once
+
+#include "scene/accel.h"
+#include "scene/scene.h"
+#include "scene/shapes.h"
+
+#include <optional>
+
+namespace theia {
+
+enum LobeFlags : uint8_t {
+  kLobeReflection = 1 << 0,
+  kLobeTransmission = 1 << 1,
+  kLobeDiffuse = 1 << 2,
+  kLobeGlossy = 1 << 3,
+  kLobeSpecular = 1 << 4,
+};
+
+inline constexpr int kMaxLobes = 4;
+
+struct BxDFLobe {
+  uint8_t flags = 0;
+  float roughness = 1.0f;  // 1 for diffuse, 0 for specular, alpha for microfacet lobes
+  RGB albedo{0.0f};        // reflectance/tint of the lobe (for AOVs and lobe selection)
+};
+
+struct BSDF {
+  Frame shading;           // shading frame: n = shading normal
+  vec3 ng{0.0f};           // geometric normal
+  MaterialKind kind = MaterialKind::Diffuse;
+  int lobe_count = 0;
+  BxDFLobe lobes[kMaxLobes];
+};
+
+struct BSDFSample {
+  RGB f{0.0f};        // BSDF value (without the cosine)
+  vec3 wi{0.0f};      // world space, unit
+  float pdf = 0.0f;   // solid angle (for specular lobes: the discrete probability)
+  int lobe = -1;
+  uint8_t flags = 0;  // flags of the lobe that produced wi
+  float roughness = 1.0f;
+  bool is_specular() const { return (flags & kLobeSpecular) != 0; }
+};
+
+BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si);
+
+// f(wo, wi) summed over the non-specular lobes; wo and wi are world-space unit vectors.
+RGB bsdf_f(const BSDF& bsdf, const vec3& wo, const vec3& wi);
+// Solid-angle pdf that bsdf_sample() produces wi (non-specular lobes only).
+float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
+std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u);
+// Per-lobe pdf, for guiding's per-lobe decisions.
+float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);
+// Directional albedo estimate for the albedo AOV (reflectance of the material).
+RGB bsdf_albedo(const BSDF& bsdf);
+// True when every lobe is specular: no light sampling at this vertex.
+bool bsdf_is_specular(const BSDF& bsdf);
+
+}  // namespace theia

@@ -1,0 +1,514 @@
+#include "scene/shapes.h"
+
+#include "core/log.h"
+
+#include <cmath>
+
+namespace theia {
+
+using glm::dmat3;
+using glm::dmat4;
+using glm::dvec3;
+using glm::dvec4;
+
+static constexpr double kPiD = 3.14159265358979323846;
+
+// ---------------------------------------------------------------- quadrics in object space
+
+SphereShape make_sphere_shape(const SphereParams& p) {
+  double r = p.radius;
+  double z0 = std::min(p.zmin, p.zmax), z1 = std::max(p.zmin, p.zmax);
+  SphereShape s;
+  s.radius = r;
+  s.zmin = std::clamp(z0, -r, r);
+  s.zmax = std::clamp(z1, -r, r);
+  s.theta_zmin = std::acos(std::clamp(z0 / r, -1.0, 1.0));
+  s.theta_zmax = std::acos(std::clamp(z1 / r, -1.0, 1.0));
+  s.phimax = std::clamp(double(p.phimax), 0.0, 360.0) * (kPiD / 180.0);
+  return s;
+}
+
+DiskShape make_disk_shape(const DiskParams& p) {
+  return {p.height, p.radius, p.innerradius, std::clamp(double(p.phimax), 0.0, 360.0) * (kPiD / 180.0)};
+}
+
+static double phi_of(double x, double y) {
+  double phi = std::atan2(y, x);
+  return phi < 0.0 ? phi + 2.0 * kPiD : phi;
+}
+
+bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax,
+                      QuadricHit* hit) {
+  double r = s.radius;
+  double a = glm::dot(d, d);
+  if (a == 0.0) return false;
+  double b = 2.0 * glm::dot(d, o);
+  double olen = glm::length(o);
+  double c = (olen - r) * (olen + r);
+  // pbrt-v4's discriminant: 4a (r^2 - |o - (b/2a) d|^2) avoids cancellation for distant origins.
+  double vlen = glm::length(o - (b / (2.0 * a)) * d);
+  double discrim = 4.0 * a * (r + vlen) * (r - vlen);
+  if (discrim < 0.0) return false;
+  double root = std::sqrt(discrim);
+  double q = b < 0.0 ? -0.5 * (b - root) : -0.5 * (b + root);
+  double t0 = q / a, t1 = q != 0.0 ? c / q : t0;
+  if (t0 > t1) std::swap(t0, t1);
+  if (t0 >= tmax || t1 <= tmin) return false;
+  for (double t : {t0, t1}) {
+    if (t <= tmin) continue;
+    if (t >= tmax) break;
+    dvec3 p = o + t * d;
+    p *= r / glm::length(p);
+    if (p.x == 0.0 && p.y == 0.0) p.x = 1e-5 * r;
+    double phi = phi_of(p.x, p.y);
+    if ((s.zmin > -r && p.z < s.zmin) || (s.zmax < r && p.z > s.zmax) || phi > s.phimax) continue;
+    *hit = {t, float(phi), float(std::acos(std::clamp(p.z / r, -1.0, 1.0)))};
+    return true;
+  }
+  return false;
+}
+
+bool intersect_disk(const DiskShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax, QuadricHit* hit) {
+  if (d.z == 0.0) return false;
+  double t = (s.height - o.z) / d.z;
+  if (t <= tmin || t >= tmax) return false;
+  double x = o.x + t * d.x, y = o.y + t * d.y;
+  double dist2 = x * x + y * y;
+  if (dist2 > s.radius * s.radius || dist2 < s.inner_radius * s.inner_radius) return false;
+  if (s.phimax < 2.0 * kPiD && phi_of(x, y) > s.phimax) return false;
+  *hit = {t, float(x), float(y)};
+  return true;
+}
+
+// ---------------------------------------------------------------- local geometry
+
+namespace {
+
+// A quadric point in object space with pbrt-v4's derivatives and error.
+struct LocalGeom {
+  dvec3 p, p_error, n, dpdu, dpdv;
+  vec2 uv;
+};
+
+LocalGeom sphere_local(const SphereShape& s, double phi, double theta) {
+  double r = s.radius;
+  double st = std::sin(theta), ct = std::cos(theta);
+  LocalGeom g;
+  g.p = dvec3(r * st * std::cos(phi), r * st * std::sin(phi), r * ct);
+  if (g.p.x == 0.0 && g.p.y == 0.0) g.p.x = 1e-5 * r;
+  g.p_error = double(gamma_bound(5)) * glm::abs(g.p);
+  g.n = g.p / r;
+  double dtheta = s.theta_zmax - s.theta_zmin;
+  g.uv = vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dtheta != 0.0 ? (theta - s.theta_zmin) / dtheta : 0.0));
+  g.dpdu = dvec3(-s.phimax * g.p.y, s.phimax * g.p.x, 0.0);
+  g.dpdv = dtheta * dvec3(g.p.z * std::cos(phi), g.p.z * std::sin(phi), -r * st);
+  return g;
+}
+
+LocalGeom disk_local(const DiskShape& s, double x, double y) {
+  LocalGeom g;
+  g.p = dvec3(x, y, s.height);
+  g.p_error = dvec3(0.0);
+  g.n = dvec3(0.0, 0.0, 1.0);
+  double r_hit = std::sqrt(x * x + y * y);
+  double phi = phi_of(x, y);
+  double dr = s.radius - s.inner_radius;
+  g.uv = vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dr != 0.0 ? (s.radius - r_hit) / dr : 0.0));
+  g.dpdu = dvec3(-s.phimax * y, s.phimax * x, 0.0);
+  g.dpdv = r_hit > 0.0 ? dvec3(x, y, 0.0) * (-dr / r_hit) : dvec3(0.0);
+  return g;
+}
+
+// pbrt-v4 Transform::operator()(Point3fi): bound on the error of m * p when p
+// itself is off by up to e.
+dvec3 transform_error(const dmat4& m, const dvec3& p, const dvec3& e) {
+  const double g3 = gamma_bound(3);
+  dvec3 err;
+  for (int i = 0; i < 3; ++i) {
+    double abs_sum = std::abs(m[0][i] * p.x) + std::abs(m[1][i] * p.y) + std::abs(m[2][i] * p.z) + std::abs(m[3][i]);
+    double e_sum = std::abs(m[0][i]) * e.x + std::abs(m[1][i]) * e.y + std::abs(m[2][i]) * e.z;
+    err[i] = g3 * abs_sum + (1.0 + g3) * e_sum;
+  }
+  return err;
+}
+
+vec3 face_forward(const vec3& v, const vec3& ref) { return glm::dot(v, ref) < 0.0f ? -v : v; }
+
+// Triangle tri's geometric normal oriented as pbrt-v4 orients it; writes the
+// shading normal (interpolated N, or the geometric normal) to *ns.
+vec3 triangle_normal(const TriangleMesh& m, bool flip, size_t tri, float b0, float b1, float b2, vec3* ns) {
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
+  vec3 c = glm::cross(p0 - p2, p1 - p2);
+  float len2 = glm::dot(c, c);
+  if (len2 == 0.0f) c = vec3(glm::cross(dvec3(p0 - p2), dvec3(p1 - p2)));
+  vec3 ng = glm::normalize(c);
+  if (flip) ng = -ng;
+  vec3 n = ng;
+  if (!m.n.empty()) {
+    vec3 interp = b0 * m.n[i0] + b1 * m.n[i1] + b2 * m.n[i2];
+    if (glm::dot(interp, interp) > 0.0f) {
+      n = glm::normalize(interp);
+      ng = face_forward(ng, n);
+    }
+  }
+  if (ns) *ns = n;
+  return ng;
+}
+
+void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
+  if (m.uv.empty()) {
+    uv[0] = vec2(0, 0), uv[1] = vec2(1, 0), uv[2] = vec2(1, 1);
+    return;
+  }
+  for (int k = 0; k < 3; ++k) uv[k] = m.uv[m.indices[3 * tri + size_t(k)]];
+}
+
+void coordinate_system(const vec3& n, vec3* a, vec3* b) {
+  Frame f = Frame::from_z(n);
+  *a = f.s;
+  *b = f.t;
+}
+
+SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, size_t tri, float b1, float b2) {
+  float b0 = 1.0f - b1 - b2;
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
+  SurfaceInteraction si;
+  si.p = b0 * p0 + b1 * p1 + b2 * p2;
+  si.p_error = gamma_bound(7) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
+  vec2 uv[3];
+  triangle_uvs(m, tri, uv);
+  si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
+  vec2 duv02 = uv[0] - uv[2], duv12 = uv[1] - uv[2];
+  vec3 dp02 = p0 - p2, dp12 = p1 - p2;
+  float det = duv02.x * duv12.y - duv02.y * duv12.x;
+  bool degenerate = std::abs(det) < 1e-9f;
+  if (!degenerate) {
+    float inv = 1.0f / det;
+    si.dpdu = (duv12.y * dp02 - duv02.y * dp12) * inv;
+    si.dpdv = (duv02.x * dp12 - duv12.x * dp02) * inv;
+  }
+  si.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, tri, b0, b1, b2, &si.ns);
+  if (degenerate || glm::dot(glm::cross(si.dpdu, si.dpdv), glm::cross(si.dpdu, si.dpdv)) == 0.0f)
+    coordinate_system(si.ng, &si.dpdu, &si.dpdv);
+  return si;
+}
+
+// Object-space quadric geometry carried to the shape's parent space.
+SurfaceInteraction quadric_interaction(const Shape& s, const LocalGeom& g) {
+  dmat4 m(s.render_from_object.m);
+  dmat3 nm = glm::transpose(glm::inverse(dmat3(m)));
+  SurfaceInteraction si;
+  si.p = vec3(dvec3(m * dvec4(g.p, 1.0)));
+  si.p_error = vec3(transform_error(m, g.p, g.p_error));
+  si.ng = vec3(glm::normalize(nm * g.n));
+  if (s.reverse_orientation != s.transform_swaps_handedness) si.ng = -si.ng;
+  si.ns = si.ng;
+  si.uv = g.uv;
+  si.dpdu = vec3(dmat3(m) * g.dpdu);
+  si.dpdv = vec3(dmat3(m) * g.dpdv);
+  return si;
+}
+
+}  // namespace
+
+SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit) {
+  int shape = accel.shape_index(hit);
+  if (shape < 0) throw_error("compute_interaction: hit names no shape (geometry {})", hit.geom);
+  const Shape& s = scene.shapes[size_t(shape)];
+  SurfaceInteraction si;
+  if (s.kind == ShapeKind::TriangleMesh) {
+    si = triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v);
+  } else if (s.kind == ShapeKind::Sphere) {
+    si = quadric_interaction(s, sphere_local(make_sphere_shape(s.sphere), hit.u, hit.v));
+  } else {
+    si = quadric_interaction(s, disk_local(make_disk_shape(s.disk), hit.u, hit.v));
+  }
+  int inst = accel.instance_index(hit);
+  if (inst >= 0) {
+    const Transform& t = scene.instances[size_t(inst)].render_from_instance;
+    dmat4 m(t.m);
+    dvec3 p_inst(si.p), e_inst(si.p_error);
+    dvec3 p = dvec3(m * dvec4(p_inst, 1.0));
+    // Embree carries rays into instance space with its own float inverse;
+    // widen the bound by that mapping's error so spawned rays clear the surface.
+    dvec3 e_back = transform_error(glm::inverse(m), p, dvec3(0.0));
+    si.p = vec3(p);
+    si.p_error = vec3(transform_error(m, p_inst, e_inst + e_back));
+    si.ng = glm::normalize(t.normal(si.ng));
+    si.ns = face_forward(glm::normalize(t.normal(si.ns)), si.ng);
+    si.dpdu = t.vector(si.dpdu);
+    si.dpdv = t.vector(si.dpdv);
+  }
+  si.wo = -glm::normalize(ray.d);
+  si.t = hit.t;
+  si.shape = shape;
+  si.material = s.material;
+  si.area_light = s.area_light;
+  si.instance = inst;
+  return si;
+}
+
+vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const vec3& w) {
+  float d = glm::dot(glm::abs(ng), p_error);
+  vec3 offset = d * ng;
+  if (glm::dot(w, ng) < 0.0f) offset = -offset;
+  vec3 po = p + offset;
+  // Round away from p so that the offset survives the addition's rounding.
+  for (int i = 0; i < 3; ++i) {
+    if (offset[i] > 0.0f) po[i] = std::nextafter(po[i], kInfinity);
+    else if (offset[i] < 0.0f) po[i] = std::nextafter(po[i], -kInfinity);
+  }
+  return po;
+}
+
+Ray spawn_ray(const SurfaceInteraction& si, const vec3& d) {
+  return Ray{offset_ray_origin(si.p, si.p_error, si.ng, d), 0.0f, d, kInfinity};
+}
+
+Ray spawn_ray_to(const SurfaceInteraction& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
+  vec3 pf = offset_ray_origin(si.p, si.p_error, si.ng, p_to - si.p);
+  vec3 pt = offset_ray_origin(p_to, p_to_error, n_to, pf - p_to);
+  return Ray{pf, 0.0f, pt - pf, 1.0f - kShadowEpsilon};
+}
+
+// ---------------------------------------------------------------- sampling
+
+namespace {
+
+// Area scale of the linear map at a point with object-space unit normal n (Nanson).
+double area_jacobian(const ShapeSampling::Entry& e, const dvec3& n) { return e.det * glm::length(e.normal_matrix * n); }
+
+bool is_full_sphere(const SphereShape& s) {
+  return s.zmin <= -s.radius && s.zmax >= s.radius && s.phimax >= 2.0 * kPiD;
+}
+
+// 1 - cos(theta_max) of the cone subtended by a sphere, with pbrt-v4's
+// small-angle expansion where the direct form loses all precision.
+float cone_one_minus_cos(float sin2_theta_max) {
+  if (sin2_theta_max < 0.00068523f) return sin2_theta_max / 2.0f;
+  return 1.0f - safe_sqrt(1.0f - sin2_theta_max);
+}
+
+std::optional<ShapeSample> to_solid_angle(ShapeSample ss, float pdf_area, const ShapeSampleContext& ref) {
+  vec3 d = ss.p - ref.p;
+  float d2 = glm::dot(d, d);
+  if (d2 == 0.0f) return std::nullopt;
+  float cos = std::abs(glm::dot(ss.n, d / std::sqrt(d2)));
+  if (cos == 0.0f) return std::nullopt;
+  ss.pdf = pdf_area * d2 / cos;
+  if (!std::isfinite(ss.pdf) || ss.pdf <= 0.0f) return std::nullopt;
+  return ss;
+}
+
+ShapeSample from_quadric(const ShapeSampling::Entry& e, const LocalGeom& g) {
+  ShapeSample ss;
+  ss.p = vec3(dvec3(e.render_from_object * dvec4(g.p, 1.0)));
+  ss.p_error = vec3(transform_error(e.render_from_object, g.p, g.p_error));
+  ss.n = vec3(glm::normalize(e.normal_matrix * g.n));
+  if (e.flip) ss.n = -ss.n;
+  ss.uv = g.uv;
+  return ss;
+}
+
+}  // namespace
+
+ShapeSampling::ShapeSampling(const Scene& scene) : entry_of_shape_(scene.shapes.size(), -1) {
+  for (const ObjectPrototype& proto : scene.prototypes)
+    for (int s : proto.shapes)
+      if (scene.shapes[size_t(s)].area_light >= 0)
+        log_warning("{}:{}: area lights inside object instances are not supported; the shape will not be sampled",
+                    scene.shapes[size_t(s)].loc.file, scene.shapes[size_t(s)].loc.line);
+
+  for (int index : scene.top_level_shapes) {
+    const Shape& s = scene.shapes[size_t(index)];
+    if (s.area_light < 0) continue;
+    Entry e;
+    e.kind = s.kind;
+    e.flip = s.reverse_orientation != s.transform_swaps_handedness;
+    if (s.kind == ShapeKind::TriangleMesh) {
+      e.mesh = &scene.meshes[size_t(s.mesh)];
+      std::vector<float> areas(e.mesh->triangle_count());
+      double total = 0.0;
+      for (size_t t = 0; t < areas.size(); ++t) {
+        dvec3 p0(e.mesh->p[e.mesh->indices[3 * t]]), p1(e.mesh->p[e.mesh->indices[3 * t + 1]]),
+            p2(e.mesh->p[e.mesh->indices[3 * t + 2]]);
+        double a = 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
+        areas[t] = float(a);
+        total += a;
+      }
+      e.triangles = Distribution1D(areas);
+      e.area = float(total);
+    } else {
+      e.render_from_object = dmat4(s.render_from_object.m);
+      e.object_from_render = glm::inverse(e.render_from_object);
+      dmat3 lin(e.render_from_object);
+      e.normal_matrix = glm::transpose(glm::inverse(lin));
+      e.det = std::abs(glm::determinant(lin));
+      if (s.kind == ShapeKind::Sphere) {
+        e.sphere = make_sphere_shape(s.sphere);
+        const SphereShape& sp = e.sphere;
+        e.object_area = sp.phimax * sp.radius * (sp.zmax - sp.zmin);
+        // A similarity keeps the sphere a sphere: closed-form area, cone sampling.
+        dmat3 g = glm::transpose(lin) * lin;
+        double s2 = (g[0][0] + g[1][1] + g[2][2]) / 3.0;
+        bool similarity = true;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            if (std::abs(g[i][j] - (i == j ? s2 : 0.0)) > 1e-5 * s2) similarity = false;
+        if (similarity) {
+          e.area = float(e.object_area * s2);
+          e.cone = is_full_sphere(sp);
+          e.center = vec3(dvec3(e.render_from_object[3]));
+          e.render_radius = float(std::sqrt(s2) * sp.radius);
+        } else {
+          // Midpoint rule over the (z, phi) parameterisation, in which the
+          // sphere's area element is uniform.
+          constexpr int kZ = 512, kPhi = 512;
+          double sum = 0.0;
+          for (int iz = 0; iz < kZ; ++iz) {
+            double z = sp.zmin + (sp.zmax - sp.zmin) * (iz + 0.5) / kZ;
+            double rxy = std::sqrt(std::max(0.0, sp.radius * sp.radius - z * z));
+            for (int ip = 0; ip < kPhi; ++ip) {
+              double phi = sp.phimax * (ip + 0.5) / kPhi;
+              sum += area_jacobian(e, dvec3(rxy * std::cos(phi), rxy * std::sin(phi), z) / sp.radius);
+            }
+          }
+          e.area = float(e.object_area * sum / (double(kZ) * kPhi));
+        }
+      } else {
+        e.disk = make_disk_shape(s.disk);
+        const DiskShape& dk = e.disk;
+        e.object_area = 0.5 * dk.phimax * (dk.radius * dk.radius - dk.inner_radius * dk.inner_radius);
+        e.area = float(e.object_area * area_jacobian(e, dvec3(0.0, 0.0, 1.0)));
+      }
+    }
+    if (!(e.area > 0.0f))
+      log_warning("{}:{}: emissive shape has zero area and will not emit", s.loc.file, s.loc.line);
+    entry_of_shape_[size_t(index)] = int(entries_.size());
+    entries_.push_back(std::move(e));
+  }
+}
+
+float ShapeSampling::area(int shape) const {
+  if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return 0.0f;
+  return entries_[size_t(entry_of_shape_[size_t(shape)])].area;
+}
+
+float ShapeSampling::area_pdf(const Entry& e, const vec3& p) const {
+  if (e.kind == ShapeKind::Sphere) {
+    dvec3 n = glm::normalize(dvec3(e.object_from_render * dvec4(dvec3(p), 1.0)));
+    return float(1.0 / (e.object_area * area_jacobian(e, n)));
+  }
+  return 1.0f / e.area;
+}
+
+std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim) const {
+  if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
+  const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
+  if (!(e.area > 0.0f)) return std::nullopt;
+
+  if (e.kind == ShapeKind::TriangleMesh) {
+    const TriangleMesh& m = *e.mesh;
+    size_t t = size_t(e.triangles.sample_discrete(u_prim));
+    vec2 b = sample_uniform_triangle(u);
+    float b0 = b.x, b1 = b.y, b2 = 1.0f - b.x - b.y;
+    const vec3 &p0 = m.p[m.indices[3 * t]], &p1 = m.p[m.indices[3 * t + 1]], &p2 = m.p[m.indices[3 * t + 2]];
+    ShapeSample ss;
+    ss.p = b0 * p0 + b1 * p1 + b2 * p2;
+    ss.p_error = gamma_bound(6) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
+    ss.n = triangle_normal(m, e.flip, t, b0, b1, b2, nullptr);
+    vec2 uv[3];
+    triangle_uvs(m, t, uv);
+    ss.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
+    return to_solid_angle(ss, 1.0f / e.area, ref);
+  }
+
+  if (e.kind == ShapeKind::Sphere) {
+    const SphereShape& sp = e.sphere;
+    vec3 to_center = e.center - ref.p;
+    float dc2 = glm::dot(to_center, to_center);
+    if (e.cone && dc2 > sqr(e.render_radius)) {
+      // pbrt-v4: uniform over the cone of directions the sphere subtends,
+      // mapped straight to the visible surface point.
+      float dc = std::sqrt(dc2);
+      float sin_theta_max = e.render_radius / dc;
+      float sin2_theta_max = sqr(sin_theta_max);
+      float one_minus_cos_max = cone_one_minus_cos(sin2_theta_max);
+      float cos_theta = 1.0f - u.x * one_minus_cos_max;
+      float sin2_theta = 1.0f - sqr(cos_theta);
+      if (sin2_theta_max < 0.00068523f) {
+        sin2_theta = sin2_theta_max * u.x;
+        cos_theta = std::sqrt(1.0f - sin2_theta);
+      }
+      float cos_alpha = sin2_theta / sin_theta_max + cos_theta * safe_sqrt(1.0f - sin2_theta / sin2_theta_max);
+      float sin_alpha = safe_sqrt(1.0f - sqr(cos_alpha));
+      float phi = u.y * 2.0f * kPi;
+      vec3 w(sin_alpha * std::cos(phi), sin_alpha * std::sin(phi), cos_alpha);
+      Frame frame = Frame::from_z(to_center / dc);
+      vec3 n_out = glm::normalize(frame.from_local(-w));
+      ShapeSample ss;
+      ss.p = e.center + e.render_radius * n_out;
+      ss.p_error = gamma_bound(5) * glm::abs(ss.p);
+      ss.n = e.flip ? -n_out : n_out;
+      dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
+      double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
+      ss.uv = sphere_local(sp, phi_of(p_obj.x, p_obj.y), theta).uv;
+      ss.pdf = 1.0f / (2.0f * kPi * one_minus_cos_max);
+      if (!std::isfinite(ss.pdf)) return std::nullopt;
+      return ss;
+    }
+    // Uniform in (z, phi) is uniform in area on the (partial) object-space sphere.
+    double z = sp.zmin + double(u.x) * (sp.zmax - sp.zmin);
+    double phi = double(u.y) * sp.phimax;
+    double theta = std::acos(std::clamp(z / sp.radius, -1.0, 1.0));
+    LocalGeom g = sphere_local(sp, phi, theta);
+    ShapeSample ss = from_quadric(e, g);
+    return to_solid_angle(ss, area_pdf(e, ss.p), ref);
+  }
+
+  const DiskShape& dk = e.disk;
+  double x, y;
+  if (dk.inner_radius == 0.0 && dk.phimax >= 2.0 * kPiD) {
+    vec2 pd = sample_uniform_disk_concentric(u);
+    x = double(pd.x) * dk.radius;
+    y = double(pd.y) * dk.radius;
+  } else {
+    // Partial disks: uniform over the annulus sector, so that the area pdf stays exact.
+    double ri2 = dk.inner_radius * dk.inner_radius;
+    double r = std::sqrt(ri2 + double(u.x) * (dk.radius * dk.radius - ri2));
+    double phi = double(u.y) * dk.phimax;
+    x = r * std::cos(phi);
+    y = r * std::sin(phi);
+  }
+  return to_solid_angle(from_quadric(e, disk_local(dk, x, y)), 1.0f / e.area, ref);
+}
+
+float ShapeSampling::pdf(int shape, const ShapeSampleContext& ref, const vec3& wi,
+                         const SurfaceInteraction& light_hit) const {
+  if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return 0.0f;
+  const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
+  if (!(e.area > 0.0f)) return 0.0f;
+  if (e.kind == ShapeKind::Sphere && e.cone) {
+    vec3 to_center = e.center - ref.p;
+    float dc2 = glm::dot(to_center, to_center);
+    if (dc2 > sqr(e.render_radius)) {
+      float one_minus_cos_max = cone_one_minus_cos(sqr(e.render_radius) / dc2);
+      float pdf = 1.0f / (2.0f * kPi * one_minus_cos_max);
+      return std::isfinite(pdf) ? pdf : 0.0f;
+    }
+  }
+  // The conversion uses the direction to the light point exactly as sample()
+  // computes it, so that both agree to the bit at grazing angles too; wi only
+  // has to point that way.
+  vec3 d = light_hit.p - ref.p;
+  float d2 = glm::dot(d, d);
+  if (d2 == 0.0f || glm::dot(wi, d) <= 0.0f) return 0.0f;
+  float cos = std::abs(glm::dot(light_hit.ng, d / std::sqrt(d2)));
+  if (cos == 0.0f) return 0.0f;
+  float pdf = area_pdf(e, light_hit.p) * d2 / cos;
+  return std::isfinite(pdf) ? pdf : 0.0f;
+}
+
+}  // namespace theia

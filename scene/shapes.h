@@ -1,0 +1,117 @@
+// Shapes as geometry: the quadric intersection routines Embree calls back
+// into, surface interactions rebuilt from hits, robust ray spawning
+// (pbrt-v4's error bounds), and sampling points on shapes for area lights.
+#pragma once
+
+#include "core/math.h"
+#include "core/sampling.h"
+#include "scene/accel.h"
+#include "scene/scene.h"
+
+#include <optional>
+#include <vector>
+
+namespace theia {
+
+// pbrt-v4's gamma(n): bound on the relative error of n chained float operations.
+inline constexpr float gamma_bound(int n) {
+  constexpr float e = 0x1p-24f;
+  return (float(n) * e) / (1.0f - float(n) * e);
+}
+inline constexpr float kShadowEpsilon = 1e-4f;
+
+// ---------------------------------------------------------------- quadrics in object space
+
+// pbrt-v4's derived sphere/disk parameters (angles in radians, z range clamped).
+struct SphereShape {
+  double radius, zmin, zmax, theta_zmin, theta_zmax, phimax;
+};
+struct DiskShape {
+  double height, radius, inner_radius, phimax;
+};
+SphereShape make_sphere_shape(const SphereParams& p);
+DiskShape make_disk_shape(const DiskParams& p);
+
+struct QuadricHit {
+  double t;
+  float u, v;  // what Hit::u, Hit::v store for the shape kind
+};
+// Closest intersection with t in (tmin, tmax), both sphere roots considered.
+// Double precision so that rays spawned off the surface never re-hit it.
+bool intersect_sphere(const SphereShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
+                      QuadricHit* hit);
+bool intersect_disk(const DiskShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
+                    QuadricHit* hit);
+
+// ---------------------------------------------------------------- interactions
+
+struct SurfaceInteraction {
+  vec3 p{0.0f};
+  vec3 p_error{0.0f};  // conservative absolute error bound of p
+  vec3 ng{0.0f};       // geometric normal, unit, pbrt-v4 orientation
+  vec3 ns{0.0f};       // shading normal, unit, same hemisphere as ng
+  vec2 uv{0.0f};
+  vec3 dpdu{0.0f}, dpdv{0.0f};
+  vec3 wo{0.0f};  // -ray.d, unit
+  float t = 0.0f;
+  int shape = -1, material = -1, area_light = -1, instance = -1;
+};
+
+SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit);
+
+// pbrt-v4 OffsetRayOrigin: p pushed along ng past its error box, to w's side.
+vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const vec3& w);
+Ray spawn_ray(const SurfaceInteraction& si, const vec3& d);
+// Shadow ray from si to p_to, both ends offset; d = end - start (not unit), tmax = 1 - kShadowEpsilon.
+Ray spawn_ray_to(const SurfaceInteraction& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to);
+
+// ---------------------------------------------------------------- sampling for area lights
+
+struct ShapeSample {
+  vec3 p{0.0f};
+  vec3 p_error{0.0f};
+  vec3 n{0.0f};  // oriented as compute_interaction's ng at p
+  vec2 uv{0.0f};
+  float pdf = 0.0f;  // w.r.t. solid angle at the reference point
+};
+struct ShapeSampleContext {
+  vec3 p{0.0f};
+  vec3 n{0.0f};  // zero for points in media
+};
+
+class ShapeSampling {
+ public:
+  ShapeSampling() = default;
+  // Tables only for top-level shapes with area_light >= 0.
+  explicit ShapeSampling(const Scene& scene);
+
+  std::optional<ShapeSample> sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim) const;
+  // Solid-angle density with which sample() returns light_hit's point in direction wi.
+  float pdf(int shape, const ShapeSampleContext& ref, const vec3& wi, const SurfaceInteraction& light_hit) const;
+  float area(int shape) const;
+
+  // One sampleable shape (public only so that the .cpp's helpers can see it).
+  struct Entry {
+    ShapeKind kind = ShapeKind::TriangleMesh;
+    const TriangleMesh* mesh = nullptr;
+    bool flip = false;  // reverse_orientation XOR transform_swaps_handedness
+    float area = 0.0f;
+    Distribution1D triangles;  // mesh: proportional to triangle area
+    SphereShape sphere{};
+    DiskShape disk{};
+    glm::dmat4 render_from_object{1.0}, object_from_render{1.0};
+    glm::dmat3 normal_matrix{1.0};  // inverse transpose of the linear part
+    double det = 1.0;               // |det| of the linear part
+    double object_area = 0.0;       // quadrics: area before the transform
+    bool cone = false;              // full sphere under a similarity: cone sampling from outside
+    vec3 center{0.0f};
+    float render_radius = 0.0f;
+  };
+
+ private:
+  float area_pdf(const Entry& e, const vec3& p) const;
+  std::vector<Entry> entries_;
+  std::vector<int> entry_of_shape_;
+};
+
+}  // namespace theia

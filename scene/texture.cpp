@@ -1,0 +1,294 @@
+#include "scene/texture.h"
+
+#include "core/image.h"
+#include "core/log.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <system_error>
+#include <type_traits>
+
+namespace theia {
+
+namespace fs = std::filesystem;
+
+// ---------------------------------------------------------------- loading
+
+namespace {
+
+enum class Encoding { SRGB, Linear, Gamma };
+
+struct ParsedEncoding {
+  Encoding kind = Encoding::SRGB;
+  float gamma = 1.0f;
+};
+
+bool iequals(const std::string& a, const char* b) {
+  size_t n = std::char_traits<char>::length(b);
+  if (a.size() != n) return false;
+  for (size_t i = 0; i < n; ++i)
+    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i])))
+      return false;
+  return true;
+}
+
+ParsedEncoding parse_encoding(const std::string& filename, const std::string& text, bool float_pixels) {
+  size_t b = text.find_first_not_of(" \t"), e = text.find_last_not_of(" \t");
+  std::string s = b == std::string::npos ? std::string() : text.substr(b, e - b + 1);
+  if (s.empty()) return {float_pixels ? Encoding::Linear : Encoding::SRGB, 1.0f};
+  if (iequals(s, "sRGB")) return {Encoding::SRGB, 1.0f};
+  if (iequals(s, "linear")) return {Encoding::Linear, 1.0f};
+  if (s.size() > 5 && iequals(s.substr(0, 5), "gamma") && (s[5] == ' ' || s[5] == '\t')) {
+    std::string g = s.substr(s.find_first_not_of(" \t", 5));
+    float gamma = 0.0f;
+    auto [end, ec] = std::from_chars(g.data(), g.data() + g.size(), gamma);
+    if (ec == std::errc() && end == g.data() + g.size() && gamma > 0.0f && std::isfinite(gamma))
+      return {Encoding::Gamma, gamma};
+  }
+  throw_error("{}: unknown colour encoding \"{}\" (expected \"sRGB\", \"linear\" or \"gamma G\" with G > 0)",
+              filename, text);
+}
+
+std::string resolve_path(const std::string& filename, const std::string& base_dir) {
+  fs::path p(filename);
+  if (p.is_absolute() || base_dir.empty()) return filename;
+  std::error_code ec;
+  fs::path beside = fs::path(base_dir) / p;
+  if (fs::exists(beside, ec)) return beside.string();
+  return filename;
+}
+
+// Which file channels become the texture's 1, 2, 3 or 4 channels.
+std::vector<int> texture_channels(const ImageBuffer& buf) {
+  int n = buf.num_channels();
+  if (n <= 2) return n == 1 ? std::vector<int>{0} : std::vector<int>{0, 1};
+  std::vector<int> ch = buf.rgb_channel_indices();
+  int a = buf.channel_index("A");
+  if (a < 0 && n == 4) a = 3;
+  if (a >= 0) ch.push_back(a);
+  return ch;
+}
+
+}  // namespace
+
+void load_image(Image& image, const std::string& base_dir) {
+  if (image.filename.empty()) {
+    if (!image.pixels.empty()) return;
+    throw_error("image without a filename and without pixels");
+  }
+  std::string path = resolve_path(image.filename, base_dir);
+  ImageFileInfo info;
+  ImageBuffer buf = read_image_file(path, &info);
+  ParsedEncoding enc = parse_encoding(path, image.encoding, info.float_pixels);
+  // pbrt-v4 applies an encoding only to integer pixels; float files are linear.
+  if (info.float_pixels) enc.kind = Encoding::Linear;
+
+  std::vector<int> ch = texture_channels(buf);
+  int nc = int(ch.size());
+  int alpha = (nc == 2 || nc == 4) ? nc - 1 : -1;
+  image.width = buf.width;
+  image.height = buf.height;
+  image.channels = nc;
+  image.pixels.resize(buf.pixel_count() * size_t(nc));
+  size_t src_nc = buf.channels.size();
+  for (size_t i = 0; i < buf.pixel_count(); ++i)
+    for (int c = 0; c < nc; ++c) {
+      float v = buf.data[i * src_nc + size_t(ch[size_t(c)])];
+      if (c != alpha) {
+        if (enc.kind == Encoding::SRGB)
+          v = srgb_to_linear(v);
+        else if (enc.kind == Encoding::Gamma)
+          v = std::pow(std::max(v, 0.0f), enc.gamma);
+      }
+      image.pixels[i * size_t(nc) + size_t(c)] = v;
+    }
+}
+
+void load_images(Scene& scene) {
+  std::string base_dir;
+  if (!scene.path.empty()) base_dir = fs::path(scene.path).parent_path().string();
+  size_t n = scene.images.size();
+  // Collect per-image errors and report in index order, so the message does
+  // not depend on which thread failed first.
+  std::vector<std::string> errors(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    try {
+      load_image(scene.images[i], base_dir);
+    } catch (const std::exception& e) {
+      const std::string& name = scene.images[i].filename;
+      errors[i] = e.what();
+      if (name.empty())
+        errors[i] = fmt::format("image #{}: {}", i, e.what());
+      else if (errors[i].find(name) == std::string::npos)
+        errors[i] = fmt::format("{}: {}", name, e.what());
+    }
+  });
+  size_t failed = 0;
+  const std::string* first = nullptr;
+  for (const std::string& e : errors)
+    if (!e.empty()) {
+      if (!first) first = &e;
+      ++failed;
+    }
+  if (failed == 1) throw Error(*first);
+  if (failed > 1) throw_error("{} (and {} more images failed to load)", *first, failed - 1);
+}
+
+// ---------------------------------------------------------------- lookups
+
+namespace {
+
+// Integer texel coordinates into the image, or false for black (pbrt-v4's
+// RemapPixelCoords).
+inline bool remap_texel(ivec2& p, int w, int h, WrapMode wrap) {
+  if (wrap == WrapMode::OctahedralSphere) {
+    // Mirror across the edges so an octahedral map of the sphere is continuous.
+    if (p.x < 0) {
+      p.x = -p.x;
+      p.y = h - 1 - p.y;
+    } else if (p.x >= w) {
+      p.x = 2 * w - 1 - p.x;
+      p.y = h - 1 - p.y;
+    }
+    if (p.y < 0) {
+      p.x = w - 1 - p.x;
+      p.y = -p.y;
+    } else if (p.y >= h) {
+      p.x = w - 1 - p.x;
+      p.y = 2 * h - 1 - p.y;
+    }
+    if (w == 1) p.x = 0;
+    if (h == 1) p.y = 0;
+    // Only a footprint one texel past the edge is mirrored exactly; clamp
+    // anything further rather than read outside the buffer.
+    p.x = std::clamp(p.x, 0, w - 1);
+    p.y = std::clamp(p.y, 0, h - 1);
+    return true;
+  }
+  if (p.x >= 0 && p.x < w && p.y >= 0 && p.y < h) return true;
+  switch (wrap) {
+    case WrapMode::Repeat:
+      p.x = ((p.x % w) + w) % w;
+      p.y = ((p.y % h) + h) % h;
+      return true;
+    case WrapMode::Clamp:
+      p.x = std::clamp(p.x, 0, w - 1);
+      p.y = std::clamp(p.y, 0, h - 1);
+      return true;
+    default:
+      return false;
+  }
+}
+
+inline RGB texel_value(const Image& img, ivec2 p) {
+  const float* v = &img.pixels[(size_t(p.y) * size_t(img.width) + size_t(p.x)) * size_t(img.channels)];
+  return img.channels >= 3 ? RGB(v[0], v[1], v[2]) : RGB(v[0]);
+}
+
+// Keeps float-to-int conversion defined for huge or NaN coordinates.
+inline float sane_coord(float x) { return std::fmin(std::fmax(x, -1e8f), 1e8f); }
+
+}  // namespace
+
+RGB image_texel(const Image& image, ivec2 p, WrapMode wrap) {
+  if (image.pixels.empty() || image.width <= 0 || image.height <= 0) return RGB(0.0f);
+  if (!remap_texel(p, image.width, image.height, wrap)) return RGB(0.0f);
+  return texel_value(image, p);
+}
+
+RGB image_bilerp(const Image& image, vec2 p, WrapMode wrap) {
+  if (image.pixels.empty() || image.width <= 0 || image.height <= 0) return RGB(0.0f);
+  float x = sane_coord(p.x * float(image.width) - 0.5f), y = sane_coord(p.y * float(image.height) - 0.5f);
+  float fx = std::floor(x), fy = std::floor(y);
+  int xi = int(fx), yi = int(fy);
+  float dx = x - fx, dy = y - fy;
+  RGB v00 = image_texel(image, {xi, yi}, wrap), v10 = image_texel(image, {xi + 1, yi}, wrap);
+  RGB v01 = image_texel(image, {xi, yi + 1}, wrap), v11 = image_texel(image, {xi + 1, yi + 1}, wrap);
+  return (1 - dx) * (1 - dy) * v00 + dx * (1 - dy) * v10 + (1 - dx) * dy * v01 + dx * dy * v11;
+}
+
+RGB image_lookup_bilinear(const Image& image, vec2 st, WrapMode wrap) {
+  // Texture t runs bottom to top; image rows run top to bottom.
+  return image_bilerp(image, vec2(st.x, 1.0f - st.y), wrap);
+}
+
+// ---------------------------------------------------------------- evaluation
+
+namespace {
+
+inline vec2 map_uv(const UVMapping& m, vec2 uv) { return {m.su * uv.x + m.du, m.sv * uv.y + m.dv}; }
+
+template <typename T>
+T first(const RGB& c) {
+  if constexpr (std::is_same_v<T, float>)
+    return c.x;
+  else
+    return c;
+}
+
+template <typename T>
+T eval(const Scene& scene, int index, const TextureEvalContext& ctx);
+
+// A child slot: the texture if present, pbrt-v4's default constant otherwise.
+template <typename T>
+inline T eval_child(const Scene& scene, int index, float fallback, const TextureEvalContext& ctx) {
+  return index < 0 ? T(fallback) : eval<T>(scene, index, ctx);
+}
+
+template <typename T>
+T eval(const Scene& scene, int index, const TextureEvalContext& ctx) {
+  assert(index >= 0 && size_t(index) < scene.textures.size());
+  const Texture& tex = scene.textures[size_t(index)];
+  switch (tex.kind) {
+    case TextureKind::Constant:
+      return first<T>(tex.value);
+    case TextureKind::ImageMap: {
+      if (tex.image < 0) return T(0.0f);
+      vec2 st = map_uv(tex.mapping, ctx.uv);
+      T v = tex.scale * first<T>(image_lookup_bilinear(scene.images[size_t(tex.image)], st, tex.wrap));
+      if constexpr (std::is_same_v<T, float>) {
+        return tex.invert ? std::max(0.0f, 1.0f - v) : v;
+      } else {
+        // pbrt-v4 clamps spectrum imagemaps at zero whether inverted or not.
+        return glm::max(tex.invert ? RGB(1.0f) - v : v, RGB(0.0f));
+      }
+    }
+    case TextureKind::Checkerboard: {
+      vec2 st = map_uv(tex.mapping, ctx.uv);
+      // fmod keeps the parity test defined for any float, negative or huge.
+      float sum = std::floor(st.x) + std::floor(st.y);
+      bool even = std::fmod(sum, 2.0f) == 0.0f;
+      return even ? eval_child<T>(scene, tex.tex1, 1.0f, ctx) : eval_child<T>(scene, tex.tex2, 0.0f, ctx);
+    }
+    case TextureKind::Scale: {
+      float s = eval_child<float>(scene, tex.tex2, 1.0f, ctx);
+      if (s == 0.0f) return T(0.0f);  // skip the (possibly costly) other branch
+      return eval_child<T>(scene, tex.tex1, 1.0f, ctx) * s;
+    }
+    case TextureKind::Mix: {
+      float a = eval_child<float>(scene, tex.amount, 0.5f, ctx);
+      T t1 = a != 1.0f ? eval_child<T>(scene, tex.tex1, 0.0f, ctx) : T(0.0f);
+      T t2 = a != 0.0f ? eval_child<T>(scene, tex.tex2, 1.0f, ctx) : T(0.0f);
+      return (1.0f - a) * t1 + a * t2;
+    }
+  }
+  return T(0.0f);
+}
+
+}  // namespace
+
+RGB eval_texture(const Scene& scene, int texture, const TextureEvalContext& ctx) {
+  return eval<RGB>(scene, texture, ctx);
+}
+
+float eval_float_texture(const Scene& scene, int texture, const TextureEvalContext& ctx) {
+  return eval<float>(scene, texture, ctx);
+}
+
+}  // namespace theia

@@ -1,0 +1,51 @@
+// Texture images and texture evaluation for scene/scene.h's Texture and Image.
+//
+// Conventions are pbrt-v4's: texture (s, t) has t = 0 at the bottom of the
+// image, pixel centres sit at half-integers, lookups are bilinear, and an
+// imagemap is scale * lookup, inverted (1 - that, clamped at 0) if asked.
+// Evaluation runs on the hot shading path: it allocates nothing, takes no
+// locks and makes no virtual calls (a switch on TextureKind).
+#pragma once
+
+#include "scene/scene.h"
+
+#include <string>
+
+namespace theia {
+
+// Reads every Scene::images[i] from its filename (in parallel) into linear
+// float pixels: 1 channel (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA; R, G,
+// B, A picked by name when the file has more channels).  Integer files (PNG,
+// TGA, JPEG, ...) are decoded by Image::encoding: "sRGB" (their default),
+// "linear" or "gamma G" (v^G); alpha is never decoded.  Float files (EXR,
+// PFM, HDR) are linear whatever the encoding says, as in pbrt-v4.  Relative
+// filenames are looked up beside Scene::path first, then as given.  Images
+// with pixels already present and no filename are left alone.  Throws
+// theia::Error naming the file.
+void load_images(Scene& scene);
+// One image; `base_dir` as above ("" = as given).
+void load_image(Image& image, const std::string& base_dir = "");
+
+struct TextureEvalContext {
+  vec2 uv;
+  vec3 p;
+};
+
+// Spectrum texture.  A missing child (index -1) takes pbrt-v4's default for
+// that slot: checkerboard tex1 = 1, tex2 = 0; scale tex = 1, scale = 1;
+// mix tex1 = 0, tex2 = 1, amount = 0.5.
+RGB eval_texture(const Scene& scene, int texture, const TextureEvalContext& ctx);
+// Float texture: the first channel wherever a texture or image has several.
+float eval_float_texture(const Scene& scene, int texture, const TextureEvalContext& ctx);
+
+// Bilinear lookup in texture coordinates: st in [0,1]^2, t = 0 the bottom row.
+// Grey images return (v, v, v).  An image without pixels returns black.
+RGB image_lookup_bilinear(const Image& image, vec2 st, WrapMode wrap);
+// The same in raster coordinates, p in [0,1]^2 with (0, 0) the top-left corner
+// (pbrt-v4's Image::Bilerp): for environment maps, which are not flipped.
+RGB image_bilerp(const Image& image, vec2 p, WrapMode wrap);
+// One texel, integer raster coordinates remapped by `wrap`; black outside
+// the image for WrapMode::Black.
+RGB image_texel(const Image& image, ivec2 p, WrapMode wrap);
+
+}  // namespace theia

@@ -1,0 +1,60 @@
+// Shared helpers for end-to-end tests: render a scene in-process and read pixels.
+#pragma once
+
+#include "app/render.h"
+#include "core/image.h"
+#include "scene/parser.h"
+#include "scene/texture.h"
+
+#include <string>
+
+namespace theia::test {
+
+inline Scene load_test_scene(const std::string& text) {
+  Scene s = parse_scene_string(text, "<test>", ".");
+  load_images(s);
+  return s;
+}
+
+inline Scene load_test_scene_file(const std::string& path) {
+  Scene s = load_scene(path);
+  load_images(s);
+  return s;
+}
+
+inline RenderConfig quick_config(int spp) {
+  RenderConfig c;
+  c.spp = spp;
+  return c;
+}
+
+inline RGB pixel_rgb(const ImageBuffer& img, int x, int y) {
+  size_t nc = img.channels.size();
+  const float* p = &img.data[(size_t(y) * img.width + x) * nc];
+  return {p[0], p[1], p[2]};
+}
+
+inline float pixel_channel(const ImageBuffer& img, int x, int y, int c) {
+  return img.data[(size_t(y) * img.width + x) * img.channels.size() + c];
+}
+
+inline RGB image_mean(const ImageBuffer& img) {
+  glm::dvec3 sum(0.0);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) sum += glm::dvec3(pixel_rgb(img, x, y));
+  return RGB(sum / double(img.width * img.height));
+}
+
+// Largest per-pixel relative difference over R, G, B (relative to the larger value, floored).
+inline double max_relative_difference(const ImageBuffer& a, const ImageBuffer& b, double floor = 1e-3) {
+  double worst = 0.0;
+  for (int y = 0; y < a.height; ++y)
+    for (int x = 0; x < a.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        double va = pixel_channel(a, x, y, c), vb = pixel_channel(b, x, y, c);
+        worst = std::max(worst, std::abs(va - vb) / std::max({std::abs(va), std::abs(vb), floor}));
+      }
+  return worst;
+}
+
+}  // namespace theia::test

@@ -1,0 +1,210 @@
+#include "tests/unit/chi2.h"
+
+#include <boost/math/special_functions/gamma.hpp>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <vector>
+
+namespace theia {
+
+namespace {
+
+constexpr double kMinExpected = 5.0;
+
+// Adaptive Simpson on [a, b] given f at a, midpoint, b.  The recursion always
+// goes at least `min_depth` levels deep so that a narrow feature between the
+// first few nodes is not missed; discontinuities are resolved by subdividing
+// until the two halves agree with the whole.
+template <typename F>
+double simpson_rec(const F& f, double a, double b, double fa, double fm, double fb, double whole, double eps,
+                   int depth, int min_depth) {
+  double m = 0.5 * (a + b);
+  double lm = 0.5 * (a + m), rm = 0.5 * (m + b);
+  double flm = f(lm), frm = f(rm);
+  double h = (b - a) / 12.0;
+  double left = h * (fa + 4.0 * flm + fm), right = h * (fm + 4.0 * frm + fb);
+  double delta = left + right - whole;
+  if (depth <= 0 || (min_depth <= 0 && std::abs(delta) <= 15.0 * eps)) return left + right + delta / 15.0;
+  return simpson_rec(f, a, m, fa, flm, fm, left, 0.5 * eps, depth - 1, min_depth - 1) +
+         simpson_rec(f, m, b, fm, frm, fb, right, 0.5 * eps, depth - 1, min_depth - 1);
+}
+
+template <typename F>
+double integrate_1d(const F& f, double a, double b, double eps) {
+  double fa = f(a), fm = f(0.5 * (a + b)), fb = f(b);
+  double whole = (b - a) / 6.0 * (fa + 4.0 * fm + fb);
+  return simpson_rec(f, a, b, fa, fm, fb, whole, eps, 14, 3);
+}
+
+// Integral of pdf over one cell; the tolerance is relative to a coarse
+// estimate so that both tiny and large cells get a few significant digits more
+// than the chi-square statistic can resolve.
+double integrate_cell(const std::function<double(vec2)>& pdf, double x0, double x1, double y0, double y1) {
+  auto eval = [&](double x, double y) {
+    double v = pdf(vec2(float(x), float(y)));
+    return std::isfinite(v) ? v : 0.0;
+  };
+  double coarse = 0.0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) coarse += eval(x0 + (i + 0.5) * (x1 - x0) / 4, y0 + (j + 0.5) * (y1 - y0) / 4);
+  double area = (x1 - x0) * (y1 - y0);
+  coarse *= area / 16.0;
+  double eps = 1e-6 * std::max(std::abs(coarse), 1e-6 * area);
+  double eps_inner = 0.5 * eps / (x1 - x0);
+  auto inner = [&](double x) { return integrate_1d([&](double y) { return eval(x, y); }, y0, y1, eps_inner); };
+  return integrate_1d(inner, x0, x1, eps);
+}
+
+std::string histogram_text(const std::vector<double>& h, int res_x, int res_y) {
+  std::string s;
+  for (int y = 0; y < res_y; ++y) {
+    for (int x = 0; x < res_x; ++x) s += fmt::format("{:6.0f}", h[size_t(y) * size_t(res_x) + size_t(x)]);
+    s += '\n';
+  }
+  return s;
+}
+
+}  // namespace
+
+Chi2Result chi2_test(const std::string& name, const std::function<std::optional<vec2>(vec2 u, float u1)>& sample,
+                     const std::function<double(vec2)>& pdf, int n_samples, int res_x, int res_y,
+                     double significance, int n_tests) {
+  Chi2Result r;
+  size_t n_cells = size_t(res_x) * size_t(res_y);
+  std::vector<double> observed(n_cells, 0.0), expected(n_cells, 0.0);
+
+  // Independent samples: the statistic assumes a multinomial, which stratified
+  // (low-discrepancy) samples are not.
+  std::mt19937_64 rng(0x7e57c412u + uint64_t(n_samples));
+  auto uniform = [&] { return float(rng() >> 40) * 0x1p-24f; };
+  int declined = 0, bad = 0;
+  std::string first_bad;
+  for (int i = 0; i < n_samples; ++i) {
+    vec2 u(uniform(), uniform());
+    float u1 = uniform();
+    std::optional<vec2> p = sample(u, u1);
+    if (!p) {
+      ++declined;
+      continue;
+    }
+    if (!(std::isfinite(p->x) && std::isfinite(p->y) && p->x >= 0.0f && p->x <= 1.0f && p->y >= 0.0f &&
+          p->y <= 1.0f)) {
+      if (bad++ == 0) first_bad = fmt::format("u = ({}, {}), u1 = {} gave ({}, {})", u.x, u.y, u1, p->x, p->y);
+      continue;
+    }
+    int cx = std::min(int(p->x * float(res_x)), res_x - 1), cy = std::min(int(p->y * float(res_y)), res_y - 1);
+    observed[size_t(cy) * size_t(res_x) + size_t(cx)] += 1.0;
+  }
+
+  double pdf_integral = 0.0;
+  for (int y = 0; y < res_y; ++y)
+    for (int x = 0; x < res_x; ++x) {
+      double v = integrate_cell(pdf, double(x) / res_x, double(x + 1) / res_x, double(y) / res_y,
+                                double(y + 1) / res_y);
+      pdf_integral += v;
+      expected[size_t(y) * size_t(res_x) + size_t(x)] = v * n_samples;
+    }
+
+  r.report = fmt::format("chi2 test '{}': {} samples ({} declined), {}x{} cells, pdf integrates to {:.6f}\n", name,
+                         n_samples, declined, res_x, res_y, pdf_integral);
+  std::string failure;
+  if (bad > 0) failure += fmt::format("{} samples outside the domain or not finite, first: {}\n", bad, first_bad);
+
+  // Pool the cells that expect few samples (the chi-square approximation needs
+  // about 5 per cell), smallest first, as Mitsuba does.
+  std::vector<size_t> order(n_cells);
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return expected[a] < expected[b]; });
+  double pooled_obs = 0.0, pooled_exp = 0.0, stat = 0.0;
+  int pooled_cells = 0, dof = 0, zero_expected_hits = 0;
+  for (size_t i : order) {
+    if (expected[i] == 0.0 && observed[i] > 0.0) ++zero_expected_hits;
+    if (expected[i] < kMinExpected || (pooled_cells > 0 && pooled_exp < kMinExpected)) {
+      pooled_obs += observed[i];
+      pooled_exp += expected[i];
+      ++pooled_cells;
+    } else {
+      stat += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
+      ++dof;
+    }
+  }
+  if (pooled_exp > 0.0) {
+    stat += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp;
+    ++dof;
+  } else if (pooled_obs > 0.0) {
+    stat = kInfinity;
+  }
+  dof -= 1;
+  if (zero_expected_hits > 0)
+    failure += fmt::format("{} cells received samples where the pdf integrates to zero\n", zero_expected_hits);
+  if (dof < 1) failure += "fewer than 2 cells after pooling: the test says nothing\n";
+
+  r.statistic = stat;
+  r.dof = dof;
+  r.p_value = (dof >= 1 && std::isfinite(stat)) ? boost::math::gamma_q(0.5 * dof, 0.5 * stat) : 0.0;
+  double alpha = 1.0 - std::pow(1.0 - significance, 1.0 / double(std::max(n_tests, 1)));
+  r.passed = failure.empty() && r.p_value >= alpha;
+  r.report += fmt::format("statistic {:.2f}, dof {}, p-value {:.4g}, threshold {:.4g} ({} pooled cells): {}\n", stat,
+                          dof, r.p_value, alpha, pooled_cells, r.passed ? "passed" : "FAILED");
+  if (!r.passed) {
+    r.report += failure;
+    // The worst cells first, then the full histograms (x across, y down).
+    std::vector<size_t> worst(n_cells);
+    std::iota(worst.begin(), worst.end(), size_t(0));
+    auto residual = [&](size_t i) {
+      return (observed[i] - expected[i]) * (observed[i] - expected[i]) / std::max(expected[i], 1.0);
+    };
+    std::sort(worst.begin(), worst.end(), [&](size_t a, size_t b) { return residual(a) > residual(b); });
+    r.report += "largest deviations (cell x, y: observed / expected):\n";
+    for (size_t k = 0; k < std::min<size_t>(8, n_cells); ++k) {
+      size_t i = worst[k];
+      r.report += fmt::format("  {}, {}: {} / {:.1f}\n", i % size_t(res_x), i / size_t(res_x), observed[i],
+                              expected[i]);
+    }
+    r.report += "observed:\n" + histogram_text(observed, res_x, res_y);
+    r.report += "expected:\n" + histogram_text(expected, res_x, res_y);
+  }
+  return r;
+}
+
+Chi2Result chi2_test_sphere(const std::function<std::optional<vec3>(vec2 u, float u1)>& sample,
+                            const std::function<float(vec3)>& pdf, int n_samples, int theta_res, int phi_res,
+                            double significance, int n_tests, const std::string& name) {
+  // Cell coordinates ((cos theta + 1) / 2, phi / 2 pi): d omega = d cos theta
+  // d phi = 4 pi dx dy, so the density over the cells is 4 pi pdf.
+  auto to_cell = [&](vec2 u, float u1) -> std::optional<vec2> {
+    std::optional<vec3> w = sample(u, u1);
+    if (!w) return std::nullopt;
+    float len = glm::length(*w);
+    if (!(std::abs(len - 1.0f) <= 1e-3f)) return vec2(kInfinity);
+    float phi = std::atan2(w->y, w->x);
+    if (phi < 0.0f) phi += 2.0f * kPi;
+    return vec2(0.5f * (std::clamp(w->z, -1.0f, 1.0f) + 1.0f), std::min(phi * kInv2Pi, 1.0f));
+  };
+  auto cell_pdf = [&](vec2 c) {
+    float cos_theta = 2.0f * c.x - 1.0f, sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
+    float phi = 2.0f * kPi * c.y;
+    vec3 w(sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta);
+    return 4.0 * double(kPi) * double(pdf(w));
+  };
+  return chi2_test(name, to_cell, cell_pdf, n_samples, theta_res, phi_res, significance, n_tests);
+}
+
+Chi2Result chi2_test_square(const std::function<std::optional<vec2>(vec2 u)>& sample,
+                            const std::function<float(vec2)>& pdf, vec2 lo, vec2 hi, int n_samples, int res,
+                            double significance, int n_tests, const std::string& name) {
+  vec2 extent = hi - lo;
+  auto to_cell = [&](vec2 u, float) -> std::optional<vec2> {
+    std::optional<vec2> p = sample(u);
+    if (!p) return std::nullopt;
+    return (*p - lo) / extent;
+  };
+  auto cell_pdf = [&](vec2 c) { return double(pdf(lo + c * extent)) * double(extent.x) * double(extent.y); };
+  return chi2_test(name, to_cell, cell_pdf, n_samples, res, res, significance, n_tests);
+}
+
+}  // namespace theia

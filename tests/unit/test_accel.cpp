@@ -1,0 +1,581 @@
+// Tracing: quadrics and triangles against Embree, normals and uv as pbrt-v4
+// defines them, instancing, watertightness and self-intersection.
+#include "core/log.h"
+#include "scene/accel.h"
+#include "scene/shapes.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include <random>
+
+using namespace theia;
+
+namespace {
+
+Transform translate(vec3 t) { return Transform(glm::translate(mat4(1.0f), t)); }
+Transform scale(vec3 s) { return Transform(glm::scale(mat4(1.0f), s)); }
+Transform rotate(float deg, vec3 axis) { return Transform(glm::rotate(mat4(1.0f), radians(deg), axis)); }
+
+int add_shape(Scene& sc, Shape s, bool top) {
+  int index = int(sc.shapes.size());
+  sc.shapes.push_back(std::move(s));
+  if (top) sc.top_level_shapes.push_back(index);
+  return index;
+}
+int add_sphere(Scene& sc, SphereParams p, Transform t = {}, bool reverse = false, bool top = true) {
+  Shape s;
+  s.kind = ShapeKind::Sphere;
+  s.sphere = p;
+  s.transform_swaps_handedness = t.swaps_handedness();
+  s.render_from_object = t;
+  s.reverse_orientation = reverse;
+  return add_shape(sc, s, top);
+}
+int add_disk(Scene& sc, DiskParams p, Transform t = {}, bool reverse = false) {
+  Shape s;
+  s.kind = ShapeKind::Disk;
+  s.disk = p;
+  s.transform_swaps_handedness = t.swaps_handedness();
+  s.render_from_object = t;
+  s.reverse_orientation = reverse;
+  return add_shape(sc, s, true);
+}
+int add_mesh(Scene& sc, TriangleMesh m, bool reverse = false, bool swaps = false, bool top = true) {
+  Shape s;
+  s.kind = ShapeKind::TriangleMesh;
+  s.mesh = int(sc.meshes.size());
+  sc.meshes.push_back(std::move(m));
+  s.reverse_orientation = reverse;
+  s.transform_swaps_handedness = swaps;
+  return add_shape(sc, s, top);
+}
+TriangleMesh one_triangle() {
+  TriangleMesh m;
+  m.p = {vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0)};
+  m.indices = {0, 1, 2};
+  return m;
+}
+TriangleMesh tetrahedron(const std::array<vec3, 4>& p) {
+  TriangleMesh m;
+  m.p.assign(p.begin(), p.end());
+  m.indices = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  return m;
+}
+Ray make_ray(vec3 o, vec3 d) { return Ray{o, 0.0f, d, kInfinity}; }
+
+struct Traced {
+  Hit hit;
+  SurfaceInteraction si;
+};
+Traced trace(const Scene& sc, const Accel& a, const Ray& r) {
+  Traced t;
+  t.hit = a.intersect1(r);
+  if (t.hit.hit()) t.si = compute_interaction(sc, a, r, t.hit);
+  return t;
+}
+
+#define EXPECT_VEC_NEAR(a, b, eps)                                 \
+  do {                                                             \
+    vec3 a_ = (a), b_ = (b);                                       \
+    EXPECT_NEAR(a_.x, b_.x, eps) << "x of " #a " vs " #b;          \
+    EXPECT_NEAR(a_.y, b_.y, eps) << "y of " #a " vs " #b;          \
+    EXPECT_NEAR(a_.z, b_.z, eps) << "z of " #a " vs " #b;          \
+  } while (0)
+
+vec3 random_direction(std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  return sample_uniform_sphere(vec2(u(rng), u(rng)));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- spheres
+
+TEST(AccelSphere, UnitSphereFromOutsideAndInside) {
+  Scene sc;
+  int s = add_sphere(sc, {});
+  Accel a(sc);
+  Traced t = trace(sc, a, make_ray(vec3(0, 0, -5), vec3(0, 0, 1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), s);
+  EXPECT_EQ(a.instance_index(t.hit), -1);
+  EXPECT_NEAR(t.hit.t, 4.0f, 1e-6f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(0, 0, -1), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, -1), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ns, t.si.ng, 0.0f);
+  EXPECT_VEC_NEAR(t.si.wo, vec3(0, 0, -1), 0.0f);
+  EXPECT_NEAR(t.si.uv.y, 0.0f, 1e-5f);  // v = 0 at zmin
+  EXPECT_EQ(t.si.shape, s);
+  // The far root, from inside; normals stay outward.
+  t = trace(sc, a, make_ray(vec3(0.3f, 0, 0), vec3(1, 0, 0)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_NEAR(t.hit.t, 0.7f, 1e-6f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(1, 0, 0), 1e-5f);
+  EXPECT_NEAR(t.si.uv.x, 0.0f, 1e-5f);
+  EXPECT_NEAR(t.si.uv.y, 0.5f, 1e-5f);
+  // phi = 90 degrees: u = 1/4.
+  t = trace(sc, a, make_ray(vec3(0, 5, 0), vec3(0, -1, 0)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_NEAR(t.si.uv.x, 0.25f, 1e-5f);
+  // dpdu, dpdv span the tangent plane and their cross product is outward.
+  EXPECT_NEAR(glm::dot(t.si.dpdu, t.si.ng), 0.0f, 1e-5f);
+  EXPECT_NEAR(glm::dot(t.si.dpdv, t.si.ng), 0.0f, 1e-5f);
+  EXPECT_GT(glm::dot(glm::cross(t.si.dpdu, t.si.dpdv), t.si.ng), 0.0f);
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0, 1.01f, -5), vec3(0, 0, 1))).hit());
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0, 0, -5), vec3(0, 0, -1))).hit());
+  // tmax shorter than the hit distance.
+  Ray short_ray = make_ray(vec3(0, 0, -5), vec3(0, 0, 1));
+  short_ray.tmax = 3.9f;
+  EXPECT_FALSE(a.intersect1(short_ray).hit());
+  EXPECT_FALSE(a.occluded1(short_ray));
+  short_ray.tmax = 4.1f;
+  EXPECT_TRUE(a.occluded1(short_ray));
+}
+
+TEST(AccelSphere, NonUniformlyScaledAndTranslated) {
+  Scene sc;
+  vec3 c(1, 2, 3), r(2, 1, 0.5f);
+  add_sphere(sc, {}, translate(c) * scale(r));
+  Accel a(sc);
+  struct Case {
+    vec3 o, d, p;
+  };
+  for (Case k : {Case{c + vec3(-10, 0, 0), vec3(1, 0, 0), c - vec3(2, 0, 0)},
+                 Case{c + vec3(0, 10, 0), vec3(0, -1, 0), c + vec3(0, 1, 0)},
+                 Case{c + vec3(0, 0, -10), vec3(0, 0, 1), c - vec3(0, 0, 0.5f)}}) {
+    Traced t = trace(sc, a, make_ray(k.o, k.d));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_VEC_NEAR(t.si.p, k.p, 1e-5f);
+    EXPECT_VEC_NEAR(t.si.ng, -k.d, 1e-5f);
+  }
+  // An oblique hit: on the ellipsoid, with the normal along the gradient.
+  std::mt19937 rng(7);
+  for (int i = 0; i < 200; ++i) {
+    vec3 target = c + r * random_direction(rng) * 0.9f;
+    vec3 o = c + 10.0f * random_direction(rng);
+    Traced t = trace(sc, a, make_ray(o, target - o));
+    ASSERT_TRUE(t.hit.hit());
+    vec3 q = (t.si.p - c) / r;
+    EXPECT_NEAR(glm::dot(q, q), 1.0f, 1e-5f);
+    vec3 grad = glm::normalize((t.si.p - c) / (r * r));
+    EXPECT_VEC_NEAR(t.si.ng, grad, 1e-4f);
+    EXPECT_LT(glm::dot(t.si.ng, t.si.wo), 1.0f + 1e-6f);
+    EXPECT_NEAR(glm::length(t.si.ng), 1.0f, 1e-5f);
+  }
+}
+
+TEST(AccelSphere, PartialSphereBothRootsAndInnerSurface) {
+  Scene sc;
+  SphereParams p;
+  p.zmax = 0.5f;
+  p.phimax = 270.0f;
+  add_sphere(sc, p);
+  Accel a(sc);
+  // Straight down at phi = 45 degrees: the upper root is above zmax, so the ray
+  // enters through the cut and hits the inside of the bottom.
+  Traced t = trace(sc, a, make_ray(vec3(0.3f, 0.3f, 5), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  float zb = -std::sqrt(1.0f - 0.18f);
+  EXPECT_NEAR(t.hit.t, 5.0f - zb, 1e-5f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(0.3f, 0.3f, zb), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0.3f, 0.3f, zb), 1e-5f);  // still the outward normal
+  EXPECT_GT(glm::dot(t.si.ng, vec3(0, 0, -1)), 0.0f);     // seen from inside
+  float theta_zmin = kPi, theta_zmax = std::acos(0.5f);
+  EXPECT_NEAR(t.si.uv.x, (kPi / 4.0f) / radians(270.0f), 1e-5f);
+  EXPECT_NEAR(t.si.uv.y, (std::acos(zb) - theta_zmin) / (theta_zmax - theta_zmin), 1e-5f);
+  // Through the phi cut (phi = 287 degrees at the near root) to the inside of phi = 72.5.
+  t = trace(sc, a, make_ray(vec3(0.3f, -5, 0), vec3(0, 1, 0)));
+  ASSERT_TRUE(t.hit.hit());
+  float yb = std::sqrt(1.0f - 0.09f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(0.3f, yb, 0), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0.3f, yb, 0), 1e-5f);
+  // The near root inside the phi range is taken first.
+  t = trace(sc, a, make_ray(vec3(0.3f, 5, 0), vec3(0, -1, 0)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_VEC_NEAR(t.si.p, vec3(0.3f, yb, 0), 1e-5f);
+  // Both roots above zmax, and both in the phi cut: misses.
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(-5, 0, 0.7f), vec3(1, 0, 0))).hit());
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0.3f, -0.3f, 5), vec3(0, 0, -1))).hit());
+  Hit h = a.intersect1(make_ray(vec3(0.5f, -0.5f, -5), vec3(0, 0, 1)));
+  EXPECT_FALSE(h.hit());
+}
+
+// ---------------------------------------------------------------- disks
+
+TEST(AccelDisk, InnerRadiusPhiMaxAndUv) {
+  Scene sc;
+  DiskParams p;
+  p.height = 1;
+  p.radius = 2;
+  p.innerradius = 0.5f;
+  p.phimax = 180;
+  int d = add_disk(sc, p);
+  Accel a(sc);
+  Traced t = trace(sc, a, make_ray(vec3(0, 1, 5), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), d);
+  EXPECT_NEAR(t.hit.t, 4.0f, 1e-6f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(0, 1, 1), 1e-6f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, 1), 1e-6f);
+  EXPECT_NEAR(t.si.uv.x, (kPi / 2.0f) / kPi, 1e-6f);
+  EXPECT_NEAR(t.si.uv.y, (2.0f - 1.0f) / 1.5f, 1e-6f);
+  // From below the normal is still +z.
+  t = trace(sc, a, make_ray(vec3(1, 0.5f, -5), vec3(0, 0, 1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, 1), 1e-6f);
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0.3f, 0.1f, 5), vec3(0, 0, -1))).hit());  // in the hole
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(2.1f, 0.1f, 5), vec3(0, 0, -1))).hit());  // outside
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0, -1, 5), vec3(0, 0, -1))).hit());       // phi > phimax
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0, 1, 5), vec3(1, 0, 0))).hit());         // parallel
+}
+
+TEST(AccelDisk, TransformReverseOrientationAndHandedness) {
+  // pbrt-v4: +z in object space, carried by the normal transform, flipped by
+  // ReverseOrientation XOR a handedness-swapping transform.
+  Transform rot = translate(vec3(0, 0, 3)) * rotate(90, vec3(1, 0, 0));  // +z -> -y
+  Transform mirror = scale(vec3(1, 1, -1));
+  struct Case {
+    Transform t;
+    bool reverse;
+    vec3 n;
+  };
+  for (const Case& k : {Case{rot, false, vec3(0, -1, 0)}, Case{rot, true, vec3(0, 1, 0)},
+                        Case{mirror, false, vec3(0, 0, 1)}, Case{mirror, true, vec3(0, 0, -1)}}) {
+    Scene sc;
+    add_disk(sc, {}, k.t, k.reverse);
+    Accel a(sc);
+    vec3 target = k.t.point(vec3(0.2f, 0.1f, 0));
+    vec3 o = target + vec3(0.3f, 4, 2);
+    Traced t = trace(sc, a, make_ray(o, target - o));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_VEC_NEAR(t.si.p, target, 1e-5f);
+    EXPECT_VEC_NEAR(t.si.ng, k.n, 1e-6f);
+  }
+}
+
+// ---------------------------------------------------------------- triangles
+
+TEST(AccelTriangles, OrientationRules) {
+  struct Case {
+    bool reverse, swaps;
+    float nz;
+  };
+  for (Case k : {Case{false, false, 1}, Case{true, false, -1}, Case{false, true, -1}, Case{true, true, 1}}) {
+    Scene sc;
+    add_mesh(sc, one_triangle(), k.reverse, k.swaps);
+    Accel a(sc);
+    for (float oz : {2.0f, -2.0f}) {  // the side the ray comes from does not matter
+      Traced t = trace(sc, a, make_ray(vec3(0.25f, 0.25f, oz), vec3(0, 0, -oz)));
+      ASSERT_TRUE(t.hit.hit());
+      EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, k.nz), 0.0f);
+      EXPECT_VEC_NEAR(t.si.ns, t.si.ng, 0.0f);
+    }
+  }
+}
+
+TEST(AccelTriangles, ShadingNormalsDecideTheGeometricSide) {
+  for (bool reverse : {false, true}) {
+    TriangleMesh m = one_triangle();
+    vec3 n = glm::normalize(vec3(0.2f, 0, -1));  // against the winding
+    m.n = {n, n, n};
+    Scene sc;
+    add_mesh(sc, m, reverse, false);
+    Accel a(sc);
+    Traced t = trace(sc, a, make_ray(vec3(0.25f, 0.25f, 2), vec3(0, 0, -1)));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_VEC_NEAR(t.si.ns, n, 1e-6f);
+    EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, -1), 0.0f);  // flipped to N's side either way
+  }
+}
+
+TEST(AccelTriangles, BarycentricsUvAndDerivatives) {
+  Scene sc;
+  TriangleMesh m;
+  m.p = {vec3(1, 1, 0), vec3(3, 1, 0), vec3(1, 5, 0)};
+  m.indices = {0, 1, 2};
+  add_mesh(sc, m);
+  TriangleMesh m2 = m;
+  for (vec3& p : m2.p) p.z = -3;
+  m2.uv = {vec2(0, 0), vec2(1, 0), vec2(0, 1)};
+  add_mesh(sc, m2);
+  Accel a(sc);
+  vec3 target(1.5f, 2.0f, 0);  // b1 = 0.25, b2 = 0.25
+  Traced t = trace(sc, a, make_ray(target + vec3(0, 0, 1), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_VEC_NEAR(t.si.p, target, 1e-6f);
+  // Default uv (0,0), (1,0), (1,1).
+  EXPECT_NEAR(t.si.uv.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(t.si.uv.y, 0.25f, 1e-6f);
+  // p(u, v) is affine: dpdu, dpdv reproduce the vertices from the uv differences.
+  EXPECT_VEC_NEAR(m.p[0] + t.si.dpdu * 1.0f + t.si.dpdv * 1.0f, m.p[2], 1e-5f);
+  EXPECT_GT(glm::length(t.si.p_error), 0.0f);
+  EXPECT_LT(glm::length(t.si.p_error), 1e-5f);
+  t = trace(sc, a, make_ray(vec3(1.5f, 2.0f, -2), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_NEAR(t.si.uv.x, 0.25f, 1e-6f);
+  EXPECT_NEAR(t.si.uv.y, 0.25f, 1e-6f);
+  EXPECT_VEC_NEAR(t.si.dpdu, vec3(2, 0, 0), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.dpdv, vec3(0, 4, 0), 1e-5f);
+}
+
+TEST(AccelTriangles, ClosedMeshNeverLeaksAtEdgesAndVertices) {
+  std::array<vec3, 4> p = {vec3(0.1f, 0.2f, 0.3f), vec3(1.3f, 0.1f, -0.2f), vec3(0.3f, 1.7f, 0.1f),
+                           vec3(0.2f, 0.4f, 1.9f)};
+  Scene sc;
+  add_mesh(sc, tetrahedron(p));
+  Accel a(sc);
+  const int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (int k = 0; k < 40000; ++k) {
+    float w[4] = {u(rng), u(rng), u(rng), u(rng)};
+    float sum = w[0] + w[1] + w[2] + w[3];
+    vec3 o = (w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3]) / sum;
+    vec3 target;
+    if (k % 2 == 0) {
+      target = p[size_t(k / 2 % 4)];
+    } else {
+      const int* e = edges[k / 2 % 6];
+      target = glm::mix(p[size_t(e[0])], p[size_t(e[1])], u(rng));
+    }
+    rays.push_back(make_ray(o, target - o));
+  }
+  std::vector<Hit> hits(rays.size());
+  a.intersect(rays, hits, false);
+  int misses = 0;
+  for (const Hit& h : hits) misses += h.hit() ? 0 : 1;
+  EXPECT_EQ(misses, 0);
+  std::vector<uint8_t> blocked(rays.size());
+  a.occluded(rays, blocked);
+  int open = 0;
+  for (uint8_t b : blocked) open += b ? 0 : 1;
+  EXPECT_EQ(open, 0);
+}
+
+TEST(AccelTriangles, SharedAndCopiedVertexBuffersTraceAlike) {
+  // A vector with spare capacity is shared with Embree, an exactly sized one is copied.
+  TriangleMesh shared = one_triangle();
+  shared.p.reserve(8);
+  TriangleMesh copied = one_triangle();
+  copied.p.shrink_to_fit();
+  for (vec3& q : copied.p) q.z = -1;
+  Scene sc;
+  int s0 = add_mesh(sc, shared);
+  int s1 = add_mesh(sc, copied);
+  Accel a(sc);
+  Hit h0 = a.intersect1(make_ray(vec3(0.2f, 0.2f, 1), vec3(0, 0, -1)));
+  EXPECT_EQ(a.shape_index(h0), s0);
+  EXPECT_NEAR(h0.t, 1.0f, 1e-6f);
+  Hit h1 = a.intersect1(make_ray(vec3(0.2f, 0.2f, -3), vec3(0, 0, 1)));
+  EXPECT_EQ(a.shape_index(h1), s1);
+  EXPECT_NEAR(h1.t, 2.0f, 1e-6f);
+  Bounds3 b = a.bounds();
+  EXPECT_LE(b.min.z, -1.0f);
+  EXPECT_GE(b.max.x, 1.0f);
+  EXPECT_GT(a.memory_bytes(), 0u);
+}
+
+TEST(AccelTriangles, BadIndicesAreReported) {
+  Scene sc;
+  TriangleMesh m = one_triangle();
+  m.indices[2] = 7;
+  add_mesh(sc, m);
+  EXPECT_THROW({ Accel a(sc); }, Error);
+}
+
+// ---------------------------------------------------------------- instancing
+
+TEST(AccelInstances, TwoInstancesOfOneMeshAndASphere) {
+  Scene sc;
+  int tri = add_mesh(sc, one_triangle(), false, false, false);
+  int sph = add_sphere(sc, {0.5f, -0.5f, 0.5f, 360}, translate(vec3(0, 0, 5)), false, false);
+  sc.prototypes.push_back({"thing", {tri, sph}});
+  Instance right{0, translate(vec3(10, 0, 0))};
+  Instance left{0, translate(vec3(-10, 0, 0)) * rotate(90, vec3(1, 0, 0)) * scale(vec3(2, 2, 2))};
+  sc.instances = {right, left};
+  int top = add_sphere(sc, {}, translate(vec3(0, 20, 0)));
+  Accel a(sc);
+
+  Traced t = trace(sc, a, make_ray(vec3(10.25f, 0.25f, 1), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), tri);
+  EXPECT_EQ(a.instance_index(t.hit), 0);
+  EXPECT_EQ(t.si.instance, 0);
+  EXPECT_VEC_NEAR(t.si.p, vec3(10.25f, 0.25f, 0), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, 1), 1e-6f);
+
+  // Left: rotated +90 about x (z -> -y, y -> z) and scaled by 2.
+  t = trace(sc, a, make_ray(vec3(-9.5f, -3, 0.5f), vec3(0, 1, 0)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), tri);
+  EXPECT_EQ(a.instance_index(t.hit), 1);
+  EXPECT_VEC_NEAR(t.si.p, vec3(-9.5f, 0, 0.5f), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, -1, 0), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.dpdu, vec3(2, 0, 0), 1e-5f);
+
+  // The instanced sphere: centre (0,0,5) in the prototype -> (-10,-10,0) with radius 1.
+  t = trace(sc, a, make_ray(vec3(-10, -10, 5), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), sph);
+  EXPECT_EQ(a.instance_index(t.hit), 1);
+  EXPECT_NEAR(t.hit.t, 4.0f, 1e-4f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(-10, -10, 1), 1e-4f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, 0, 1), 1e-5f);
+  t = trace(sc, a, make_ray(vec3(10, 0, 10), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.instance_index(t.hit), 0);
+  EXPECT_VEC_NEAR(t.si.p, vec3(10, 0, 5.5f), 1e-5f);
+
+  // The top-level sphere is not an instance.
+  t = trace(sc, a, make_ray(vec3(0, 20, 5), vec3(0, 0, -1)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), top);
+  EXPECT_EQ(a.instance_index(t.hit), -1);
+  // Nothing at the prototype's own position.
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0.25f, 0.25f, 1), vec3(0, 0, -1))).hit());
+  Bounds3 b = a.bounds();
+  EXPECT_LE(b.min.x, -11.0f);
+  EXPECT_GE(b.max.x, 10.5f);
+  EXPECT_GE(b.max.y, 21.0f);
+}
+
+// ---------------------------------------------------------------- robust spawning
+
+namespace {
+
+// Rays spawned from hits on `shape` never re-hit the point they leave: an
+// outward ray off a convex surface hits nothing, an inward one only the far side.
+void check_no_self_intersection(const Scene& sc, const Accel& a, vec3 center, float radius, int n) {
+  std::mt19937 rng(11);
+  int outward_hits = 0, inward_self = 0, primary_misses = 0;
+  for (int i = 0; i < n; ++i) {
+    vec3 o = center + 3.0f * radius * random_direction(rng);
+    vec3 target = center + 0.95f * radius * random_direction(rng);
+    Ray r = make_ray(o, target - o);
+    Traced t = trace(sc, a, r);
+    if (!t.hit.hit()) {
+      ++primary_misses;
+      continue;
+    }
+    vec3 n_out = t.si.ng;
+    // Outward: any direction in the hemisphere of the outward normal.
+    vec3 d = random_direction(rng);
+    if (glm::dot(d, n_out) < 0.0f) d = -d;
+    Ray out = spawn_ray(t.si, d);
+    if (a.intersect1(out).hit()) ++outward_hits;
+    // Inward: must reach the far side, a chord of at least ~0.3 radius away
+    // for directions within 80 degrees of -n.
+    vec3 din = random_direction(rng);
+    if (glm::dot(din, n_out) > 0.0f) din = -din;
+    if (glm::dot(din, -n_out) < 0.17f) din = glm::normalize(din - n_out);
+    Ray in = spawn_ray(t.si, din);
+    Traced back = trace(sc, a, in);
+    if (!back.hit.hit() || glm::length(back.si.p - t.si.p) < 0.1f * radius) ++inward_self;
+  }
+  EXPECT_EQ(primary_misses, 0);
+  EXPECT_EQ(outward_hits, 0);
+  EXPECT_EQ(inward_self, 0);
+}
+
+}  // namespace
+
+TEST(AccelSpawn, FarAwayAndTinySpheresDoNotSelfIntersect) {
+  {
+    Scene sc;
+    vec3 c(1e5f, -1e5f, 1e5f);
+    add_sphere(sc, {}, translate(c));
+    Accel a(sc);
+    check_no_self_intersection(sc, a, c, 1.0f, 4000);
+  }
+  {
+    Scene sc;
+    add_sphere(sc, {}, scale(vec3(1e5f)));
+    Accel a(sc);
+    check_no_self_intersection(sc, a, vec3(0), 1e5f, 4000);
+  }
+  {
+    Scene sc;
+    vec3 c(0.3f, 0.2f, 0.1f);
+    add_sphere(sc, {}, translate(c) * scale(vec3(1e-4f)));
+    Accel a(sc);
+    check_no_self_intersection(sc, a, c, 1e-4f, 4000);
+  }
+  {
+    // The same through an instance.
+    Scene sc;
+    int s = add_sphere(sc, {}, Transform{}, false, false);
+    sc.prototypes.push_back({"ball", {s}});
+    vec3 c(-3e4f, 2e4f, 5e4f);
+    sc.instances.push_back({0, translate(c) * scale(vec3(7.0f))});
+    Accel a(sc);
+    check_no_self_intersection(sc, a, c, 7.0f, 4000);
+  }
+}
+
+TEST(AccelSpawn, FarAwayTriangleMeshDoesNotSelfIntersect) {
+  vec3 c(1e5f, 2e5f, -1e5f);
+  std::array<vec3, 4> p = {c + vec3(1, 1, 1), c + vec3(1, -1, -1), c + vec3(-1, 1, -1), c + vec3(-1, -1, 1)};
+  TriangleMesh m = tetrahedron(p);
+  Scene sc;
+  add_mesh(sc, m);
+  Accel a(sc);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  int bad = 0;
+  for (int i = 0; i < 4000; ++i) {
+    // A point well inside face f (the offset, ~0.1 here, must not carry the
+    // origin past a neighbouring face), seen from its outer side.
+    uint32_t f = uint32_t(i % 4);
+    vec3 v0 = m.p[m.indices[3 * f]], v1 = m.p[m.indices[3 * f + 1]], v2 = m.p[m.indices[3 * f + 2]];
+    float b1 = 0.2f + 0.3f * u(rng), b2 = 0.2f + 0.3f * u(rng) * (0.6f - b1) / 0.3f;
+    vec3 target = (1.0f - b1 - b2) * v0 + b1 * v1 + b2 * v2;
+    vec3 n_out = glm::normalize(glm::cross(v1 - v0, v2 - v0));
+    if (glm::dot(n_out, target - c) < 0.0f) n_out = -n_out;
+    vec3 d = random_direction(rng);
+    if (glm::dot(d, n_out) < 0.1f) d = glm::normalize(d + n_out);
+    Traced t = trace(sc, a, make_ray(target + 10.0f * d, -d));
+    ASSERT_TRUE(t.hit.hit());
+    ASSERT_EQ(t.hit.prim, f);
+    vec3 dout = random_direction(rng);
+    if (glm::dot(dout, n_out) < 0.0f) dout = -dout;
+    if (a.intersect1(spawn_ray(t.si, dout)).hit()) ++bad;
+    Traced back = trace(sc, a, spawn_ray(t.si, -n_out));
+    if (!back.hit.hit() || back.hit.prim == t.hit.prim) ++bad;
+  }
+  EXPECT_EQ(bad, 0);
+}
+
+TEST(AccelSpawn, SpawnRayToIsNotBlockedByItsEnds) {
+  // Points on a far-away sphere's inside connect to each other and to a disk
+  // inside it; pairs the disk genuinely separates are skipped.
+  Scene sc;
+  vec3 c(2e3f, -1e3f, 500);
+  add_sphere(sc, {}, translate(c) * scale(vec3(50)));
+  DiskParams dp;
+  dp.radius = 10;
+  add_disk(sc, dp, translate(c + vec3(0, 0, -20)));
+  Accel a(sc);
+  std::mt19937 rng(9);
+  std::vector<SurfaceInteraction> pts;
+  for (int i = 0; i < 400; ++i) {
+    // From inside the sphere outwards: hits its inner surface or the disk.
+    Ray r = make_ray(c + vec3(0, 0, 5), random_direction(rng));
+    Traced t = trace(sc, a, r);
+    ASSERT_TRUE(t.hit.hit());
+    pts.push_back(t.si);
+  }
+  int blocked = 0, pairs = 0;
+  for (size_t i = 0; i + 1 < pts.size(); i += 2) {
+    const SurfaceInteraction &x = pts[i], &y = pts[i + 1];
+    // Skip pairs the disk separates (when neither end is on it).
+    Ray probe = spawn_ray_to(x, y.p, y.p_error, y.ng);
+    Hit h = a.intersect1(probe);
+    if (h.hit() && a.shape_index(h) != x.shape && a.shape_index(h) != y.shape) continue;
+    ++pairs;
+    if (a.occluded1(probe)) ++blocked;
+  }
+  EXPECT_GT(pairs, 100);
+  EXPECT_EQ(blocked, 0);
+}

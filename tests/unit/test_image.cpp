@@ -1,0 +1,219 @@
+#include "core/image.h"
+#include "core/log.h"
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
+namespace theia {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh directory per test, removed afterwards.
+class ImageFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir = fs::temp_directory_path() / fmt::format("theia_image_{}_{}", getpid(), info->name());
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+  }
+  void TearDown() override { fs::remove_all(dir); }
+  std::string file(const std::string& name) const { return (dir / name).string(); }
+  // Files in the directory other than the expected ones (e.g. stray .tmp files).
+  std::vector<std::string> listing() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+  fs::path dir;
+};
+
+// A little-endian RGB PFM by hand (OpenImageIO 2.4 reads PFM but cannot
+// write it).  PFM stores the bottom row first.
+void write_pfm(const std::string& path, int w, int h, const std::vector<float>& top_down_rgb) {
+  std::ofstream f(path, std::ios::binary);
+  f << "PF\n" << w << " " << h << "\n-1.0\n";
+  for (int y = h - 1; y >= 0; --y)
+    f.write(reinterpret_cast<const char*>(&top_down_rgb[size_t(y) * size_t(w) * 3]),
+            std::streamsize(sizeof(float) * size_t(w) * 3));
+  ASSERT_TRUE(f.good());
+}
+
+// Writes raw 8-bit pixels with OpenImageIO directly, as another program would.
+void write_u8(const std::string& path, int w, int h, int nc, const std::vector<uint8_t>& px) {
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out) << OIIO::geterror();
+  OIIO::ImageSpec spec(w, h, nc, OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:UnassociatedAlpha", 1);  // the bytes are the file's bytes
+  ASSERT_TRUE(out->open(path, spec)) << out->geterror();
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, px.data())) << out->geterror();
+  ASSERT_TRUE(out->close());
+}
+
+TEST_F(ImageFiles, ExrRoundTripKeepsChannelNamesAndValuesExactly) {
+  std::vector<std::string> names = {"R", "G", "B", "A", "albedo.R", "albedo.G", "albedo.B",
+                                    "N.X", "N.Y", "N.Z", "depth.Z"};
+  ImageBuffer img(5, 3, names);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      for (int c = 0; c < img.num_channels(); ++c)
+        // Values that half precision could not hold exactly.
+        img.at(x, y, c) = (float(x) + 10.0f * float(y) + 100.0f * float(c)) * 1.0001f - 37.123456f + 1e-7f * float(c);
+  img.at(0, 0, 10) = 123456.789f;
+  img.at(1, 0, 7) = -0.3333333f;
+  std::string path = file("multi.exr");
+  write_exr(path, img);
+
+  ImageFileInfo info;
+  ImageBuffer back = read_image_file(path, &info);
+  EXPECT_TRUE(info.float_pixels);
+  EXPECT_EQ(info.format_name, "openexr");
+  ASSERT_EQ(back.width, 5);
+  ASSERT_EQ(back.height, 3);
+  ASSERT_EQ(back.num_channels(), img.num_channels());
+  // OpenEXR stores channels sorted by name, so compare by name, not position.
+  for (int c = 0; c < img.num_channels(); ++c) {
+    int bc = back.channel_index(img.channels[size_t(c)]);
+    ASSERT_GE(bc, 0) << "missing channel " << img.channels[size_t(c)];
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x)
+        EXPECT_EQ(back.at(x, y, bc), img.at(x, y, c)) << img.channels[size_t(c)] << " at " << x << "," << y;
+  }
+  EXPECT_EQ(listing(), std::vector<std::string>{"multi.exr"});
+}
+
+TEST_F(ImageFiles, AtomicWritesReplaceAndLeaveNoTemporary) {
+  ImageBuffer a(2, 2, {"R", "G", "B"}, 1.0f), b(2, 2, {"R", "G", "B"}, 2.0f);
+  std::string path = file("out.exr");
+  write_exr(path, a);
+  write_exr(path, b);  // overwrite in place
+  EXPECT_EQ(read_image_file(path).at(1, 1, 2), 2.0f);
+  write_png_srgb(file("out.png"), b, 0, 1, 2);
+  EXPECT_EQ(listing(), (std::vector<std::string>{"out.exr", "out.png"}));
+
+  // A failed write reports the path and leaves nothing behind.
+  std::string bad = file("missing_dir/out.exr");
+  try {
+    write_exr(bad, a);
+    FAIL() << "expected theia::Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(bad + ".tmp"));
+  EXPECT_THROW(write_exr(file("bad.exr"), ImageBuffer()), Error);
+  EXPECT_THROW(write_png_srgb(file("bad.png"), a, 0, 1, 3), Error);
+  EXPECT_EQ(listing(), (std::vector<std::string>{"out.exr", "out.png"}));
+}
+
+TEST_F(ImageFiles, PngPreviewIsSrgbEncodedAndClamped) {
+  ImageBuffer img(3, 2, {"X", "R", "G", "B"});
+  const float v[6] = {0.0f, 0.5f, 1.0f, -1.0f, 7.0f, std::nanf("")};
+  for (int i = 0; i < 6; ++i) {
+    img.at(i % 3, i / 3, 1) = v[i];
+    img.at(i % 3, i / 3, 2) = v[i];
+    img.at(i % 3, i / 3, 3) = 0.5f;
+    img.at(i % 3, i / 3, 0) = 100.0f;  // not selected
+  }
+  std::string path = file("preview.png");
+  write_png_srgb(path, img, 1, 2, 3);
+
+  auto in = OIIO::ImageInput::open(path);
+  ASSERT_TRUE(in);
+  ASSERT_EQ(in->spec().nchannels, 3);
+  ASSERT_EQ(in->spec().format, OIIO::TypeDesc::UINT8);
+  std::vector<uint8_t> px(3 * 2 * 3);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data()));
+  const int expected[6] = {0, 188, 255, 0, 255, 0};
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(px[size_t(3 * i)], expected[i]) << "pixel " << i;
+    EXPECT_EQ(px[size_t(3 * i + 1)], expected[i]) << "pixel " << i;
+    EXPECT_EQ(px[size_t(3 * i + 2)], 188);
+  }
+}
+
+TEST_F(ImageFiles, ReadsPfmWithRowZeroAtTheTop) {
+  std::string path = file("img.pfm");
+  const int w = 3, h = 2;
+  std::vector<float> px(w * h * 3);
+  for (size_t i = 0; i < px.size(); ++i) px[i] = 0.25f * float(i) - 1.5f;
+  write_pfm(path, w, h, px);
+  ImageFileInfo info;
+  ImageBuffer img = read_image_file(path, &info);
+  EXPECT_TRUE(info.float_pixels);
+  ASSERT_EQ(img.width, w);
+  ASSERT_EQ(img.height, h);
+  ASSERT_EQ(img.num_channels(), 3);
+  EXPECT_EQ(img.data, px);
+  EXPECT_EQ(img.rgb_channel_indices(), (std::vector<int>{0, 1, 2}));
+}
+
+TEST_F(ImageFiles, ReadsEightBitPngAndTgaAsStoredCodeValues) {
+  // RGBA with a non-opaque alpha: values must come back unpremultiplied.
+  std::vector<uint8_t> px = {0, 64, 128, 255, 200, 100, 50, 128, 255, 255, 255, 0, 10, 20, 30, 40};
+  for (const char* name : {"img.png", "img.tga"}) {
+    std::string path = file(name);
+    write_u8(path, 2, 2, 4, px);
+    ImageFileInfo info;
+    ImageBuffer img = read_image_file(path, &info);
+    EXPECT_FALSE(info.float_pixels) << name;
+    ASSERT_EQ(img.width, 2) << name;
+    ASSERT_EQ(img.height, 2) << name;
+    ASSERT_EQ(img.num_channels(), 4) << name;
+    EXPECT_EQ(img.channels[3], "A") << name;
+    for (size_t i = 0; i < px.size(); ++i) EXPECT_FLOAT_EQ(img.data[i], float(px[i]) / 255.0f) << name << " " << i;
+  }
+}
+
+TEST_F(ImageFiles, ReadErrorsNameTheFile) {
+  std::string missing = file("nope.exr");
+  try {
+    read_image_file(missing);
+    FAIL() << "expected theia::Error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(missing + ":", 0), 0u) << e.what();
+  }
+  std::string junk = file("junk.png");
+  std::ofstream(junk) << "this is not a png";
+  try {
+    read_image_file(junk);
+    FAIL() << "expected theia::Error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(junk + ":", 0), 0u) << e.what();
+  }
+}
+
+TEST(ImageSrgb, TransferFunctionMatchesTheStandard) {
+  EXPECT_EQ(srgb_to_linear(0.0f), 0.0f);
+  EXPECT_FLOAT_EQ(srgb_to_linear(1.0f), 1.0f);
+  EXPECT_NEAR(srgb_to_linear(0.5f), 0.2140411f, 1e-6f);
+  EXPECT_NEAR(srgb_to_linear(0.04f), 0.04f / 12.92f, 1e-9f);  // linear toe
+  for (int i = 0; i <= 255; ++i) {
+    float lin = srgb8_to_linear(uint8_t(i));
+    EXPECT_FLOAT_EQ(lin, srgb_to_linear(float(i) / 255.0f));
+    EXPECT_EQ(linear_to_srgb8(lin), i) << "8-bit codes must survive decode + encode";
+  }
+  EXPECT_EQ(linear_to_srgb8(0.5f), 188);
+}
+
+TEST(ImageBufferTest, IndexingIsInterleavedRowMajorFromTheTop) {
+  ImageBuffer img(3, 2, {"R", "G"});
+  img.at(2, 1, 1) = 5.0f;
+  EXPECT_EQ(img.data[(1 * 3 + 2) * 2 + 1], 5.0f);
+  EXPECT_EQ(img.channel_index("G"), 1);
+  EXPECT_EQ(img.channel_index("B"), -1);
+  EXPECT_EQ(img.rgb_channel_indices(), (std::vector<int>{0, 1}));
+  ImageBuffer named(1, 1, {"A", "B", "G", "R", "Z"});
+  EXPECT_EQ(named.rgb_channel_indices(), (std::vector<int>{3, 2, 1}));
+}
+
+}  // namespace
+}  // namespace theia

@@ -1,0 +1,564 @@
+#include "wavefront/engine.h"
+
+#include "core/sampler.h"
+#include "scene/bsdf.h"
+#include "wavefront/path_state.h"
+#include "wavefront/radix_sort.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <chrono>
+
+namespace theia {
+
+namespace {
+
+// Sample dimensions: the camera uses 0..3; bounce d uses kBounceBase + 8 d onwards.
+constexpr uint32_t kDimFilm = 0, kDimLens = 2, kBounceBase = 4, kDimsPerBounce = 8;
+constexpr uint32_t kDimLightPoint = 0, kDimLightChoice = 2, kDimLightPrim = 3, kDimBsdfDir = 4, kDimBsdfLobe = 6,
+                   kDimRoulette = 7;
+
+constexpr size_t kTraceGrain = 256;
+constexpr size_t kShadeGrain = 64;
+
+// A queued batch of rays, as a structure of arrays so tracing reads only rays.
+struct Batch {
+  std::vector<Ray> rays;
+  std::vector<uint32_t> paths;  // path-pool slot of each ray
+  bool camera = false;          // camera rays are coherent: traced with Embree's COHERENT flag
+  size_t size() const { return rays.size(); }
+  void clear() {
+    rays.clear();
+    paths.clear();
+    camera = false;
+  }
+};
+
+struct ShadowBatch {
+  std::vector<Ray> rays;
+  std::vector<RGB> contribution;  // beta * f * L * w / pdf * filter weight: what reaches the film if unoccluded
+  std::vector<RGB> radiance;      // MIS-weighted radiance arriving at the NEE vertex (for the observer)
+  std::vector<uint32_t> pixel;
+  std::vector<uint32_t> vertex;
+  size_t size() const { return rays.size(); }
+  void clear() {
+    rays.clear();
+    contribution.clear();
+    radiance.clear();
+    pixel.clear();
+    vertex.clear();
+  }
+  void append(const ShadowBatch& o) {
+    rays.insert(rays.end(), o.rays.begin(), o.rays.end());
+    contribution.insert(contribution.end(), o.contribution.begin(), o.contribution.end());
+    radiance.insert(radiance.end(), o.radiance.begin(), o.radiance.end());
+    pixel.insert(pixel.end(), o.pixel.begin(), o.pixel.end());
+    vertex.insert(vertex.end(), o.vertex.begin(), o.vertex.end());
+  }
+};
+
+// What one thread's shading produced, merged into the queues after the stage.
+struct ShadeOutput {
+  Batch rays;
+  ShadowBatch shadows;
+  std::vector<uint32_t> freed;
+  uint64_t vertices = 0;
+};
+
+int direction_bin(const vec3& d) {
+  vec3 a = glm::abs(d);
+  int axis = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+  return 2 * axis + (d[axis] < 0.0f ? 1 : 0);
+}
+
+}  // namespace
+
+struct WavefrontEngine::Impl {
+  const Scene& scene;
+  const Accel& accel;
+  const LightSet& lights;
+  const LightSampler& light_sampler;
+  const Camera& camera;
+  const Filter& filter;
+  Film& film;
+  EngineOptions opt;
+  PathObserver* observer;
+
+  PathStatePool pool;
+  std::array<Batch, 6> filling;     // the batch being filled, per direction bin
+  std::vector<Batch> full;          // filled batches, processed last-in first-out
+  std::vector<Batch> spare;         // emptied batches, reused to keep allocations flat
+  ShadowBatch shadows;
+  size_t queued_rays = 0;
+
+  std::vector<SortPair> keys, scratch;
+  std::vector<Hit> hits;
+  Batch sorted;                     // scratch batch for gathering in sorted order
+  tbb::enumerable_thread_specific<ShadeOutput> outputs;
+
+  vec3 bounds_min{0.0f}, bounds_inv_extent{1.0f};
+  EngineStats stats;
+
+  uint64_t next_camera = 0, camera_end = 0;
+  uint32_t sample_begin = 0, sample_count = 0;
+
+  Impl(const Scene& s, const Accel& a, const LightSet& l, const LightSampler& ls, const Camera& c, const Filter& f,
+       Film& fi, const EngineOptions& o, PathObserver* obs)
+      : scene(s), accel(a), lights(l), light_sampler(ls), camera(c), filter(f), film(fi), opt(o), observer(obs),
+        pool(std::max<size_t>(o.max_paths, 1)) {
+    Bounds3 b = accel.bounds();
+    if (b.min.x <= b.max.x) {
+      bounds_min = b.min;
+      vec3 ext = glm::max(b.max - b.min, vec3(1e-30f));
+      bounds_inv_extent = 1.0f / ext;
+    }
+    opt.batch_size = std::max<size_t>(opt.batch_size, 1);
+  }
+
+  float sample1(uint32_t pixel, uint32_t sample, uint32_t dim) const {
+    return sample_1d(SamplerKey{opt.seed, pixel, sample}, dim);
+  }
+  vec2 sample2(uint32_t pixel, uint32_t sample, uint32_t dim) const {
+    return sample_2d(SamplerKey{opt.seed, pixel, sample}, dim);
+  }
+
+  Batch take_spare() {
+    if (spare.empty()) return Batch{};
+    Batch b = std::move(spare.back());
+    spare.pop_back();
+    b.clear();
+    return b;
+  }
+
+  void enqueue(const Ray& ray, uint32_t path) {
+    Batch& b = filling[direction_bin(ray.d)];
+    b.rays.push_back(ray);
+    b.paths.push_back(path);
+    ++queued_rays;
+    if (b.size() >= opt.batch_size) {
+      full.push_back(std::move(b));
+      b = take_spare();
+    }
+  }
+
+  // ---------------------------------------------------------------- generate
+
+  void generate_camera_rays(size_t count) {
+    ScopedTimer timer(stats.phases[Phase::Generate]);
+    count = std::min<uint64_t>({count, camera_end - next_camera, pool.free_slots.size()});
+    if (count == 0) return;
+    std::vector<uint32_t> slots(pool.free_slots.end() - count, pool.free_slots.end());
+    pool.free_slots.resize(pool.free_slots.size() - count);
+
+    Batch all = take_spare();
+    all.camera = true;
+    all.rays.resize(count);
+    all.paths = slots;
+    const uint64_t first = next_camera;
+    const int width = film.width;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        uint64_t g = first + i;
+        uint32_t pixel = uint32_t(g / sample_count);
+        uint32_t sample = sample_begin + uint32_t(g % sample_count);
+        int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
+        FilterSample fs = sample_filter(filter, sample2(pixel, sample, kDimFilm));
+        vec2 p_film(float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y);
+        auto cam = generate_camera_ray(camera, p_film, sample2(pixel, sample, kDimLens));
+        Ray ray;
+        ray.o = cam.o;
+        ray.d = cam.d;
+        film.add_weight(pixel, fs.weight);
+        uint32_t s = slots[i];
+        pool.pixel[s] = pixel;
+        pool.sample[s] = sample;
+        pool.depth[s] = 0;
+        pool.beta[s] = RGB(1.0f);
+        pool.filter_weight[s] = fs.weight;
+        pool.prev_pdf[s] = 0.0f;
+        pool.prev_specular[s] = 1;
+        pool.prev_p[s] = ray.o;
+        pool.prev_ng[s] = vec3(0.0f);
+        pool.vertex[s] = observer ? observer->path_started(pixel, sample) : kNoVertex;
+        all.rays[i] = ray;
+      }
+    });
+    next_camera += count;
+    stats.camera_rays += count;
+    stats.paths += count;
+    queued_rays += count;
+
+    // Split into batches; push the last first so the first pixels are traced first.
+    size_t n_batches = (count + opt.batch_size - 1) / opt.batch_size;
+    for (size_t k = n_batches; k-- > 0;) {
+      size_t lo = k * opt.batch_size, hi = std::min(count, lo + opt.batch_size);
+      Batch b = take_spare();
+      b.camera = true;
+      b.rays.assign(all.rays.begin() + lo, all.rays.begin() + hi);
+      b.paths.assign(all.paths.begin() + lo, all.paths.begin() + hi);
+      full.push_back(std::move(b));
+    }
+    spare.push_back(std::move(all));
+    stats.peak_live_paths = std::max(stats.peak_live_paths, pool.live());
+  }
+
+  // ---------------------------------------------------------------- sort
+
+  uint64_t ray_sort_key(const Ray& r) const {
+    vec3 o = (r.o - bounds_min) * bounds_inv_extent;
+    uint64_t m = morton3(o.x, o.y, o.z);
+    // Direction: 6 bits of each spherical coordinate (the bin already fixes the dominant axis).
+    float cos_theta = std::clamp(r.d.z, -1.0f, 1.0f);
+    float phi = std::atan2(r.d.y, r.d.x);
+    uint64_t dt = uint64_t(std::clamp((cos_theta * 0.5f + 0.5f) * 64.0f, 0.0f, 63.0f));
+    uint64_t dp = uint64_t(std::clamp((phi * kInv2Pi + 0.5f) * 64.0f, 0.0f, 63.0f));
+    return (m << 12) | (dt << 6) | dp;
+  }
+
+  void sort_batch(Batch& b) {
+    ScopedTimer timer(stats.phases[Phase::Sort]);
+    const size_t n = b.size();
+    keys.resize(n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{ray_sort_key(b.rays[i]), uint32_t(i)};
+    });
+    radix_sort(keys, scratch, 42);
+    sorted.clear();
+    sorted.camera = b.camera;
+    sorted.rays.resize(n);
+    sorted.paths.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      sorted.rays[i] = b.rays[keys[i].index];
+      sorted.paths[i] = b.paths[keys[i].index];
+    }
+    std::swap(sorted, b);
+  }
+
+  // ---------------------------------------------------------------- trace + shade
+
+  void process_batch(Batch& b) {
+    const size_t n = b.size();
+    queued_rays -= n;
+    ++stats.batches;
+    if (!b.camera) stats.continuation_rays += n;
+    if (opt.sort && !b.camera) sort_batch(b);
+
+    if (opt.capture_rays) opt.capture_rays->insert(opt.capture_rays->end(), b.rays.begin(), b.rays.end());
+    hits.resize(n);
+    {
+      ScopedTimer timer(stats.phases[Phase::Trace]);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
+        accel.intersect(std::span<const Ray>(b.rays.data() + r.begin(), r.size()),
+                        std::span<Hit>(hits.data() + r.begin(), r.size()), b.camera);
+      });
+    }
+
+    // Shade in (geometry, primitive) order so that neighbouring work shares
+    // meshes, materials and textures; misses sort last.
+    keys.resize(n);
+    {
+      ScopedTimer timer(stats.phases[Phase::Sort]);
+      for (size_t i = 0; i < n; ++i) {
+        const Hit& h = hits[i];
+        uint64_t key = h.geom == kInvalidId
+                           ? ~uint64_t(0)
+                           : (uint64_t(h.inst + 1) << 48) | (uint64_t(h.geom & 0xffff) << 32) | h.prim;
+        keys[i] = SortPair{key, uint32_t(i)};
+      }
+      if (opt.sort) radix_sort(keys, scratch, 64);
+    }
+
+    {
+      ScopedTimer timer(stats.phases[Phase::Shade]);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
+        ShadeOutput& out = outputs.local();
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+          uint32_t i = keys[k].index;
+          if (observer)
+            shade<true>(b.rays[i], hits[i], b.paths[i], out);
+          else
+            shade<false>(b.rays[i], hits[i], b.paths[i], out);
+        }
+      });
+    }
+    merge_outputs();
+  }
+
+  void merge_outputs() {
+    ScopedTimer timer(stats.phases[Phase::Queue]);
+    for (ShadeOutput& out : outputs) {
+      for (size_t i = 0; i < out.rays.size(); ++i) enqueue(out.rays.rays[i], out.rays.paths[i]);
+      shadows.append(out.shadows);
+      pool.free_slots.insert(pool.free_slots.end(), out.freed.begin(), out.freed.end());
+      stats.path_vertices += out.vertices;
+      out.rays.clear();
+      out.shadows.clear();
+      out.freed.clear();
+      out.vertices = 0;
+    }
+    stats.peak_queued_rays = std::max(stats.peak_queued_rays, queued_rays);
+    stats.peak_queued_shadow_rays = std::max(stats.peak_queued_shadow_rays, shadows.size());
+  }
+
+  template <bool kObserve>
+  void finish_path(uint32_t slot, ShadeOutput& out) {
+    if constexpr (kObserve) observer->vertex_done(pool.vertex[slot]);
+    out.freed.push_back(slot);
+  }
+
+  template <bool kObserve>
+  void shade(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
+    const uint32_t pixel = pool.pixel[slot], sample = pool.sample[slot], depth = pool.depth[slot];
+    const float fw = pool.filter_weight[slot];
+    RGB beta = pool.beta[slot];
+    const bool prev_specular = pool.prev_specular[slot] != 0;
+    LightSampleContext prev_ctx{pool.prev_p[slot], vec3(0.0f), pool.prev_ng[slot], pool.prev_ng[slot]};
+
+    // Escaped: infinite lights, MIS-weighted against light sampling.
+    if (hit.geom == kInvalidId) {
+      vec3 d = glm::normalize(ray.d);
+      for (int l : lights.infinite_lights) {
+        RGB Le = infinite_light_Le(lights, l, d);
+        if (is_black(Le)) continue;
+        float w = 1.0f;
+        if (!prev_specular) {
+          float light_pdf = light_sampler.pmf(prev_ctx, l) * infinite_light_pdf(lights, l, d);
+          w = power_heuristic(1, pool.prev_pdf[slot], 1, light_pdf);
+        }
+        film.splat(pixel, fw * beta * w * Le);
+        if constexpr (kObserve) observer->emission_added(pool.vertex[slot], w * Le);
+      }
+      finish_path<kObserve>(slot, out);
+      return;
+    }
+
+    ++out.vertices;
+    SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+    const vec3 wo = si.wo;
+
+    // Emission found by the BSDF-sampled ray.
+    if (si.area_light >= 0) {
+      const Light& light = scene.lights[si.area_light];
+      RGB Le = area_light_L(light, si, wo);
+      if (!is_black(Le)) {
+        float w = 1.0f;
+        if (!prev_specular) {
+          float light_pdf = light_sampler.pmf(prev_ctx, si.area_light) *
+                            area_light_pdf(lights, si.area_light, prev_ctx, glm::normalize(ray.d), si);
+          w = power_heuristic(1, pool.prev_pdf[slot], 1, light_pdf);
+        }
+        film.splat(pixel, fw * beta * w * Le);
+        if constexpr (kObserve) observer->emission_added(pool.vertex[slot], w * Le);
+      }
+    }
+
+    BSDF bsdf = make_bsdf(scene, si);
+    if (depth == 0) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
+
+    if (int(depth) >= opt.max_depth) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
+
+    const uint32_t dim = kBounceBase + kDimsPerBounce * depth;
+
+    // Next-event estimation: queue a shadow ray carrying its unoccluded contribution.
+    if (!bsdf_is_specular(bsdf)) {
+      LightSampleContext ctx{si.p, si.p_error, si.ng, si.ns};
+      if (auto sl = light_sampler.sample(ctx, sample1(pixel, sample, dim + kDimLightChoice))) {
+        auto ls = sample_li(lights, sl->light, ctx, sample2(pixel, sample, dim + kDimLightPoint),
+                            sample1(pixel, sample, dim + kDimLightPrim));
+        if (ls && ls->pdf > 0.0f) {
+          RGB f = bsdf_f(bsdf, wo, ls->wi) * std::abs(glm::dot(ls->wi, si.ns));
+          if (!is_black(f)) {
+            float light_pdf = sl->pmf * ls->pdf;
+            float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, bsdf_pdf(bsdf, wo, ls->wi));
+            RGB radiance = ls->L * (w / light_pdf);
+            RGB contribution = fw * beta * f * radiance;
+            if (is_finite(contribution) && !is_black(contribution)) {
+              ShadowBatch& sb = out.shadows;
+              sb.rays.push_back(spawn_ray_to(si, ls->p_light, ls->p_light_error, ls->n_light));
+              sb.contribution.push_back(contribution);
+              sb.radiance.push_back(w * ls->L);
+              sb.pixel.push_back(pixel);
+              uint32_t v = kNoVertex;
+              if constexpr (kObserve) {
+                PathVertexInfo info{si.p, si.ns, ls->wi, beta * f / light_pdf, light_pdf, pixel, sample,
+                                    int(depth),   0,     1.0f,  true};
+                v = observer->vertex_created(pool.vertex[slot], info);
+              }
+              sb.vertex.push_back(v);
+            }
+          }
+        }
+      }
+    }
+
+    // Continue the path by sampling the BSDF.
+    auto bs = bsdf_sample(bsdf, wo, sample1(pixel, sample, dim + kDimBsdfLobe),
+                          sample2(pixel, sample, dim + kDimBsdfDir));
+    if (!bs) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
+    beta *= bs->f * (std::abs(glm::dot(bs->wi, si.ns)) / bs->pdf);
+    uint32_t next_depth = depth + 1;
+    // Russian roulette on the throughput, as pbrt-v4 does it.
+    if (int(next_depth) > opt.rr_min_depth) {
+      float rr = max_component(beta);
+      if (rr < 1.0f) {
+        float q = std::max(0.0f, 1.0f - rr);
+        if (sample1(pixel, sample, dim + kDimRoulette) < q) {
+          finish_path<kObserve>(slot, out);
+          return;
+        }
+        beta /= 1.0f - q;
+      }
+    }
+    if (!is_finite(beta) || is_black(beta)) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
+    if constexpr (kObserve) {
+      PathVertexInfo info{si.p, si.ns, bs->wi, beta, bs->pdf, pixel, sample, int(depth), bs->flags, bs->roughness,
+                          false};
+      uint32_t child = observer->vertex_created(pool.vertex[slot], info);
+      observer->vertex_done(pool.vertex[slot]);
+      pool.vertex[slot] = child;
+    }
+    pool.beta[slot] = beta;
+    pool.depth[slot] = next_depth;
+    pool.prev_pdf[slot] = bs->pdf;
+    pool.prev_specular[slot] = bs->is_specular() ? 1 : 0;
+    pool.prev_p[slot] = si.p;
+    pool.prev_ng[slot] = si.ng;
+    out.rays.rays.push_back(spawn_ray(si, bs->wi));
+    out.rays.paths.push_back(slot);
+  }
+
+  // ---------------------------------------------------------------- shadow rays
+
+  void trace_shadows() {
+    const size_t n = shadows.size();
+    if (n == 0) return;
+    ++stats.shadow_batches;
+    stats.shadow_rays += n;
+    ShadowBatch& s = shadows;
+    std::vector<uint32_t> order;
+    if (opt.sort) {
+      ScopedTimer timer(stats.phases[Phase::Sort]);
+      keys.resize(n);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{ray_sort_key(s.rays[i]), uint32_t(i)};
+      });
+      radix_sort(keys, scratch, 42);
+      std::vector<Ray> rays(n);
+      for (size_t i = 0; i < n; ++i) rays[i] = s.rays[keys[i].index];
+      s.rays.swap(rays);
+      order.resize(n);
+      for (size_t i = 0; i < n; ++i) order[i] = keys[i].index;
+    }
+    if (opt.capture_shadow_rays)
+      opt.capture_shadow_rays->insert(opt.capture_shadow_rays->end(), s.rays.begin(), s.rays.end());
+    std::vector<uint8_t> blocked(n);
+    {
+      ScopedTimer timer(stats.phases[Phase::TraceShadow]);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
+        accel.occluded(std::span<const Ray>(s.rays.data() + r.begin(), r.size()),
+                       std::span<uint8_t>(blocked.data() + r.begin(), r.size()));
+      });
+    }
+    {
+      ScopedTimer timer(stats.phases[Phase::Shade]);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+          size_t i = order.empty() ? k : order[k];
+          if (!blocked[k]) film.splat(s.pixel[i], s.contribution[i]);
+          if (observer) {
+            if (!blocked[k]) observer->emission_added(s.vertex[i], s.radiance[i]);
+            observer->vertex_done(s.vertex[i]);
+          }
+        }
+      });
+    }
+    s.clear();
+  }
+
+  // ---------------------------------------------------------------- the loop
+
+  void render(uint32_t s_begin, uint32_t s_end, const std::function<void(double)>& progress) {
+    auto t0 = std::chrono::steady_clock::now();
+    sample_begin = s_begin;
+    sample_count = s_end > s_begin ? s_end - s_begin : 0;
+    next_camera = 0;
+    camera_end = uint64_t(film.pixel_count()) * sample_count;
+    const size_t capacity = pool.capacity();
+    const size_t refill_below = size_t(opt.occupancy_threshold * float(capacity));
+
+    auto report = [&] {
+      if (progress) progress(camera_end ? double(next_camera) / double(camera_end) : 1.0);
+    };
+    while (true) {
+      if (pool.live() <= refill_below && next_camera < camera_end) {
+        generate_camera_rays(capacity - pool.live());
+        report();
+      }
+      if (shadows.size() >= opt.batch_size) trace_shadows();
+      if (!full.empty()) {
+        Batch b = std::move(full.back());
+        full.pop_back();
+        process_batch(b);
+        spare.push_back(std::move(b));
+        continue;
+      }
+      if (next_camera < camera_end && !pool.free_slots.empty()) {
+        generate_camera_rays(capacity - pool.live());
+        report();
+        continue;
+      }
+      // Nothing full and nothing left to generate: flush the fullest partial batch.
+      Batch* fullest = nullptr;
+      for (Batch& b : filling)
+        if (b.size() > 0 && (!fullest || b.size() > fullest->size())) fullest = &b;
+      if (fullest) {
+        Batch b = std::move(*fullest);
+        *fullest = take_spare();
+        process_batch(b);
+        spare.push_back(std::move(b));
+        continue;
+      }
+      if (shadows.size() > 0) {
+        trace_shadows();
+        continue;
+      }
+      break;
+    }
+    report();
+    stats.render_seconds += seconds_since(t0);
+  }
+
+  size_t memory_bytes() const {
+    size_t ray_bytes = sizeof(Ray) + sizeof(uint32_t);
+    size_t shadow_bytes = sizeof(Ray) + 2 * sizeof(RGB) + 2 * sizeof(uint32_t);
+    return pool.memory_bytes() + stats.peak_queued_rays * ray_bytes +
+           stats.peak_queued_shadow_rays * shadow_bytes;
+  }
+};
+
+WavefrontEngine::WavefrontEngine(const Scene& scene, const Accel& accel, const LightSet& lights,
+                                 const LightSampler& light_sampler, const Camera& camera, const Filter& filter,
+                                 Film& film, const EngineOptions& options, PathObserver* observer)
+    : impl_(new Impl(scene, accel, lights, light_sampler, camera, filter, film, options, observer)) {}
+
+WavefrontEngine::~WavefrontEngine() { delete impl_; }
+
+void WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress) {
+  impl_->render(sample_begin, sample_end, progress);
+}
+
+const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }
+size_t WavefrontEngine::memory_bytes() const { return impl_->memory_bytes(); }
+
+}  // namespace theia

@@ -1,0 +1,80 @@
+// The sorted-deferred (wavefront) path tracer, as Hyperion does it.
+//
+// Paths live in a fixed-capacity pool.  Camera rays are generated in
+// pixel-sample order whenever occupancy falls below a threshold; every ray is
+// queued into one of six batches binned by its dominant direction; the most
+// recently filled batch is processed next: its rays are sorted (origin Morton
+// code, then direction), traced, their hits sorted by (geometry, primitive)
+// and shaded in parallel.  Shading splats emission and queues continuation
+// and shadow rays; a shadow ray carries its pixel and its unoccluded,
+// MIS-weighted contribution, so nothing ever waits for a later wave.
+#pragma once
+
+#include "cachepoints/light_sampler.h"
+#include "core/stats.h"
+#include "scene/accel.h"
+#include "scene/camera.h"
+#include "scene/filter.h"
+#include "scene/lights.h"
+#include "wavefront/film.h"
+#include "wavefront/observer.h"
+
+#include <cstdint>
+#include <functional>
+
+namespace theia {
+
+struct EngineOptions {
+  int max_depth = 5;
+  uint32_t seed = 0;
+  size_t batch_size = size_t(1) << 16;    // rays per batch
+  size_t max_paths = size_t(1) << 19;     // path-state pool capacity
+  float occupancy_threshold = 0.5f;       // refill the pool below this fraction
+  bool sort = true;                       // sort rays and hits (off: queue order)
+  int rr_min_depth = 1;                   // Russian roulette from this depth on (pbrt-v4: depth > 1)
+  // Benchmarks only: when set, every traced ray is appended here in the order
+  // it was traced, so the raw Embree rate can be measured on the same rays.
+  std::vector<Ray>* capture_rays = nullptr;
+  std::vector<Ray>* capture_shadow_rays = nullptr;
+};
+
+enum class Phase { Generate, Sort, Trace, TraceShadow, Shade, Queue, Count };
+inline constexpr const char* kPhaseNames[] = {"generate", "sort", "trace", "trace_shadow", "shade", "queue"};
+
+struct EngineStats {
+  PhaseTimes<Phase, size_t(Phase::Count)> phases;
+  uint64_t camera_rays = 0, continuation_rays = 0, shadow_rays = 0;
+  uint64_t paths = 0;
+  uint64_t path_vertices = 0;   // surface hits over all paths (average path length = vertices / paths)
+  uint64_t batches = 0, shadow_batches = 0;
+  size_t peak_live_paths = 0;
+  size_t peak_queued_rays = 0;
+  size_t peak_queued_shadow_rays = 0;
+  double render_seconds = 0.0;
+  uint64_t total_rays() const { return camera_rays + continuation_rays + shadow_rays; }
+};
+
+class WavefrontEngine {
+ public:
+  WavefrontEngine(const Scene& scene, const Accel& accel, const LightSet& lights, const LightSampler& light_sampler,
+                  const Camera& camera, const Filter& filter, Film& film, const EngineOptions& options,
+                  PathObserver* observer = nullptr);
+  ~WavefrontEngine();
+  WavefrontEngine(const WavefrontEngine&) = delete;
+  WavefrontEngine& operator=(const WavefrontEngine&) = delete;
+
+  // Renders samples [sample_begin, sample_end) of every pixel and returns
+  // when no ray is in flight (one scheduler iteration).  `progress` is called
+  // from the driving thread with the fraction of camera samples generated.
+  void render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {});
+
+  const EngineStats& stats() const;
+  // Memory the engine holds for paths and queues at their peak.
+  size_t memory_bytes() const;
+
+ private:
+  struct Impl;
+  Impl* impl_;
+};
+
+}  // namespace theia

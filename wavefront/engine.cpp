@@ -22,6 +22,7 @@ constexpr uint32_t kDimLightPoint = 0, kDimLightChoice = 2, kDimLightPrim = 3, k
 
 constexpr size_t kTraceGrain = 256;
 constexpr size_t kShadeGrain = 64;
+constexpr size_t kPrefetchDistance = 8;
 
 // A queued batch of rays, as a structure of arrays so tracing reads only rays.
 struct Batch {
@@ -171,17 +172,17 @@ struct WavefrontEngine::Impl {
         ray.o = cam.o;
         ray.d = cam.d;
         film.add_weight(pixel, fs.weight);
-        uint32_t s = slots[i];
-        pool.pixel[s] = pixel;
-        pool.sample[s] = sample;
-        pool.depth[s] = 0;
-        pool.beta[s] = RGB(1.0f);
-        pool.filter_weight[s] = fs.weight;
-        pool.prev_pdf[s] = 0.0f;
-        pool.prev_specular[s] = 1;
-        pool.prev_p[s] = ray.o;
-        pool.prev_ng[s] = vec3(0.0f);
-        pool.vertex[s] = observer ? observer->path_started(pixel, sample) : kNoVertex;
+        PathState& ps = pool[slots[i]];
+        ps.beta = RGB(1.0f);
+        ps.prev_p = ray.o;
+        ps.prev_ng = vec3(0.0f);
+        ps.pixel = pixel;
+        ps.sample = sample;
+        ps.vertex = observer ? observer->path_started(pixel, sample) : kNoVertex;
+        ps.filter_weight = fs.weight;
+        ps.prev_pdf = 0.0f;
+        ps.depth = 0;
+        ps.prev_specular = 1;
         all.rays[i] = ray;
       }
     });
@@ -209,12 +210,11 @@ struct WavefrontEngine::Impl {
   uint64_t ray_sort_key(const Ray& r) const {
     vec3 o = (r.o - bounds_min) * bounds_inv_extent;
     uint64_t m = morton3(o.x, o.y, o.z);
-    // Direction: 6 bits of each spherical coordinate (the bin already fixes the dominant axis).
-    float cos_theta = std::clamp(r.d.z, -1.0f, 1.0f);
-    float phi = std::atan2(r.d.y, r.d.x);
-    uint64_t dt = uint64_t(std::clamp((cos_theta * 0.5f + 0.5f) * 64.0f, 0.0f, 63.0f));
-    uint64_t dp = uint64_t(std::clamp((phi * kInv2Pi + 0.5f) * 64.0f, 0.0f, 63.0f));
-    return (m << 12) | (dt << 6) | dp;
+    // Direction: 4 bits per component (the bin already fixes the dominant axis);
+    // cheap, and fine enough to group rays that will walk the same BVH nodes.
+    vec3 d = glm::normalize(r.d);
+    auto q = [](float c) { return uint64_t(std::clamp((c * 0.5f + 0.5f) * 16.0f, 0.0f, 15.0f)); };
+    return (m << 12) | (q(d.x) << 8) | (q(d.y) << 4) | q(d.z);
   }
 
   void sort_batch(Batch& b) {
@@ -275,6 +275,14 @@ struct WavefrontEngine::Impl {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
         ShadeOutput& out = outputs.local();
         for (size_t k = r.begin(); k < r.end(); ++k) {
+          // Hits arrive in (geometry, primitive) order, which scatters their
+          // rays and path records: fetch a few iterations ahead.
+          if (k + kPrefetchDistance < n) {
+            uint32_t j = keys[k + kPrefetchDistance].index;
+            __builtin_prefetch(&b.rays[j]);
+            __builtin_prefetch(&hits[j]);
+            __builtin_prefetch(&pool[b.paths[j]]);
+          }
           uint32_t i = keys[k].index;
           if (observer)
             shade<true>(b.rays[i], hits[i], b.paths[i], out);
@@ -304,17 +312,18 @@ struct WavefrontEngine::Impl {
 
   template <bool kObserve>
   void finish_path(uint32_t slot, ShadeOutput& out) {
-    if constexpr (kObserve) observer->vertex_done(pool.vertex[slot]);
+    if constexpr (kObserve) observer->vertex_done(pool[slot].vertex);
     out.freed.push_back(slot);
   }
 
   template <bool kObserve>
   void shade(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
-    const uint32_t pixel = pool.pixel[slot], sample = pool.sample[slot], depth = pool.depth[slot];
-    const float fw = pool.filter_weight[slot];
-    RGB beta = pool.beta[slot];
-    const bool prev_specular = pool.prev_specular[slot] != 0;
-    LightSampleContext prev_ctx{pool.prev_p[slot], vec3(0.0f), pool.prev_ng[slot], pool.prev_ng[slot]};
+    PathState& ps = pool[slot];
+    const uint32_t pixel = ps.pixel, sample = ps.sample, depth = ps.depth;
+    const float fw = ps.filter_weight;
+    RGB beta = ps.beta;
+    const bool prev_specular = ps.prev_specular != 0;
+    LightSampleContext prev_ctx{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
 
     // Escaped: infinite lights, MIS-weighted against light sampling.
     if (hit.geom == kInvalidId) {
@@ -325,10 +334,10 @@ struct WavefrontEngine::Impl {
         float w = 1.0f;
         if (!prev_specular) {
           float light_pdf = light_sampler.pmf(prev_ctx, l) * infinite_light_pdf(lights, l, d);
-          w = power_heuristic(1, pool.prev_pdf[slot], 1, light_pdf);
+          w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
         film.splat(pixel, fw * beta * w * Le);
-        if constexpr (kObserve) observer->emission_added(pool.vertex[slot], w * Le);
+        if constexpr (kObserve) observer->emission_added(ps.vertex, w * Le);
       }
       finish_path<kObserve>(slot, out);
       return;
@@ -347,10 +356,10 @@ struct WavefrontEngine::Impl {
         if (!prev_specular) {
           float light_pdf = light_sampler.pmf(prev_ctx, si.area_light) *
                             area_light_pdf(lights, si.area_light, prev_ctx, glm::normalize(ray.d), si);
-          w = power_heuristic(1, pool.prev_pdf[slot], 1, light_pdf);
+          w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
         film.splat(pixel, fw * beta * w * Le);
-        if constexpr (kObserve) observer->emission_added(pool.vertex[slot], w * Le);
+        if constexpr (kObserve) observer->emission_added(ps.vertex, w * Le);
       }
     }
 
@@ -387,7 +396,7 @@ struct WavefrontEngine::Impl {
               if constexpr (kObserve) {
                 PathVertexInfo info{si.p, si.ns, ls->wi, beta * f / light_pdf, light_pdf, pixel, sample,
                                     int(depth),   0,     1.0f,  true};
-                v = observer->vertex_created(pool.vertex[slot], info);
+                v = observer->vertex_created(ps.vertex, info);
               }
               sb.vertex.push_back(v);
             }
@@ -424,16 +433,16 @@ struct WavefrontEngine::Impl {
     if constexpr (kObserve) {
       PathVertexInfo info{si.p, si.ns, bs->wi, beta, bs->pdf, pixel, sample, int(depth), bs->flags, bs->roughness,
                           false};
-      uint32_t child = observer->vertex_created(pool.vertex[slot], info);
-      observer->vertex_done(pool.vertex[slot]);
-      pool.vertex[slot] = child;
+      uint32_t child = observer->vertex_created(ps.vertex, info);
+      observer->vertex_done(ps.vertex);
+      ps.vertex = child;
     }
-    pool.beta[slot] = beta;
-    pool.depth[slot] = next_depth;
-    pool.prev_pdf[slot] = bs->pdf;
-    pool.prev_specular[slot] = bs->is_specular() ? 1 : 0;
-    pool.prev_p[slot] = si.p;
-    pool.prev_ng[slot] = si.ng;
+    ps.beta = beta;
+    ps.depth = uint16_t(next_depth);
+    ps.prev_pdf = bs->pdf;
+    ps.prev_specular = bs->is_specular() ? 1 : 0;
+    ps.prev_p = si.p;
+    ps.prev_ng = si.ng;
     out.rays.rays.push_back(spawn_ray(si, bs->wi));
     out.rays.paths.push_back(slot);
   }

@@ -579,3 +579,26 @@ TEST(AccelSpawn, SpawnRayToIsNotBlockedByItsEnds) {
   EXPECT_GT(pairs, 100);
   EXPECT_EQ(blocked, 0);
 }
+
+// An axis-aligned plane through the origin has a zero error bound along its
+// normal, so rays leave with no offset at all: they must still not re-hit it.
+TEST(AccelSpawn, AxisAlignedPlaneThroughOriginDoesNotSelfIntersect) {
+  TriangleMesh m;
+  m.p = {vec3(-10, 0, -10), vec3(10, 0, -10), vec3(10, 0, 10), vec3(-10, 0, 10)};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  Scene sc;
+  add_mesh(sc, m);
+  Accel a(sc);
+  std::mt19937 rng(11);
+  int bad = 0;
+  for (int i = 0; i < 1000; ++i) {
+    vec3 o(float(i % 37) * 0.1f - 1.8f, 4.0f, float(i % 23) * 0.1f - 1.1f);
+    Traced t = trace(sc, a, make_ray(o, vec3(0, -1, 0)));
+    ASSERT_TRUE(t.hit.hit());
+    vec3 up = random_direction(rng);
+    if (up.y < 0.0f) up.y = -up.y;
+    if (a.intersect1(spawn_ray(t.si, up)).hit()) ++bad;
+    if (a.occluded1(spawn_ray_to(t.si, vec3(0.5f, 2.0f, 0.25f), vec3(0.0f), vec3(0.0f)))) ++bad;
+  }
+  EXPECT_EQ(bad, 0);
+}

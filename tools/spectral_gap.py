@@ -265,34 +265,36 @@ def camera_weights(P, M, res=128):
     D = np.stack([X, Y, -np.ones_like(X)], -1).reshape(-1, 3)
     best = np.full(len(D), np.inf)
     hitp = np.zeros((len(D), 3))
-    planes = [(1, 0.0), (1, 2.0), (2, -1.0), (0, -1.0), (0, 1.0)]
-    for ax, c in planes:
-        tt = (c - eye[ax]) / D[:, ax]
-        p = eye + tt[:, None] * D
-        inside = np.all((p >= np.array([-1, 0, -1]) - 1e-9) & (p <= np.array([1, 2, 1]) + 1e-9), axis=1)
-        ok = (tt > 0) & inside & (tt < best) & (p[:, 2] <= 1.0)
-        best = np.where(ok, tt, best)
-        hitp[ok] = p[ok]
-    # light quad (slightly below the ceiling)
-    tt = (1.98 - eye[1]) / D[:, 1]
+    hitm = np.full(len(D), "", dtype=object)
+    planes = [(1, 0.0, "floor"), (1, 2.0, "ceiling"), (2, -1.0, "back"),
+              (0, -1.0, "left"), (0, 1.0, "right")]
+    lo, hi = np.array([-1, 0, -1]) - 1e-9, np.array([1, 2, 1]) + 1e-9
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for ax, c, name in planes:
+            tt = (c - eye[ax]) / D[:, ax]
+            p = eye + tt[:, None] * D
+            ok = (tt > 0) & np.all((p >= lo) & (p <= hi), axis=1) & (tt < best)
+            best = np.where(ok, tt, best)
+            hitp[ok] = p[ok]
+            hitm[ok] = name
+        # light quad, slightly below the ceiling
+        tt = (1.98 - eye[1]) / D[:, 1]
     p = eye + tt[:, None] * D
-    onl = (tt > 0) & (tt < best) & (p[:, 0] >= -0.24) & (p[:, 0] <= 0.23) & (p[:, 2] >= -0.22) & (p[:, 2] <= 0.16)
-    best = np.where(onl, tt, best)
-    hitp[onl] = p[onl]
-    assert np.all(np.isfinite(best))
-    # nearest patch on the same surface
+    ok = ((tt > 0) & (tt < best) & (p[:, 0] >= -0.24) & (p[:, 0] <= 0.23)
+          & (p[:, 2] >= -0.22) & (p[:, 2] <= 0.16))
+    best = np.where(ok, tt, best)
+    hitp[ok] = p[ok]
+    hitm[ok] = "light"
+    assert np.all(np.isfinite(best)), "a camera ray left the box"
     wts = np.zeros(len(P))
-    is_light = M == "light"
-    # vectorised nearest-patch lookup, split light / non-light
-    for mask_pix, mask_pat in ((onl, is_light), (~onl, ~is_light)):
-        idx = np.where(mask_pat)[0]
-        q = hitp[mask_pix]
+    for name in ("floor", "ceiling", "back", "left", "right", "light"):
+        idx = np.where(M == name)[0]
+        q = hitp[hitm == name]
+        if len(q) == 0:
+            continue
         Pi = P[idx]
         dd = (q * q).sum(1)[:, None] - 2 * q @ Pi.T + (Pi * Pi).sum(1)[None, :]
-        # a pixel belongs to the surface it hit: penalise patches off that plane
-        dd = dd + 1e3 * (np.abs((q[:, None, :] - Pi[None, :, :]) @ np.ones(3) * 0) )
-        near = idx[np.argmin(dd, axis=1)]
-        np.add.at(wts, near, 1.0)
+        np.add.at(wts, idx[np.argmin(dd, axis=1)], 1.0)
     return wts
 
 
@@ -308,7 +310,7 @@ def radiosity(E, rho, F, bounces=16):
 
 def main():
     np.set_printoptions(precision=4, suppress=True)
-    print(__doc__.split("\n")[0])
+    print(" ".join(__doc__.split("\n")[:2]))
     print()
 
     # ---- fits and round trips -------------------------------------------

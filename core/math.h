@@ -20,7 +20,8 @@ using glm::vec2;
 using glm::vec3;
 using glm::vec4;
 
-// Linear RGB radiance / reflectance (the renderer's colour space: linear sRGB primaries).
+// Linear RGB radiance / reflectance in the renderer's working colour space
+// (linear Rec.2020, D65: see core/color.h for why, and for the conversions).
 using RGB = glm::vec3;
 
 inline constexpr float kPi = 3.14159265358979323846f;
@@ -35,7 +36,8 @@ inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
 inline float safe_acos(float x) { return std::acos(std::clamp(x, -1.0f, 1.0f)); }
 inline float radians(float deg) { return deg * (kPi / 180.0f); }
 
-inline float luminance(const RGB& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+// Y of a working-space (Rec.2020) colour.
+inline float luminance(const RGB& c) { return 0.2627002f * c.x + 0.6779981f * c.y + 0.0593017f * c.z; }
 inline float max_component(const RGB& c) { return std::max(c.x, std::max(c.y, c.z)); }
 inline bool is_black(const RGB& c) { return c.x == 0.0f && c.y == 0.0f && c.z == 0.0f; }
 inline bool is_finite(const RGB& c) {

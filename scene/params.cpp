@@ -1,5 +1,6 @@
 #include "scene/params.h"
 
+#include "core/color.h"
 #include "core/log.h"
 #include "scene/spectrum.h"
 
@@ -188,6 +189,12 @@ std::span<const double> ParamList::get_floats(std::string_view name) const {
 }
 
 std::optional<RGB> ParamList::get_spectrum(std::string_view name, SpectrumUse use, RGB fallback) const {
+  std::optional<RGB> c = get_spectrum_srgb(name, use, fallback);
+  if (c) return srgb_to_working(*c);
+  return std::nullopt;
+}
+
+std::optional<RGB> ParamList::get_spectrum_srgb(std::string_view name, SpectrumUse use, RGB fallback) const {
   const Param* p = find_any(name, {ParamType::RGB, ParamType::Spectrum, ParamType::Blackbody});
   if (!p) return std::nullopt;
   bool illuminant = use == SpectrumUse::Illuminant;

@@ -49,7 +49,11 @@ class ParamList {
   // reduced to RGB for its use (see scene/spectrum.h); nullopt if absent.
   // Named spectra not in the table warn and give `fallback`.
   enum class SpectrumUse { Reflectance, Unbounded, Illuminant };
+  // A colour parameter (rgb, blackbody, spectrum or named spectrum) in the
+  // renderer's working colour space (core/color.h).
   std::optional<RGB> get_spectrum(std::string_view name, SpectrumUse use, RGB fallback) const;
+  // The same in linear sRGB, as the scene states it.
+  std::optional<RGB> get_spectrum_srgb(std::string_view name, SpectrumUse use, RGB fallback) const;
 
   // Marks everything used (for a type theia substitutes wholesale).
   void mark_all_used() const;

@@ -11,6 +11,7 @@
 
 #include <filesystem>
 #include <map>
+#include <tuple>
 #include <unordered_map>
 
 namespace fs = std::filesystem;
@@ -89,7 +90,7 @@ class SceneParser {
 
   int constant_texture(RGB v, bool is_float);
   int texture_param(const ParamList& p, std::string_view name, bool is_float, RGB def, SpectrumUse use);
-  int image(const std::string& path, const std::string& encoding, const SourceLoc& loc);
+  int image(const std::string& path, const std::string& encoding, bool is_color, const SourceLoc& loc);
   int default_material();
   void bake(TriangleMesh& m) const;
   void add_shape(Shape s, const ParamList& params);
@@ -105,7 +106,7 @@ class SceneParser {
   std::unordered_map<std::string, Transform> named_coords_;
   std::unordered_map<std::string, int> named_materials_, float_textures_, spectrum_textures_, objects_;
   std::map<std::tuple<float, float, float, bool>, int> constants_;
-  std::map<std::pair<std::string, std::string>, int> images_;
+  std::map<std::tuple<std::string, std::string, bool>, int> images_;
   int default_material_ = -1;
 };
 
@@ -517,16 +518,17 @@ int SceneParser::texture_param(const ParamList& p, std::string_view name, bool i
   return constant_texture(def, is_float);
 }
 
-int SceneParser::image(const std::string& path, const std::string& encoding, const SourceLoc& loc) {
+int SceneParser::image(const std::string& path, const std::string& encoding, bool is_color, const SourceLoc& loc) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw_at(loc, "image \"{}\" not found, expected an existing file", path);
   std::string abs = fs::absolute(path).lexically_normal().string();
-  auto key = std::make_pair(abs, encoding);
+  auto key = std::make_tuple(abs, encoding, is_color);
   auto it = images_.find(key);
   if (it != images_.end()) return it->second;
   Image img;
   img.filename = abs;
   img.encoding = encoding;
+  img.is_color = is_color;
   scene_.images.push_back(std::move(img));
   return images_[key] = int(scene_.images.size()) - 1;
 }
@@ -559,7 +561,7 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
     if (!encoding.empty() && encoding != "sRGB" && encoding != "linear" && encoding.rfind("gamma ", 0) != 0)
       throw_at(loc, "encoding \"{}\", expected \"sRGB\", \"linear\" or \"gamma G\"", encoding);
     t.kind = TextureKind::ImageMap;
-    t.image = image(resolve(base_dir, f->strings[0]), encoding, f->loc);
+    t.image = image(resolve(base_dir, f->strings[0]), encoding, !is_float, f->loc);
     std::string wrap = params.get_string("wrap", "repeat");
     if (wrap == "repeat") t.wrap = WrapMode::Repeat;
     else if (wrap == "black") t.wrap = WrapMode::Black;
@@ -666,7 +668,7 @@ void SceneParser::light_source(const std::string& type, ParamList& params, const
     const Param* f = params.find("filename", ParamType::String);
     if (L && f) throw_at(loc, "infinite light with both \"L\" and \"filename\", expected one of them");
     l.L = L.value_or(RGB(1.0f)) * scale;
-    if (f) l.image = image(resolve(base_dir, f->strings[0]), "", f->loc);
+    if (f) l.image = image(resolve(base_dir, f->strings[0]), "", true, f->loc);
     ignore("illuminance");
     ignore("portal");
   } else {

@@ -36,6 +36,7 @@ struct UVMapping {
 struct Image {
   std::string filename;
   std::string encoding;       // "sRGB", "linear" or "gamma G"; empty = the file type's default
+  bool is_color = false;      // RGB colour (converted to the working space at load), not data (normals, floats)
   int width = 0, height = 0, channels = 0;
   std::vector<float> pixels;  // width * height * channels, linear
 };

@@ -1,5 +1,6 @@
 #include "scene/texture.h"
 
+#include "core/color.h"
 #include "core/image.h"
 #include "core/log.h"
 
@@ -107,6 +108,15 @@ void load_image(Image& image, const std::string& base_dir) {
           v = std::pow(std::max(v, 0.0f), enc.gamma);
       }
       image.pixels[i * size_t(nc) + size_t(c)] = v;
+    }
+  // Colour images join the working colour space once, here, so lookups stay plain.
+  if (image.is_color && nc >= 3)
+    for (size_t i = 0; i < buf.pixel_count(); ++i) {
+      float* px = &image.pixels[i * size_t(nc)];
+      RGB w = srgb_to_working(RGB(px[0], px[1], px[2]));
+      px[0] = w.x;
+      px[1] = w.y;
+      px[2] = w.z;
     }
 }
 

@@ -213,7 +213,7 @@ def build_box(n=16, nl=4):
     """Patches: centres, normals, areas, material index, emitter flag.
     Box x in [-1,1], y in [0,2], z in [-1,1], open at z=+1 (camera side).
     Light quad x in [-0.24,0.23], z in [-0.22,0.16] at y=1.98 facing down."""
-    P, N, A, M, E = [], [], [], [], []
+    P, N, A, M, E, T = [], [], [], [], [], []   # T: patch edge vectors
     u = (np.arange(n) + 0.5) / n
 
     def wall(origin, e1, e2, normal, mat):
@@ -224,6 +224,7 @@ def build_box(n=16, nl=4):
                 A.append(np.linalg.norm(np.cross(e1, e2)) / (n * n))
                 M.append(mat)
                 E.append(0)
+                T.append((e1 / n, e2 / n))
     v = np.array
     wall(v([-1, 0, -1.0]), v([2, 0, 0.0]), v([0, 0, 2.0]), v([0, 1, 0.0]), "floor")
     wall(v([-1, 2, -1.0]), v([2, 0, 0.0]), v([0, 0, 2.0]), v([0, -1, 0.0]), "ceiling")
@@ -238,19 +239,26 @@ def build_box(n=16, nl=4):
             A.append(0.47 * 0.38 / (nl * nl))
             M.append("light")
             E.append(1)
-    return np.array(P), np.array(N), np.array(A), np.array(M), np.array(E)
+            T.append((v([0.47 / nl, 0, 0]), v([0, 0, 0.38 / nl])))
+    return np.array(P), np.array(N), np.array(A), np.array(M), np.array(E), np.array(T)
 
 
-def form_factors(P, N, A, sub=3):
+def form_factors(P, N, A, T, sub=4):
     """F[i,j]: fraction of radiance leaving j arriving at i, i.e. the kernel of
     B_i = E_i + rho_i * sum_j F[i,j] B_j (all patches visible to each other in a
-    convex empty box). Patch j is integrated with sub x sub points to tame the
-    near-corner singularity."""
-    d = P[None, :, :] - P[:, None, :]
-    r2 = np.maximum(np.einsum("ijk,ijk->ij", d, d), 1e-12)
-    ci = np.einsum("ik,ijk->ij", N, d)
-    cj = -np.einsum("jk,ijk->ij", N, d)
-    F = np.where((ci > 0) & (cj > 0), ci * cj / (np.pi * r2 * r2), 0.0) * A[None, :]
+    convex empty box). Patch j is integrated with sub x sub points (point-to-
+    area form factor at the centre of i) to tame the near-corner singularity."""
+    F = np.zeros((len(P), len(P)))
+    g = (np.arange(sub) + 0.5) / sub - 0.5
+    for a in g:
+        for b in g:
+            Q = P + a * T[:, 0] + b * T[:, 1]            # sample points on j
+            d = Q[None, :, :] - P[:, None, :]
+            r2 = np.maximum(np.einsum("ijk,ijk->ij", d, d), 1e-12)
+            ci = np.einsum("ik,ijk->ij", N, d)
+            cj = -np.einsum("jk,ijk->ij", N, d)
+            F += np.where((ci > 0) & (cj > 0), ci * cj / (np.pi * r2 * r2), 0.0)
+    F *= A[None, :] / (sub * sub)
     np.fill_diagonal(F, 0.0)
     return F
 
@@ -353,8 +361,8 @@ def main():
     print()
 
     # ---- 3. radiosity ----------------------------------------------------
-    P, N, A, M, E = build_box()
-    F = form_factors(P, N, A)
+    P, N, A, M, E, T = build_box()
+    F = form_factors(P, N, A, T)
     mats = {"floor": "white", "ceiling": "white", "back": "white",
             "left": "red", "right": "green", "light": None}
 
@@ -410,6 +418,33 @@ def main():
     print(f"   radiosity img theia/ref    {fmt3(qi, 9, 6)}")
     worst = max(np.max(np.abs(qd - 1)), np.max(np.abs(q2 - 1)), np.max(np.abs(qi - 1)))
     print(f"   max |ratio-1| = {worst:.2e}  -> {'PASS' if worst < 1e-3 else 'FAIL'} (tolerance 1e-3)")
+
+    print()
+
+    # ---- 5. working colour space -------------------------------------------
+    # theia multiplies colours in a working space (core/color.h).  The same RGB
+    # radiosity solved in other primaries (inputs converted from linear sRGB,
+    # the result converted back) shows which space tracks the spectral result.
+    print("5) RGB rendering in other working spaces: predicted theia/ref (R G B), spectral = 1")
+    spaces = {
+        "linear sRGB": np.eye(3),
+        "linear Rec.2020": np.array([[0.627404, 0.329283, 0.043313], [0.069097, 0.919540, 0.011362],
+                                     [0.016391, 0.088013, 0.895595]]),
+        "ACEScg (AP1)": np.array([[0.6131, 0.3395, 0.0474], [0.0702, 0.9164, 0.0135], [0.0206, 0.1096, 0.8698]]),
+    }
+    Ls = illuminant_spectrum(L_RGB)
+    S = {k: albedo_spectrum(v) for k, v in ALB.items()}
+    rho_s = np.array([S[mats[m]] if mats[m] else np.zeros(LAM.size) for m in M])
+    Bs = film_rgb(radiosity(E[:, None] * Ls[None, :], rho_s, F))
+    print(f"   {'space':18s} {'back wall':>22s} {'floor':>22s} {'whole image':>22s}")
+    for name, Mx in spaces.items():
+        rho_c = np.array([Mx @ ALB[mats[m]] if mats[m] else np.zeros(3) for m in M])
+        Bc = (np.linalg.inv(Mx) @ radiosity(E[:, None] * (Mx @ L_RGB)[None, :], rho_c, F).T).T
+        cols = []
+        for m in ("back", "floor", None):
+            sel = wts * ((M == m) if m else 1.0)
+            cols.append(fmt3((sel @ Bc) / (sel @ Bs), 7, 3))
+        print(f"   {name:18s} {cols[0]:>22s} {cols[1]:>22s} {cols[2]:>22s}")
 
 
 if __name__ == "__main__":

@@ -1,5 +1,7 @@
 #include "wavefront/film.h"
 
+#include "core/color.h"
+
 namespace theia {
 
 static void atomic_add(float& target, float v) { std::atomic_ref<float>(target).fetch_add(v, std::memory_order_relaxed); }
@@ -51,15 +53,17 @@ ImageBuffer resolve_film(const Film& film) {
     if (w == 0.0f) continue;
     float inv = 1.0f / w;
     float* px = &img.data[i * nc];
-    px[0] = film.r[i] * inv;
-    px[1] = film.g[i] * inv;
-    px[2] = film.b[i] * inv;
+    RGB c = working_to_srgb(RGB(film.r[i], film.g[i], film.b[i]) * inv);
+    px[0] = c.x;
+    px[1] = c.y;
+    px[2] = c.z;
     px[3] = film.alpha[i] * inv;
     // AOVs average over the samples that hit something, so edges do not fade to zero.
     float a = film.alpha[i];
     if (a > 0.0f) {
+      RGB albedo = working_to_srgb(RGB(film.albedo[0][i], film.albedo[1][i], film.albedo[2][i]) / a);
       for (int c = 0; c < 3; ++c) {
-        px[4 + c] = film.albedo[c][i] / a;
+        px[4 + c] = albedo[c];
         px[7 + c] = film.normal[c][i] / a;
       }
       px[10] = film.depth[i] / a;

@@ -48,3 +48,17 @@ TEST(Distribution1D, AllZeroFallsBackToUniform) {
   EXPECT_NEAR(x, 0.6f, 1e-6f);
   EXPECT_EQ(pdf, 1.0f);
 }
+
+#include "core/color.h"
+
+TEST(WorkingColorSpace, RoundTripsGreysAndKeepsTheSrgbGamutNonNegative) {
+  for (RGB c : {RGB(1, 0, 0), RGB(0, 1, 0), RGB(0, 0, 1), RGB(0.63f, 0.065f, 0.05f), RGB(17, 12, 4)}) {
+    RGB w = srgb_to_working(c);
+    EXPECT_GE(std::min({w.x, w.y, w.z}), 0.0f);
+    EXPECT_NEAR(glm::length(working_to_srgb(w) - c), 0.0f, 2e-5f * std::max(1.0f, glm::length(c)));
+    // Luminance is a property of the colour, not of the space it is written in.
+    EXPECT_NEAR(luminance(w), 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z, 2e-4f * std::max(1.0f, c.x + c.y + c.z));
+  }
+  RGB g = srgb_to_working(RGB(0.5f));
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(g[i], 0.5f, 1e-6f);
+}

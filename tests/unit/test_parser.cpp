@@ -1,4 +1,5 @@
 #include "core/log.h"
+#include "core/color.h"
 #include "scene/parser.h"
 #include "scene/spectrum.h"
 
@@ -14,6 +15,13 @@ using namespace theia;
 namespace fs = std::filesystem;
 
 namespace {
+
+// Colours in a scene file are linear sRGB; the parser stores them in the working space.
+void expect_scene_color(const RGB& stored, const RGB& srgb) {
+  RGB want = srgb_to_working(srgb);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(stored[c], want[c], 1e-5f * std::max(1.0f, std::abs(want[c]))) << c;
+  EXPECT_NEAR(glm::length(working_to_srgb(stored) - srgb), 0.0f, 1e-5f * std::max(1.0f, glm::length(srgb)));
+}
 
 struct TempDir {
   fs::path path;
@@ -422,7 +430,7 @@ Shape "sphere")");
   auto refl = [&](int shape) { return s.materials[size_t(s.shapes[size_t(shape)].material)].reflectance; };
   EXPECT_EQ(s.textures[size_t(refl(0))].value, RGB(0.5f));  // default material
   EXPECT_EQ(s.textures[size_t(refl(0))].kind, TextureKind::Constant);
-  EXPECT_EQ(s.textures[size_t(refl(1))].value, RGB(0.8f, 0.1f, 0.1f));
+  expect_scene_color(s.textures[size_t(refl(1))].value, RGB(0.8f, 0.1f, 0.1f));
   EXPECT_EQ(s.materials[size_t(s.shapes[1].material)].name, "red");
   EXPECT_EQ(s.textures[size_t(refl(2))].name, "checks");
   EXPECT_EQ(s.textures[size_t(refl(3))].value, RGB(0.5f));
@@ -458,10 +466,13 @@ Texture "sc" "spectrum" "scale" "texture tex" "img" "float scale" 3
 Texture "mx" "spectrum" "mix" "rgb tex1" [1 1 0] "texture tex2" "sc" "texture amount" "amt"
 Texture "bb" "spectrum" "constant" "blackbody value" 6500
 )", "test.pbrt", dir.path.string());
-  ASSERT_EQ(s.images.size(), 2u);  // deduplicated by (path, encoding)
+  ASSERT_EQ(s.images.size(), 3u);  // deduplicated by (path, encoding, colour or data)
+  EXPECT_TRUE(s.images[0].is_color);
+  EXPECT_FALSE(s.images[1].is_color);
   EXPECT_EQ(s.images[0].filename, fs::absolute(dir.path / "tex/wood.png").lexically_normal().string());
   EXPECT_EQ(s.images[0].encoding, "gamma 2.2");
-  EXPECT_EQ(s.images[1].encoding, "");
+  EXPECT_EQ(s.images[1].encoding, "gamma 2.2");
+  EXPECT_EQ(s.images[2].encoding, "");
   EXPECT_TRUE(s.images[0].pixels.empty());
   auto find = [&](const std::string& n) -> const Texture& {
     for (const Texture& t : s.textures)
@@ -478,16 +489,17 @@ Texture "bb" "spectrum" "constant" "blackbody value" 6500
   EXPECT_FLOAT_EQ(img.mapping.sv, 5);
   EXPECT_FLOAT_EQ(img.mapping.du, 0.5f);
   EXPECT_FLOAT_EQ(img.mapping.dv, 0.25f);
-  EXPECT_EQ(find("img2").image, 0);
+  EXPECT_EQ(find("img").image, 0);
+  EXPECT_EQ(find("img2").image, 1);  // same file and encoding, but data rather than colour
   EXPECT_TRUE(find("img2").is_float);
-  EXPECT_EQ(find("img3").image, 1);
+  EXPECT_EQ(find("img3").image, 2);
   const Texture& sc = find("sc");
   EXPECT_EQ(sc.kind, TextureKind::Scale);
   EXPECT_EQ(s.textures[size_t(sc.tex1)].name, "img");
   EXPECT_FLOAT_EQ(s.textures[size_t(sc.tex2)].value.x, 3);
   const Texture& mx = find("mx");
   EXPECT_EQ(mx.kind, TextureKind::Mix);
-  EXPECT_EQ(s.textures[size_t(mx.tex1)].value, RGB(1, 1, 0));
+  expect_scene_color(s.textures[size_t(mx.tex1)].value, RGB(1, 1, 0));
   EXPECT_EQ(s.textures[size_t(mx.tex2)].name, "sc");
   EXPECT_EQ(s.textures[size_t(mx.amount)].name, "amt");
   EXPECT_NEAR(luminance(find("bb").value), 1.0f, 1e-3f);
@@ -524,7 +536,7 @@ Shape "sphere")");
     EXPECT_EQ(l.kind, LightKind::Area);
     EXPECT_EQ(l.shape, i + 1);
     EXPECT_EQ(s.shapes[size_t(i + 1)].area_light, i);
-    EXPECT_EQ(l.L, RGB(2, 4, 6));
+    expect_scene_color(l.L, RGB(2, 4, 6));
     EXPECT_TRUE(l.two_sided);
     EXPECT_TRUE(l.is_virtual);
   }
@@ -558,18 +570,18 @@ LightSource "distant"
   ASSERT_EQ(s.lights.size(), 3u);
   EXPECT_EQ(s.lights[0].kind, LightKind::Point);
   EXPECT_EQ(s.lights[0].position, vec3(1, 2, 4));
-  EXPECT_EQ(s.lights[0].L, RGB(4.0f));
+  expect_scene_color(s.lights[0].L, RGB(4.0f));
   EXPECT_EQ(s.lights[1].kind, LightKind::Infinite);
   EXPECT_EQ(s.lights[1].image, 0);
   EXPECT_EQ(s.lights[1].L, RGB(0.5f));
   EXPECT_NEAR(glm::length(s.lights[1].render_from_light.vector(vec3(0, 1, 0)) - vec3(0, 0, 1)), 0.0f, 1e-6f);
   EXPECT_EQ(s.lights[2].image, -1);
-  EXPECT_EQ(s.lights[2].L, RGB(0.1f, 0.2f, 0.3f));
+  expect_scene_color(s.lights[2].L, RGB(0.1f, 0.2f, 0.3f));
 }
 
 TEST(Spectrum, Blackbody6500IsNearWhiteWithLuminanceOne) {
   RGB c = blackbody_rgb(6500.0f);
-  EXPECT_NEAR(luminance(c), 1.0f, 1e-4f);
+  EXPECT_NEAR(luminance(srgb_to_working(c)), 1.0f, 1e-4f);
   EXPECT_NEAR(c.x, 1.0f, 0.06f);
   EXPECT_NEAR(c.y, 1.0f, 0.06f);
   EXPECT_NEAR(c.z, 1.0f, 0.06f);
@@ -580,7 +592,7 @@ TEST(Spectrum, Blackbody6500IsNearWhiteWithLuminanceOne) {
 
 TEST(Spectrum, IlluminantAndReflectanceNormalisation) {
   std::vector<float> lambda = {400, 700}, value = {3, 3};
-  EXPECT_NEAR(luminance(spectrum_to_rgb_illuminant(lambda, value)), 1.0f, 1e-4f);
+  EXPECT_NEAR(luminance(srgb_to_working(spectrum_to_rgb_illuminant(lambda, value))), 1.0f, 1e-4f);
   std::vector<float> wide = {300, 900}, half = {0.5f, 0.5f};
   RGB r = spectrum_to_rgb_reflectance(wide, half);
   EXPECT_NEAR(glm::length(r - RGB(0.5f)), 0.0f, 1e-4f);

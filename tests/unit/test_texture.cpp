@@ -1,3 +1,4 @@
+#include "core/color.h"
 #include "scene/texture.h"
 
 #include "core/image.h"
@@ -319,10 +320,18 @@ TEST_F(TextureFiles, FloatImagesStayLinearAndRelativePathsResolveBesideTheScene)
   Image p;
   p.filename = "tex/p.pfm";
   s.images.push_back(p);
+  Image colour = p;
+  colour.is_color = true;
+  s.images.push_back(colour);
   load_images(s);
   EXPECT_EQ(s.images[0].pixels, px);
   EXPECT_EQ(s.images[1].pixels, px);
   EXPECT_EQ(s.images[0].channels, 3);
+  // A colour image joins the working colour space at load; data images stay as stored.
+  for (int i = 0; i < 2; ++i) {
+    RGB want = srgb_to_working(RGB(px[3 * i], px[3 * i + 1], px[3 * i + 2]));
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(s.images[2].pixels[size_t(3 * i + c)], want[c], 1e-6f);
+  }
 }
 
 TEST_F(TextureFiles, ManyImagesLoadInParallelAndErrorsNameTheFile) {

@@ -4,7 +4,8 @@ spectral one (pbrt-v4) on the Cornell box, predicted from colour science alone.
 
 What it models
 --------------
-pbrt-v4 renders spectrally; theia multiplies linear-sRGB triples. For the same
+pbrt-v4 renders spectrally; theia multiplies RGB triples (in linear sRGB before
+core/color.h made the working space linear Rec.2020, see section 5). For the same
 scene file the two agree only where the spectra involved are "neutral". This
 script rebuilds pbrt-v4's colour pipeline in numpy and compares it with the
 RGB product that theia computes:

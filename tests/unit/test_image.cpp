@@ -1,5 +1,6 @@
 #include "core/image.h"
 #include "core/log.h"
+#include "tests/test_util.h"
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -17,16 +18,8 @@ namespace {
 namespace fs = std::filesystem;
 
 // A fresh directory per test, removed afterwards.
-class ImageFiles : public ::testing::Test {
+class ImageFiles : public theia::test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir = fs::temp_directory_path() / fmt::format("theia_image_{}_{}", getpid(), info->name());
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  void TearDown() override { fs::remove_all(dir); }
-  std::string file(const std::string& name) const { return (dir / name).string(); }
   // Files in the directory other than the expected ones (e.g. stray .tmp files).
   std::vector<std::string> listing() const {
     std::vector<std::string> names;
@@ -34,7 +27,6 @@ class ImageFiles : public ::testing::Test {
     std::sort(names.begin(), names.end());
     return names;
   }
-  fs::path dir;
 };
 
 // A little-endian RGB PFM by hand (OpenImageIO 2.4 reads PFM but cannot

@@ -3,6 +3,7 @@
 #include "app/diff.h"
 #include "core/image.h"
 #include "core/log.h"
+#include "tests/test_util.h"
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -143,17 +144,8 @@ TEST(DiffColormap, InfernoEndpointsAndMonotoneLightness) {
   }
 }
 
-class DiffFiles : public ::testing::Test {
+class DiffFiles : public theia::test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir = fs::temp_directory_path() / fmt::format("theia_metrics_{}_{}", getpid(), info->name());
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  void TearDown() override { fs::remove_all(dir); }
-  std::string file(const std::string& name) const { return (dir / name).string(); }
-  fs::path dir;
 };
 
 TEST_F(DiffFiles, PrintsEveryMetricAndWritesTheErrorImage) {

@@ -2,6 +2,7 @@
 #include "core/color.h"
 #include "scene/parser.h"
 #include "scene/spectrum.h"
+#include "tests/test_util.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
@@ -12,6 +13,7 @@
 #include <random>
 
 using namespace theia;
+using theia::test::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
@@ -23,21 +25,6 @@ void expect_scene_color(const RGB& stored, const RGB& srgb) {
   EXPECT_NEAR(glm::length(working_to_srgb(stored) - srgb), 0.0f, 1e-5f * std::max(1.0f, glm::length(srgb)));
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::random_device rd;
-    path = fs::temp_directory_path() / ("theia_parser_" + std::to_string(rd()) + std::to_string(rd()));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::string write(const std::string& name, const std::string& text) const {
-    fs::path p = path / name;
-    fs::create_directories(p.parent_path());
-    std::ofstream(p, std::ios::binary) << text;
-    return p.string();
-  }
-};
 
 Scene parse(const std::string& text) { return parse_scene_string(text, "test.pbrt"); }
 

@@ -1,5 +1,6 @@
 #include "core/log.h"
 #include "scene/ply.h"
+#include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 
@@ -10,24 +11,11 @@
 #include <random>
 
 using namespace theia;
+using theia::test::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::random_device rd;
-    path = fs::temp_directory_path() / ("theia_ply_" + std::to_string(rd()) + std::to_string(rd()));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::string write(const std::string& name, const std::string& bytes) const {
-    fs::path p = path / name;
-    std::ofstream(p, std::ios::binary) << bytes;
-    return p.string();
-  }
-};
 
 // A square (one quad) and a triangle, with distinct normals and uvs so that a
 // mix-up of vertices or properties shows.

@@ -3,6 +3,7 @@
 
 #include "core/image.h"
 #include "core/log.h"
+#include "tests/test_util.h"
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
@@ -238,16 +239,8 @@ TEST(TextureEval, ImageMapFlipsTAppliesScaleThenInvert) {
 
 // ---------------------------------------------------------------- loading
 
-class TextureFiles : public ::testing::Test {
+class TextureFiles : public theia::test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir = fs::temp_directory_path() / fmt::format("theia_texture_{}_{}", getpid(), info->name());
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  void TearDown() override { fs::remove_all(dir); }
-  std::string file(const std::string& name) const { return (dir / name).string(); }
   void write(const std::string& path, int w, int h, int nc, OIIO::TypeDesc type, const void* px) {
     auto out = OIIO::ImageOutput::create(path);
     ASSERT_TRUE(out) << OIIO::geterror();
@@ -257,7 +250,6 @@ class TextureFiles : public ::testing::Test {
     ASSERT_TRUE(out->write_image(type, px)) << out->geterror();
     ASSERT_TRUE(out->close());
   }
-  fs::path dir;
 };
 
 TEST_F(TextureFiles, EightBitImagesAreDecodedByTheirEncoding) {

@@ -1,0 +1,57 @@
+// Helpers every test file may use: scratch directories that clean up after themselves.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
+namespace theia::test {
+
+// A fresh directory under the system temp dir, removed with the object.  The
+// name carries the process id and a counter, so parallel test processes and
+// repeated runs never share one.
+struct TempDir {
+  std::filesystem::path path;
+
+  explicit TempDir(const std::string& prefix = "theia") {
+    static std::atomic<int> counter{0};
+    path = std::filesystem::temp_directory_path() /
+           (prefix + "_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  std::string file(const std::string& name) const { return (path / name).string(); }
+  // Writes bytes to path/name (creating folders) and returns the full path.
+  std::string write(const std::string& name, const std::string& bytes) const {
+    std::filesystem::path p = path / name;
+    std::filesystem::create_directories(p.parent_path());
+    std::ofstream(p, std::ios::binary) << bytes;
+    return p.string();
+  }
+};
+
+// A test fixture with its own scratch directory: `dir` and `file(name)`.
+class TempDirTest : public ::testing::Test {
+ protected:
+  TempDirTest() : tmp_(::testing::UnitTest::GetInstance()->current_test_info()->name()), dir(tmp_.path) {}
+  std::string file(const std::string& name) const { return tmp_.file(name); }
+
+ private:
+  TempDir tmp_;
+
+ protected:
+  std::filesystem::path dir;
+};
+
+}  // namespace theia::test

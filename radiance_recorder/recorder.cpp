@@ -318,6 +318,8 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
 
 void RadianceRecorder::begin_iteration() {
   skip_rate_ = path_skip_rate(last_paths_, last_events_, opt_.vertex_budget);
+  run_peak_live_ = std::max(run_peak_live_, peak_live_.load());
+  peak_live_.store(live_.load());
   RecorderStats s = stats();
   iteration_begin_paths_ = s.paths;
   iteration_begin_events_ = s.vertex_events;
@@ -361,7 +363,8 @@ RecorderStats RadianceRecorder::stats() const {
     s.merged_vertices += tc.merged;
     s.dropped += tc.dropped;
   }
-  s.peak_live_vertices = peak_live_.load();
+  s.iteration_peak_live_vertices = peak_live_.load();
+  s.peak_live_vertices = std::max(run_peak_live_, s.iteration_peak_live_vertices);
   s.peak_blocks = block_count_.load();
   s.peak_sample_bytes = peak_sample_bytes_;
   s.path_skip_rate = skip_rate_;

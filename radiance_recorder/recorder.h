@@ -103,7 +103,8 @@ struct RecorderStats {
   uint64_t recorded = 0;               // vertices allocated (= samples produced)
   uint64_t skipped_vertices = 0, merged_vertices = 0;
   uint64_t dropped = 0;                // non-finite samples or debug splats
-  uint64_t peak_live_vertices = 0;
+  uint64_t peak_live_vertices = 0;           // over the whole run
+  uint64_t iteration_peak_live_vertices = 0; // in the current (or last) iteration
   uint64_t peak_blocks = 0;
   uint64_t peak_sample_bytes = 0;
   double path_skip_rate = 0.0;         // of the current (last begun) iteration
@@ -162,7 +163,8 @@ class RadianceRecorder final : public PathObserver {
   std::mutex free_mutex_;                       // guards free_ and block creation
   std::vector<PVIndex> free_;                   // global free queue, refilled in batches
   tbb::enumerable_thread_specific<ThreadCache>* caches_;
-  std::atomic<uint64_t> live_{0}, peak_live_{0};
+  std::atomic<uint64_t> live_{0}, peak_live_{0};  // peak_live_: this iteration's
+  uint64_t run_peak_live_ = 0;
   uint64_t peak_sample_bytes_ = 0;
   double skip_rate_ = 0.0;
   uint64_t last_paths_ = 0, last_events_ = 0;                    // the previous iteration's

@@ -31,6 +31,19 @@ int main(int argc, char** argv) {
   render->add_option("--light-sampler", rc.light_sampler, "Light selection: uniform or power")
       ->check(CLI::IsMember({"uniform", "power"}))
       ->capture_default_str();
+  render->add_flag("--recorder-debug", rc.recorder_debug,
+                   "Radiance recorder: write its primary-hit debug layer 'recorder' (equals the beauty)");
+  render->add_option("--recorder-debug-bounce", rc.recorder_debug_bounce,
+                     "Radiance recorder: also write layer 'recorder_bounceN' (compare with --throughput-reset-bounce N)");
+  render->add_option("--recorder-budget", rc.recorder_budget, "Recorded vertices per path (path skipping); 0: off")
+      ->capture_default_str();
+  render->add_option("--recorder-vertex-skip", rc.recorder_vertex_skip, "Probability of skipping a path vertex")
+      ->capture_default_str();
+  render->add_option("--recorder-min-distance", rc.recorder_min_distance,
+                     "Closer than this to its parent, a vertex is merged into the parent")
+      ->capture_default_str();
+  render->add_option("--throughput-reset-bounce", rc.throughput_reset_bounce,
+                     "Render the 'throughput reset at bounce N' image as the beauty");
   render->add_option("--log", rc.log_path, "JSON log file (default: OUTPUT with .json)");
   render->add_flag("-q,--quiet", quiet, "Print only warnings and errors");
 

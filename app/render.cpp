@@ -4,6 +4,7 @@
 #include "cachepoints/light_sampler.h"
 #include "core/log.h"
 #include "core/stats.h"
+#include "radiance_recorder/recorder.h"
 #include "scene/accel.h"
 #include "scene/camera.h"
 #include "scene/filter.h"
@@ -30,6 +31,14 @@ static void check_config(const RenderConfig& c) {
   if (c.threads < 0) throw_error("--threads must be zero (all cores) or positive, got {}", c.threads);
   if (c.batch_size == 0) throw_error("--batch-size must be positive");
   if (c.max_paths == 0) throw_error("--max-paths must be positive");
+  if (c.recorder_debug_bounce < -1) throw_error("--recorder-debug-bounce must be zero or positive, got {}", c.recorder_debug_bounce);
+  if (c.throughput_reset_bounce < -1)
+    throw_error("--throughput-reset-bounce must be zero or positive, got {}", c.throughput_reset_bounce);
+  if (!(c.recorder_budget >= 0.0f)) throw_error("--recorder-budget must be zero (off) or positive, got {}", c.recorder_budget);
+  if (!(c.recorder_vertex_skip >= 0.0f && c.recorder_vertex_skip < 1.0f))
+    throw_error("--recorder-vertex-skip must be in [0, 1), got {}", c.recorder_vertex_skip);
+  if (!(c.recorder_min_distance >= 0.0f))
+    throw_error("--recorder-min-distance must be zero or positive, got {}", c.recorder_min_distance);
 }
 
 RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
@@ -57,12 +66,34 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.batch_size = config.batch_size;
   opt.max_paths = config.max_paths;
   opt.sort = config.sort;
-  WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt);
+  opt.throughput_reset_depth = config.throughput_reset_bounce;
+
+  // The recorder costs nothing unless a debug buffer (or, later, guiding) consumes it.
+  std::unique_ptr<RadianceRecorder> recorder;
+  if (config.recorder_debug || config.recorder_debug_bounce >= 0) {
+    RecorderOptions ro;
+    ro.vertex_budget = config.recorder_budget;
+    ro.vertex_skip_probability = config.recorder_vertex_skip;
+    ro.min_distance = config.recorder_min_distance;
+    ro.seed = config.seed;
+    ro.width = scene.film.width;
+    ro.height = scene.film.height;
+    ro.debug_primary = config.recorder_debug;
+    ro.debug_bounce = config.recorder_debug_bounce;
+    recorder = std::make_unique<RadianceRecorder>(ro);
+  }
+  WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt, recorder.get());
 
   ProgressBar bar(config.progress);
   const EngineStats& st = engine.stats();
+  // One iteration until the scheduler calls render() once per iteration.
+  if (recorder) recorder->begin_iteration();
   engine.render(0, uint32_t(spp), [&](double fraction) { bar.update(fraction, st.total_rays()); });
+  if (recorder) recorder->end_iteration();
   bar.finish();
+  if (recorder && config.recorder_debug) film.layers.push_back({"recorder", recorder->debug_primary()});
+  if (recorder && config.recorder_debug_bounce >= 0)
+    film.layers.push_back({fmt::format("recorder_bounce{}", config.recorder_debug_bounce), recorder->debug_bounce()});
 
   RenderResult result;
   result.image = resolve_film(film);
@@ -102,6 +133,23 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                    {"wavefront", engine.memory_bytes()},
                    {"peak_queued_rays", st.peak_queued_rays},
                    {"peak_queued_shadow_rays", st.peak_queued_shadow_rays}};
+  if (recorder) {
+    RecorderStats rs = recorder->stats();
+    log["recorder"] = {{"vertex_bytes", RadianceRecorder::vertex_bytes()},
+                       {"peak_live_vertices", rs.peak_live_vertices},
+                       {"peak_bytes", recorder->peak_bytes()},
+                       {"blocks", rs.peak_blocks},
+                       {"paths", rs.paths},
+                       {"skipped_paths", rs.skipped_paths},
+                       {"path_skip_rate", rs.path_skip_rate},
+                       {"vertex_events", rs.vertex_events},
+                       {"recorded_vertices", rs.recorded},
+                       {"skipped_vertices", rs.skipped_vertices},
+                       {"merged_vertices", rs.merged_vertices},
+                       {"dropped", rs.dropped}};
+    log["memory"]["recorder"] = recorder->peak_bytes();
+  }
+  if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;
   log["dropped_samples"] = film.dropped.load();
   log["warnings"] = warning_count();
   return result;

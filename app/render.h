@@ -25,6 +25,13 @@ struct RenderConfig {
   std::string light_sampler = "power";
   std::string log_path;             // empty: OUTPUT with .json
   bool progress = false;            // progress bar (the command line turns it on for a terminal)
+  // Radiance recorder (radiance_recorder/): built only when something consumes it.
+  bool recorder_debug = false;      // layer "recorder": primary-hit samples re-splatted (== beauty)
+  int recorder_debug_bounce = -1;   // >= 0: layer "recorder_bounceN", compare with throughput_reset_bounce
+  float recorder_budget = 4.0f;     // vertices per path (path skip rate from the last iteration); 0: off
+  float recorder_vertex_skip = 0.0f;// stochastic vertex-skipping probability
+  float recorder_min_distance = 0.0f;
+  int throughput_reset_bounce = -1; // >= 0: the beauty is the "throughput reset at bounce N" image
 };
 
 struct RenderResult {

@@ -28,7 +28,15 @@ struct QuadricGeom {
   DiskShape disk;
   glm::dmat4 object_from_parent;  // parent = render space, or the prototype's space
   Bounds3 bounds;                 // in parent space
+  bool is_virtual = false;        // a virtual light: never occludes
 };
+
+// Virtual lights emit but do not block: shadow rays ignore every hit on them.
+// (Closest-hit rays do stop there; the engine splats the emission and
+// re-traces from the far side.)
+void reject_occlusion(const RTCFilterFunctionNArguments* args) {
+  for (unsigned i = 0; i < args->N; ++i) args->valid[i] = 0;
+}
 
 bool quadric_hit(const QuadricGeom& g, const glm::dvec3& o_parent, const glm::dvec3& d_parent, double tmin,
                  double tmax, QuadricHit* hit) {
@@ -71,6 +79,7 @@ void quadric_intersect(const RTCIntersectFunctionNArguments* args) {
 
 void quadric_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* g = static_cast<const QuadricGeom*>(args->geometryUserPtr);
+  if (g->is_virtual) return;
   unsigned n = args->N;
   for (unsigned i = 0; i < n; ++i) {
     if (args->valid[i] != -1) continue;
@@ -161,6 +170,8 @@ static const char* rtc_error_name(RTCError e) {
 
 uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
   const Shape& s = sc.shapes.at(size_t(index));
+  const bool is_virtual = s.area_light >= 0 && size_t(s.area_light) < sc.lights.size() &&
+                          sc.lights[size_t(s.area_light)].is_virtual;
   RTCGeometry geom = nullptr;
   if (s.kind == ShapeKind::TriangleMesh) {
     if (s.mesh < 0 || size_t(s.mesh) >= sc.meshes.size())
@@ -186,6 +197,7 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     }
     rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
                                3 * sizeof(uint32_t), m.triangle_count());
+    if (is_virtual) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
   } else {
     QuadricGeom& q = quadrics.emplace_back();
     q.kind = s.kind;
@@ -194,6 +206,7 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     glm::dmat4 parent_from_object(s.render_from_object.m);
     q.object_from_parent = glm::inverse(parent_from_object);
     q.bounds = transform_bounds(parent_from_object, quadric_object_bounds(s));
+    q.is_virtual = is_virtual;
     geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(geom, 1);
     rtcSetGeometryUserData(geom, &q);

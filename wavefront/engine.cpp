@@ -40,21 +40,21 @@ struct Batch {
 struct ShadowBatch {
   std::vector<Ray> rays;
   std::vector<RGB> contribution;  // beta * f * L * w / pdf * filter weight: what reaches the film if unoccluded
-  std::vector<RGB> radiance;      // MIS-weighted radiance arriving at the NEE vertex (for the observer)
+  std::vector<float> mis_weight;  // the MIS weight inside the contribution (only when observed)
   std::vector<uint32_t> pixel;
   std::vector<uint32_t> vertex;
   size_t size() const { return rays.size(); }
   void clear() {
     rays.clear();
     contribution.clear();
-    radiance.clear();
+    mis_weight.clear();
     pixel.clear();
     vertex.clear();
   }
   void append(const ShadowBatch& o) {
     rays.insert(rays.end(), o.rays.begin(), o.rays.end());
     contribution.insert(contribution.end(), o.contribution.begin(), o.contribution.end());
-    radiance.insert(radiance.end(), o.radiance.begin(), o.radiance.end());
+    mis_weight.insert(mis_weight.end(), o.mis_weight.begin(), o.mis_weight.end());
     pixel.insert(pixel.end(), o.pixel.begin(), o.pixel.end());
     vertex.insert(vertex.end(), o.vertex.begin(), o.vertex.end());
   }
@@ -324,6 +324,11 @@ struct WavefrontEngine::Impl {
     RGB beta = ps.beta;
     const bool prev_specular = ps.prev_specular != 0;
     LightSampleContext prev_ctx{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
+    // Throughput-reset image (recorder debug, bounce N): only light arriving
+    // at vertices of depth >= N reaches the film, with the throughput set to
+    // 1 at hit N.  Emission found at hit d arrives at the vertex of depth d-1.
+    const int reset_depth = opt.throughput_reset_depth;
+    const bool splat_emission = reset_depth < 0 || int(depth) > reset_depth;
 
     // Escaped: infinite lights, MIS-weighted against light sampling.
     if (hit.geom == kInvalidId) {
@@ -336,14 +341,14 @@ struct WavefrontEngine::Impl {
           float light_pdf = light_sampler.pmf(prev_ctx, l) * infinite_light_pdf(lights, l, d);
           w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
-        film.splat(pixel, fw * beta * w * Le);
-        if constexpr (kObserve) observer->emission_added(ps.vertex, w * Le);
+        RGB contribution = fw * beta * w * Le;
+        if (splat_emission) film.splat(pixel, contribution);
+        if constexpr (kObserve) observer->emission_added(ps.vertex, pixel, contribution, w);
       }
       finish_path<kObserve>(slot, out);
       return;
     }
 
-    ++out.vertices;
     SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
     const vec3 wo = si.wo;
 
@@ -358,10 +363,23 @@ struct WavefrontEngine::Impl {
                             area_light_pdf(lights, si.area_light, prev_ctx, glm::normalize(ray.d), si);
           w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
-        film.splat(pixel, fw * beta * w * Le);
-        if constexpr (kObserve) observer->emission_added(ps.vertex, w * Le);
+        RGB contribution = fw * beta * w * Le;
+        if (splat_emission) film.splat(pixel, contribution);
+        if constexpr (kObserve) observer->emission_added(ps.vertex, pixel, contribution, w);
+      }
+      // A virtual light emits but does not block: the same ray goes on from
+      // the far side (re-traced; shadow rays skip it with an Embree filter).
+      if (light.is_virtual) {
+        if constexpr (kObserve) {
+          observer->vertex_continued(ps.vertex);
+          observer->vertex_done(ps.vertex);
+        }
+        out.rays.rays.push_back(spawn_ray(si, ray.d));
+        out.rays.paths.push_back(slot);
+        return;
       }
     }
+    ++out.vertices;
 
     BSDF bsdf = make_bsdf(scene, si);
     if (depth == 0) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
@@ -372,9 +390,10 @@ struct WavefrontEngine::Impl {
     }
 
     const uint32_t dim = kBounceBase + kDimsPerBounce * depth;
+    if (int(depth) == reset_depth) beta = RGB(1.0f);
 
     // Next-event estimation: queue a shadow ray carrying its unoccluded contribution.
-    if (!bsdf_is_specular(bsdf)) {
+    if (!bsdf_is_specular(bsdf) && int(depth) >= reset_depth) {
       LightSampleContext ctx{si.p, si.p_error, si.ng, si.ns};
       if (auto sl = light_sampler.sample(ctx, sample1(pixel, sample, dim + kDimLightChoice))) {
         auto ls = sample_li(lights, sl->light, ctx, sample2(pixel, sample, dim + kDimLightPoint),
@@ -390,12 +409,22 @@ struct WavefrontEngine::Impl {
               ShadowBatch& sb = out.shadows;
               sb.rays.push_back(spawn_ray_to(si, ls->p_light, ls->p_light_error, ls->n_light));
               sb.contribution.push_back(contribution);
-              sb.radiance.push_back(w * ls->L);
               sb.pixel.push_back(pixel);
               uint32_t v = kNoVertex;
               if constexpr (kObserve) {
-                PathVertexInfo info{si.p, si.ns, ls->wi, beta * f / light_pdf, light_pdf, pixel, sample,
-                                    int(depth),   0,     1.0f,  true};
+                sb.mis_weight.push_back(w);
+                PathVertexInfo info;
+                info.p = si.p;
+                info.n = si.ns;
+                info.wi = ls->wi;
+                info.prefix = fw * beta;
+                info.local = f / light_pdf;
+                info.pdf = light_pdf;
+                info.camera_weight = fw;
+                info.pixel = pixel;
+                info.sample = sample;
+                info.depth = int(depth);
+                info.is_nee = true;
                 v = observer->vertex_created(ps.vertex, info);
               }
               sb.vertex.push_back(v);
@@ -412,7 +441,9 @@ struct WavefrontEngine::Impl {
       finish_path<kObserve>(slot, out);
       return;
     }
-    beta *= bs->f * (std::abs(glm::dot(bs->wi, si.ns)) / bs->pdf);
+    [[maybe_unused]] const RGB beta_in = beta;
+    RGB local = bs->f * (std::abs(glm::dot(bs->wi, si.ns)) / bs->pdf);
+    beta *= local;
     uint32_t next_depth = depth + 1;
     // Russian roulette on the throughput, as pbrt-v4 does it.
     if (int(next_depth) > opt.rr_min_depth) {
@@ -424,6 +455,7 @@ struct WavefrontEngine::Impl {
           return;
         }
         beta /= 1.0f - q;
+        local /= 1.0f - q;
       }
     }
     if (!is_finite(beta) || is_black(beta)) {
@@ -431,8 +463,19 @@ struct WavefrontEngine::Impl {
       return;
     }
     if constexpr (kObserve) {
-      PathVertexInfo info{si.p, si.ns, bs->wi, beta, bs->pdf, pixel, sample, int(depth), bs->flags, bs->roughness,
-                          false};
+      PathVertexInfo info;
+      info.p = si.p;
+      info.n = si.ns;
+      info.wi = bs->wi;
+      info.prefix = fw * beta_in;
+      info.local = local;
+      info.pdf = bs->pdf;
+      info.camera_weight = fw;
+      info.pixel = pixel;
+      info.sample = sample;
+      info.depth = int(depth);
+      info.lobe_flags = bs->flags;
+      info.roughness = bs->roughness;
       uint32_t child = observer->vertex_created(ps.vertex, info);
       observer->vertex_done(ps.vertex);
       ps.vertex = child;
@@ -486,7 +529,8 @@ struct WavefrontEngine::Impl {
           size_t i = order.empty() ? k : order[k];
           if (!blocked[k]) film.splat(s.pixel[i], s.contribution[i]);
           if (observer) {
-            if (!blocked[k]) observer->emission_added(s.vertex[i], s.radiance[i]);
+            // An occluded NEE ray still finishes its vertex: a zero sample.
+            if (!blocked[k]) observer->emission_added(s.vertex[i], s.pixel[i], s.contribution[i], s.mis_weight[i]);
             observer->vertex_done(s.vertex[i]);
           }
         }
@@ -550,7 +594,7 @@ struct WavefrontEngine::Impl {
 
   size_t memory_bytes() const {
     size_t ray_bytes = sizeof(Ray) + sizeof(uint32_t);
-    size_t shadow_bytes = sizeof(Ray) + 2 * sizeof(RGB) + 2 * sizeof(uint32_t);
+    size_t shadow_bytes = sizeof(Ray) + sizeof(RGB) + 2 * sizeof(uint32_t) + (observer ? sizeof(float) : 0);
     return pool.memory_bytes() + stats.peak_queued_rays * ray_bytes +
            stats.peak_queued_shadow_rays * shadow_bytes;
   }

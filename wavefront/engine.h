@@ -32,6 +32,10 @@ struct EngineOptions {
   float occupancy_threshold = 0.5f;       // refill the pool below this fraction
   bool sort = true;                       // sort rays and hits (off: queue order)
   int rr_min_depth = 1;                   // Russian roulette from this depth on (pbrt-v4: depth > 1)
+  // >= 0: render the "throughput reset at bounce N" image the recorder's
+  // N-th bounce debug buffer is compared with (only light arriving at
+  // vertices of depth >= N, throughput 1 at hit N).
+  int throughput_reset_depth = -1;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;

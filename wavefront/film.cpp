@@ -46,6 +46,9 @@ ImageBuffer resolve_film(const Film& film) {
   img.width = film.width;
   img.height = film.height;
   img.channels = {"R", "G", "B", "A", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "depth.Z"};
+  const size_t first_layer = img.channels.size();
+  for (const FilmLayer& l : film.layers)
+    for (const char* c : {".R", ".G", ".B"}) img.channels.push_back(l.name + c);
   const size_t nc = img.channels.size();
   img.data.assign(film.pixel_count() * nc, 0.0f);
   for (size_t i = 0; i < film.pixel_count(); ++i) {
@@ -68,6 +71,9 @@ ImageBuffer resolve_film(const Film& film) {
       }
       px[10] = film.depth[i] / a;
     }
+    for (size_t l = 0; l < film.layers.size(); ++l)
+      if (film.layers[l].rgb.size() == 3 * film.pixel_count())
+        for (int c = 0; c < 3; ++c) px[first_layer + 3 * l + c] = film.layers[l].rgb[3 * i + c] * inv;
   }
   return img;
 }

@@ -10,9 +10,18 @@
 
 #include <atomic>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace theia {
+
+// An extra RGB layer of per-pixel sums (interleaved RGB), resolved like the
+// beauty (divided by the pixel's weight) as channels NAME.R NAME.G NAME.B:
+// how other subsystems (the recorder's debug buffers) reach the EXR.
+struct FilmLayer {
+  std::string name;
+  std::vector<float> rgb;
+};
 
 struct Film {
   int width = 0, height = 0;
@@ -24,6 +33,7 @@ struct Film {
   std::vector<float> normal[3];
   std::vector<float> depth;
   std::atomic<uint64_t> dropped{0};  // non-finite contributions discarded
+  std::vector<FilmLayer> layers;     // extra layers, after the AOVs
 
   Film(int w, int h);
   size_t pixel_count() const { return size_t(width) * size_t(height); }
@@ -34,7 +44,8 @@ struct Film {
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
 };
 
-// Resolve to an image with channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z depth.Z.
+// Resolve to an image with channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z depth.Z,
+// then LAYER.R LAYER.G LAYER.B for each extra layer.
 ImageBuffer resolve_film(const Film& film);
 
 }  // namespace theia

@@ -31,8 +31,8 @@ class CountingObserver final : public PathObserver {
     ++created;
     return next_++;
   }
-  void emission_added(uint32_t vertex, const RGB& L) override {
-    if (vertex >= next_.load() || !is_finite(L)) ++bad_parent;
+  void emission_added(uint32_t vertex, uint32_t, const RGB& L, float w) override {
+    if (vertex >= next_.load() || !is_finite(L) || !(w >= 0.0f && w <= 1.0f)) ++bad_parent;
     ++emissions;
   }
   void vertex_continued(uint32_t) override {}

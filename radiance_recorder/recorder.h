@@ -1,0 +1,175 @@
+// The Radiance Recorder (Hyperion, "Path Guiding Surfaces and Volumes",
+// section 3): turns the wavefront's feed-forward path events into one
+// incident-radiance training sample per recorded path vertex.
+//
+// A vertex lives until every ray descending from it has finished (reference
+// count); then its accumulated emission, divided by its throughput, is its
+// incident radiance, and the emission is handed to its parent
+// (backpropagation).  Memory is bounded by path skipping (a per-iteration rate
+// from a per-path vertex budget), stochastic vertex skipping and a minimum
+// parent-child distance.  Debug buffers re-splat the primary-hit (and N-th
+// bounce) samples so they can be compared with the beauty pass.
+#pragma once
+
+#include "core/path_observer.h"
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <vector>
+
+namespace theia {
+
+// ---------------------------------------------------------------- handles
+
+using PVIndex = uint32_t;
+inline constexpr uint32_t kPVBlockSize = 4096;
+inline constexpr PVIndex kPVNone = kNoVertex;      // the camera: no vertex to record
+inline constexpr PVIndex kPVSkipped = 0xfffffffeu; // a skipped path: never allocates, never has children
+// A vertex that was not recorded (vertex skipping) whose parent is the camera:
+// its emission has no recorded ancestor, but its children are recorded.
+inline constexpr PVIndex kPVDetached = 0xfffffffdu;
+// Set on a handle that names an ancestor continued in place of an unrecorded
+// child: what arrives through it is indirect light for that ancestor.
+inline constexpr PVIndex kPVMergedBit = 0x80000000u;
+inline constexpr uint32_t kPVMaxBlocks = (kPVMergedBit / kPVBlockSize);
+
+// ---------------------------------------------------------------- samples
+
+enum VertexFlags : uint8_t {
+  kVertexNEE = 1 << 0,      // created for an NEE ray
+  kVertexInMedium = 1 << 1, // created inside a medium
+  kVertexDelta = 1 << 2,    // sampled from a delta (specular) lobe
+  kVertexGlossy = 1 << 3,   // sampled from a glossy lobe
+};
+
+// What a training sample's radiance holds.
+enum class TrainingMode {
+  All,                  // direct (unweighted) + indirect: the full incident-radiance estimate
+  IndirectOnly,         // what arrives through later scattering only
+  IndirectPlusMISDirect // indirect + MIS-weighted direct (Ruppert et al. 2020; course notes ch. 1 eq. 23)
+};
+
+struct TrainingSample {
+  vec3 p{0.0f};
+  vec3 wi{0.0f};        // direction of the vertex's ray (incident radiance arrives from it)
+  vec3 n{0.0f};
+  RGB radiance{0.0f};   // incident radiance along wi, per the mode
+  float pdf = 0.0f;
+  float roughness = 1.0f;
+  uint32_t pixel = 0, sample = 0;
+  uint16_t depth = 0;
+  uint8_t flags = 0;    // VertexFlags
+};
+
+// Where samples go: guiding implements this.  consume() is called from the
+// thread that calls end_iteration(), once, with the iteration's samples
+// sorted by (pixel, sample, depth, flags) so that training is deterministic.
+class TrainingSampleSink {
+ public:
+  virtual ~TrainingSampleSink() = default;
+  virtual void consume(std::span<const TrainingSample> samples) = 0;
+};
+
+// Counts and keeps every sample (tests).
+class StoringSampleSink final : public TrainingSampleSink {
+ public:
+  void consume(std::span<const TrainingSample> s) override { samples.insert(samples.end(), s.begin(), s.end()); }
+  std::vector<TrainingSample> samples;
+};
+
+// ---------------------------------------------------------------- options and stats
+
+struct RecorderOptions {
+  TrainingMode mode = TrainingMode::IndirectPlusMISDirect;
+  float vertex_budget = 4.0f;          // target recorded vertices per path; <= 0: no path skipping
+  float vertex_skip_probability = 0.0f;// stochastic vertex skipping
+  float min_distance = 0.0f;           // closer to its parent than this: the parent is continued instead
+  uint32_t seed = 0;
+  // Debug buffers (section 4.1); width * height pixels, RGB sums.
+  int width = 0, height = 0;
+  bool debug_primary = false;
+  int debug_bounce = -1;               // >= 0: also the N-th bounce buffer
+  uint32_t max_blocks = 1u << 16;      // hard cap on storage: 2^16 blocks = 268M vertices
+};
+
+struct RecorderStats {
+  uint64_t paths = 0, skipped_paths = 0;
+  uint64_t vertex_events = 0;          // vertex_created calls (the unskipped path length)
+  uint64_t recorded = 0;               // vertices allocated (= samples produced)
+  uint64_t skipped_vertices = 0, merged_vertices = 0;
+  uint64_t dropped = 0;                // non-finite samples or debug splats
+  uint64_t peak_live_vertices = 0;           // over the whole run
+  uint64_t iteration_peak_live_vertices = 0; // in the current (or last) iteration
+  uint64_t peak_blocks = 0;
+  uint64_t peak_sample_bytes = 0;
+  double path_skip_rate = 0.0;         // of the current (last begun) iteration
+  double average_path_length = 0.0;    // vertex events per path in the last finished iteration
+};
+
+// Path skip rate for an iteration given the previous one (section 3.4.4):
+// keep budget * paths of the vertices; 8 paths x 8 vertices, budget 4 -> 0.5.
+double path_skip_rate(uint64_t paths, uint64_t vertices, double budget);
+
+// ---------------------------------------------------------------- the recorder
+
+class RadianceRecorder final : public PathObserver {
+ public:
+  explicit RadianceRecorder(const RecorderOptions& options, TrainingSampleSink* sink = nullptr);
+  ~RadianceRecorder() override;
+  RadianceRecorder(const RadianceRecorder&) = delete;
+  RadianceRecorder& operator=(const RadianceRecorder&) = delete;
+
+  // Around each engine render() call (no ray may be in flight at either).
+  // begin sets this iteration's path skip rate from the last one; end hands
+  // the samples to the sink and checks that nothing is left allocated.
+  void begin_iteration();
+  void end_iteration();
+
+  uint32_t path_started(uint32_t pixel, uint32_t sample) override;
+  uint32_t vertex_created(uint32_t parent, const PathVertexInfo& v) override;
+  void emission_added(uint32_t vertex, uint32_t pixel, const RGB& contribution, float mis_weight) override;
+  void vertex_continued(uint32_t vertex) override;
+  void vertex_done(uint32_t vertex) override;
+
+  RecorderStats stats() const;
+  uint64_t live_vertices() const { return live_.load(std::memory_order_relaxed); }
+  size_t peak_bytes() const;           // vertex blocks at their peak + buffered samples at theirs
+  static size_t vertex_bytes();
+  // Debug sums (RGB per pixel, in film units: divide by the film's weight).
+  const std::vector<float>& debug_primary() const { return debug_primary_; }
+  const std::vector<float>& debug_bounce() const { return debug_bounce_; }
+  const RecorderOptions& options() const { return opt_; }
+
+ private:
+  struct Vertex;
+  struct Block;
+  struct ThreadCache;
+
+  Vertex& at(PVIndex i) const;
+  PVIndex allocate(ThreadCache& tc);
+  void release(ThreadCache& tc, PVIndex i);
+  void finish(ThreadCache& tc, PVIndex i);      // drop one reference; backpropagate at zero
+  void record(ThreadCache& tc, Vertex& v);
+
+  RecorderOptions opt_;
+  TrainingSampleSink* sink_;
+  std::unique_ptr<std::atomic<Block*>[]> blocks_;
+  std::atomic<uint32_t> block_count_{0};
+  std::mutex free_mutex_;                       // guards free_ and block creation
+  std::vector<PVIndex> free_;                   // global free queue, refilled in batches
+  tbb::enumerable_thread_specific<ThreadCache>* caches_;
+  std::atomic<uint64_t> live_{0}, peak_live_{0};  // peak_live_: this iteration's
+  uint64_t run_peak_live_ = 0;
+  uint64_t peak_sample_bytes_ = 0;
+  double skip_rate_ = 0.0;
+  uint64_t last_paths_ = 0, last_events_ = 0;                    // the previous iteration's
+  uint64_t iteration_begin_paths_ = 0, iteration_begin_events_ = 0;
+  std::vector<float> debug_primary_, debug_bounce_;
+};
+
+}  // namespace theia

@@ -1,0 +1,229 @@
+// The radiance recorder inside the wavefront, checked against the beauty pass
+// with its own debug buffers (Hyperion course notes ch. 2, section 4.1).
+#include "render_helpers.h"
+#include "cachepoints/light_sampler.h"
+#include "core/metrics.h"
+#include "radiance_recorder/recorder.h"
+#include "scene/accel.h"
+#include "scene/camera.h"
+#include "scene/filter.h"
+#include "wavefront/engine.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+
+using namespace theia;
+using namespace theia::test;
+
+namespace {
+
+struct RecordedRender {
+  ImageBuffer image;
+  RecorderStats stats;
+  std::vector<uint64_t> iteration_peaks;  // live vertices at their peak, per iteration
+};
+
+// Renders `iterations` iterations of `spp` samples each, with the recorder
+// between begin/end_iteration as the scheduler will drive it.
+RecordedRender render_recorded(const Scene& scene, const EngineOptions& opt, RecorderOptions ro, int iterations,
+                               int spp, bool record = true) {
+  Accel accel(scene);
+  LightSet lights(scene, accel);
+  auto sampler = make_light_sampler("power", lights);
+  Camera camera = make_camera(scene.camera, scene.film);
+  Filter filter = make_filter(scene.filter);
+  Film film(scene.film.width, scene.film.height);
+  ro.width = scene.film.width;
+  ro.height = scene.film.height;
+  std::unique_ptr<RadianceRecorder> rec;
+  if (record) rec = std::make_unique<RadianceRecorder>(ro);
+  WavefrontEngine engine(scene, accel, lights, *sampler, camera, filter, film, opt, rec.get());
+  RecordedRender out;
+  for (int it = 0; it < iterations; ++it) {
+    if (rec) rec->begin_iteration();
+    engine.render(uint32_t(it * spp), uint32_t((it + 1) * spp));
+    if (rec) {
+      rec->end_iteration();
+      out.iteration_peaks.push_back(rec->stats().iteration_peak_live_vertices);
+    }
+  }
+  if (rec) {
+    if (ro.debug_primary) film.layers.push_back({"recorder", rec->debug_primary()});
+    if (ro.debug_bounce >= 0) film.layers.push_back({"bounce", rec->debug_bounce()});
+    out.stats = rec->stats();
+  }
+  out.image = resolve_film(film);
+  return out;
+}
+
+// The RGB of layer `name` (or the beauty for "") as an image of its own.
+ImageBuffer layer(const ImageBuffer& img, const std::string& name) {
+  ImageBuffer out(img.width, img.height, {"R", "G", "B"});
+  for (int c = 0; c < 3; ++c) {
+    std::string ch = name.empty() ? std::string(1, "RGB"[c]) : name + "." + "RGB"[c];
+    int k = img.channel_index(ch);
+    EXPECT_GE(k, 0) << ch;
+    if (k < 0) continue;
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) out.at(x, y, c) = img.data[img.offset(x, y, k)];
+  }
+  return out;
+}
+
+Scene cornell(int res) {
+  Scene s = load_test_scene_file(std::string(THEIA_SCENES) + "/cornell-box/scene.pbrt");
+  s.film.width = s.film.height = res;
+  return s;
+}
+
+// A floor lit by a real area light above; between them two virtual lights
+// (emit, never block), one of them in view of the camera.
+// The virtual quads are black: as ordinary surfaces they would only block.
+Scene virtual_lights_scene(bool is_virtual = true) {
+  std::string v = is_virtual ? "true" : "false";
+  return load_test_scene(R"(
+    Film "rgb" "integer xresolution" [20] "integer yresolution" [20]
+    LookAt 0 3 -4  0 0 0  0 1 0
+    Camera "perspective" "float fov" [45]
+    WorldBegin
+    Material "diffuse" "rgb reflectance" [0.7 0.7 0.7]
+    Shape "bilinearmesh" "point3 P" [-3 0 -3  3 0 -3  -3 0 3  3 0 3]
+    AttributeBegin
+      AreaLightSource "diffuse" "rgb L" [6 6 6]
+      Shape "bilinearmesh" "point3 P" [-0.5 3 -0.5  0.5 3 -0.5  -0.5 3 0.5  0.5 3 0.5]
+    AttributeEnd
+    AttributeBegin
+      Material "diffuse" "rgb reflectance" [0 0 0]
+      AreaLightSource "diffuse" "rgb L" [0.3 0.1 0.05] "bool twosided" true "bool virtual" )" + v + R"(
+      Shape "bilinearmesh" "point3 P" [-1.5 1.5 -1.5  1.5 1.5 -1.5  -1.5 1.5 1.5  1.5 1.5 1.5]
+    AttributeEnd
+    AttributeBegin
+      Material "diffuse" "rgb reflectance" [0 0 0]
+      AreaLightSource "diffuse" "rgb L" [0.05 0.2 0.1] "bool twosided" true "bool virtual" )" + v + R"(
+      Shape "bilinearmesh" "point3 P" [-1 0.8 -1  1 0.8 -1  -1 0.8 1  1 0.8 1]
+    AttributeEnd
+  )");
+}
+
+}  // namespace
+
+TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyOnCornellBox) {
+  Scene scene = cornell(24);
+  EngineOptions opt;
+  opt.batch_size = 4096;
+  RecorderOptions ro;
+  ro.debug_primary = true;
+  RecordedRender r = render_recorded(scene, opt, ro, 1, 4);
+  EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4);
+  EXPECT_GT(image_mean(layer(r.image, "recorder")).x, 0.05f);
+  EXPECT_EQ(r.stats.dropped, 0u);
+  EXPECT_EQ(r.stats.skipped_paths, 0u);
+}
+
+TEST(RecorderDebug, VirtualLightsEmitWithoutOccluding) {
+  EngineOptions opt;
+  opt.batch_size = 4096;
+  RecorderOptions ro;
+  ro.debug_primary = true;
+  Scene scene = virtual_lights_scene();
+  RecordedRender r = render_recorded(scene, opt, ro, 1, 16);
+  ImageBuffer beauty = layer(r.image, "");
+  EXPECT_LT(max_relative_difference(beauty, layer(r.image, "recorder")), 1e-4);
+
+  // Dark quads: as virtual lights they do not block, so the floor is as lit as
+  // with no quads at all; as ordinary (black) surfaces they shadow it.
+  auto dark = [](Scene sc) {
+    sc.lights[1].L = sc.lights[2].L = RGB(0.0f);
+    return sc;
+  };
+  Scene none = dark(virtual_lights_scene());
+  Scene blocking = dark(virtual_lights_scene(false));
+  Scene empty = virtual_lights_scene();
+  empty.top_level_shapes.resize(2);  // the floor and the real light only
+  empty.lights.resize(1);
+  RGB m_virtual = image_mean(beauty);
+  RGB m_none = image_mean(layer(render_recorded(none, opt, ro, 1, 16, false).image, ""));
+  RGB m_blocking = image_mean(layer(render_recorded(blocking, opt, ro, 1, 16, false).image, ""));
+  RGB m_empty = image_mean(layer(render_recorded(empty, opt, ro, 1, 16, false).image, ""));
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_GT(m_virtual[c], m_none[c] * 1.02f) << "virtual lights emit (channel " << c << ")";
+    EXPECT_NEAR(m_none[c], m_empty[c], 0.03f * m_empty[c]) << "virtual lights do not occlude (channel " << c << ")";
+    EXPECT_LT(m_blocking[c], m_empty[c] * 0.8f) << "the same quads as surfaces do (channel " << c << ")";
+  }
+}
+
+TEST(RecorderDebug, SkippingIsNoisierButConverges) {
+  Scene scene = cornell(16);
+  EngineOptions opt;
+  opt.batch_size = 4096;
+  RecorderOptions ro;
+  ro.debug_primary = true;
+  ro.vertex_budget = 2.0f;            // path skipping from the second iteration on
+  ro.vertex_skip_probability = 0.5f;  // and vertex skipping throughout
+  auto error_at = [&](int iterations, RecorderStats* st) {
+    RecordedRender r = render_recorded(scene, opt, ro, iterations, 2);
+    if (st) *st = r.stats;
+    return rel_mse(layer(r.image, "recorder"), layer(r.image, ""));
+  };
+  RecorderStats st;
+  double e_few = error_at(2, nullptr), e_many = error_at(16, &st);
+  EXPECT_GT(st.path_skip_rate, 0.2) << "the budget must have engaged path skipping";
+  EXPECT_GT(st.skipped_vertices, 0u);
+  EXPECT_GT(e_few, 1e-4) << "with skipping the debug image is not the beauty sample for sample";
+  EXPECT_LT(e_many, 0.35 * e_few) << "relMSE " << e_few << " at 4 spp, " << e_many << " at 32 spp";
+}
+
+TEST(RecorderDebug, NthBounceBufferEqualsThroughputResetImage) {
+  Scene scene = cornell(16);
+  EngineOptions opt;
+  opt.batch_size = 4096;
+  // Russian roulette decides on the throughput, which the reset image changes:
+  // without it both renders make the same decisions sample for sample.
+  opt.rr_min_depth = 1000;
+  for (int bounce : {0, 1, 2}) {
+    RecorderOptions ro;
+    ro.debug_bounce = bounce;
+    RecordedRender r = render_recorded(scene, opt, ro, 1, 4);
+    EngineOptions reset = opt;
+    reset.throughput_reset_depth = bounce;
+    ImageBuffer reference = layer(render_recorded(scene, reset, ro, 1, 4, false).image, "");
+    EXPECT_LT(max_relative_difference(layer(r.image, "bounce"), reference), 1e-4) << "bounce " << bounce;
+    EXPECT_GT(image_mean(reference).x, 0.01f);
+  }
+  // With vertex skipping: noisier, converging.
+  RecorderOptions ro;
+  ro.debug_bounce = 1;
+  ro.vertex_skip_probability = 0.5f;
+  EngineOptions reset = opt;
+  reset.throughput_reset_depth = 1;
+  auto error_at = [&](int spp) {
+    RecordedRender r = render_recorded(scene, opt, ro, 1, spp);
+    ImageBuffer reference = layer(render_recorded(scene, reset, ro, 1, spp, false).image, "");
+    return rel_mse(layer(r.image, "bounce"), reference);
+  };
+  double e_few = error_at(4), e_many = error_at(32);
+  EXPECT_LT(e_many, 0.35 * e_few) << "relMSE " << e_few << " at 4 spp, " << e_many << " at 32 spp";
+}
+
+// With the budget, the live vertices at the peak depend on the pool size and
+// the budget, not on how long paths are.
+TEST(RecorderMemory, PeakDoesNotGrowWithPathLength) {
+  Scene scene = cornell(16);
+  EngineOptions opt;
+  opt.batch_size = 1024;
+  opt.max_paths = 2048;
+  opt.rr_min_depth = 1000;
+  auto peak = [&](int max_depth, float budget) {
+    EngineOptions o = opt;
+    o.max_depth = max_depth;
+    RecorderOptions ro;
+    ro.vertex_budget = budget;
+    RecordedRender r = render_recorded(scene, o, ro, 3, 1);
+    return double(r.iteration_peaks.back());
+  };
+  double short_budget = peak(4, 4.0f), long_budget = peak(32, 4.0f);
+  double short_free = peak(4, 0.0f), long_free = peak(32, 0.0f);
+  EXPECT_GT(long_free, 1.5 * short_free) << "without a budget, longer paths hold more vertices";
+  EXPECT_LT(long_budget, 1.25 * short_budget) << short_budget << " vs " << long_budget;
+}

@@ -71,9 +71,12 @@ ImageBuffer resolve_film(const Film& film) {
       }
       px[10] = film.depth[i] / a;
     }
-    for (size_t l = 0; l < film.layers.size(); ++l)
-      if (film.layers[l].rgb.size() == 3 * film.pixel_count())
-        for (int c = 0; c < 3; ++c) px[first_layer + 3 * l + c] = film.layers[l].rgb[3 * i + c] * inv;
+    for (size_t l = 0; l < film.layers.size(); ++l) {
+      const std::vector<float>& rgb = film.layers[l].rgb;
+      if (rgb.size() != 3 * film.pixel_count()) continue;
+      RGB v = working_to_srgb(RGB(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]) * inv);
+      for (int c = 0; c < 3; ++c) px[first_layer + 3 * l + c] = v[c];
+    }
   }
   return img;
 }

@@ -10,6 +10,9 @@
 #include "scene/lights.h"
 #include "scene/parser.h"
 #include "scene/texture.h"
+#include "checkpoint/fingerprint.h"
+#include "core/hash.h"
+#include "scheduler/driver.h"
 #include "wavefront/engine.h"
 
 #include <tbb/global_control.h>
@@ -30,6 +33,28 @@ static void check_config(const RenderConfig& c) {
   if (c.threads < 0) throw_error("--threads must be zero (all cores) or positive, got {}", c.threads);
   if (c.batch_size == 0) throw_error("--batch-size must be positive");
   if (c.max_paths == 0) throw_error("--max-paths must be positive");
+  if (c.schedule != "regular" && c.schedule != "guiding")
+    throw_error("--schedule {}: expected regular or guiding", c.schedule);
+  if (c.checkpoint_first_ideal <= 0)
+    throw_error("--checkpoint-first must be positive, got {}", c.checkpoint_first_ideal);
+}
+
+static ScheduleOptions schedule_options(const RenderConfig& c) {
+  ScheduleOptions o = c.schedule == "guiding" ? guiding_schedule() : regular_schedule();
+  if (c.iteration_first >= 0) o.first_size = c.iteration_first;
+  if (c.iteration_repeat >= 0) o.repeat_first = c.iteration_repeat;
+  if (c.iteration_max >= 0) o.max_size = c.iteration_max;
+  if (c.iteration_growth != 0.0) o.growth = c.iteration_growth;
+  return o;
+}
+
+// The options that change the image; threads, batch size, pool size and
+// sorting change only the floating-point summation order.
+static uint64_t options_fingerprint(const RenderConfig& c, int spp, int max_depth, const ScheduleOptions& s) {
+  std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
+                                 s.first_size, s.repeat_first, s.growth, s.max_size, c.combine,
+                                 c.checkpoint_first_ideal);
+  return hash_bytes(text.data(), text.size());
 }
 
 RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
@@ -57,17 +82,41 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.batch_size = config.batch_size;
   opt.max_paths = config.max_paths;
   opt.sort = config.sort;
+  opt.stop = config.stop;
   WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt);
 
+  IterationConfig ic;
+  ic.schedule = schedule_options(config);
+  ic.total_spp = spp;
+  ic.combination = parse_combination(config.combine);
+  ic.seed = config.seed;
+  ic.checkpoint_dir = config.checkpoint_dir;
+  ic.resume_required = config.resume;
+  ic.checkpoint_every_iteration = config.checkpoint_every_iteration;
+  ic.checkpoint_first_ideal = config.checkpoint_first_ideal;
+  ic.scene_hash = scene_fingerprint(scene);
+  ic.options_hash = options_fingerprint(config, spp, max_depth, ic.schedule);
+  ic.stop = config.stop;
+  const std::vector<int> cumulative = cumulative_spp(make_schedule(ic.schedule, spp));
   ProgressBar bar(config.progress);
   const EngineStats& st = engine.stats();
-  engine.render(0, uint32_t(spp), [&](double fraction) { bar.update(fraction, st.total_rays()); });
+  ic.progress = [&](int it, double fraction) {
+    double before = it > 0 ? cumulative[size_t(it) - 1] : 0;
+    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / spp, st.total_rays());
+    if (config.on_iteration_progress) config.on_iteration_progress(it, fraction);
+  };
+  // Subsystems register their between-iteration work here, one line each
+  // (guiding update, cache-point update, adaptive sampler, recorder skip rate).
+  IterationTasks tasks;
+  IterationResult iterations = render_iterations(engine, film, tasks, ic);
   bar.finish();
 
   RenderResult result;
-  result.image = resolve_film(film);
+  result.image = std::move(iterations.image);
+  result.interrupted = iterations.interrupted;
 
   nlohmann::json& log = result.log;
+  log["scheduler"] = iterations.log;
   log["scene"] = scene.path;
   log["resolution"] = {scene.film.width, scene.film.height};
   log["options"] = {{"spp", spp},
@@ -77,7 +126,9 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                     {"batch_size", config.batch_size},
                     {"max_paths", config.max_paths},
                     {"sort", config.sort},
-                    {"light_sampler", light_sampler->name()}};
+                    {"light_sampler", light_sampler->name()},
+                    {"schedule", config.schedule},
+                    {"combine", config.combine}};
   nlohmann::json phases;
   for (size_t p = 0; p < size_t(Phase::Count); ++p) phases[kPhaseNames[p]] = st.phases.seconds[p];
   phases["accel_build"] = accel_seconds;
@@ -102,7 +153,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                    {"wavefront", engine.memory_bytes()},
                    {"peak_queued_rays", st.peak_queued_rays},
                    {"peak_queued_shadow_rays", st.peak_queued_shadow_rays}};
-  log["dropped_samples"] = film.dropped.load();
+  log["dropped_samples"] = iterations.dropped_samples;
   log["warnings"] = warning_count();
   return result;
 }
@@ -134,6 +185,13 @@ int run_render(const RenderConfig& in) {
   if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
 
   RenderResult result = render_scene(scene, config);
+  if (result.interrupted) {
+    if (config.checkpoint_dir.empty())
+      log_warning("stopped before the end; without --checkpoint-dir nothing was kept");
+    else
+      log_info("stopped before the end; state saved in {}; run the same command to resume", config.checkpoint_dir);
+    return kExitInterrupted;
+  }
   std::string png = fs::path(config.output).replace_extension(".png").string();
   write_exr(config.output, result.image);
   write_png_srgb(png, result.image, 0, 1, 2);

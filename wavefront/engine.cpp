@@ -42,6 +42,7 @@ struct ShadowBatch {
   std::vector<RGB> contribution;  // beta * f * L * w / pdf * filter weight: what reaches the film if unoccluded
   std::vector<RGB> radiance;      // MIS-weighted radiance arriving at the NEE vertex (for the observer)
   std::vector<uint32_t> pixel;
+  std::vector<uint32_t> sample;   // which half buffer of the film it belongs to
   std::vector<uint32_t> vertex;
   size_t size() const { return rays.size(); }
   void clear() {
@@ -49,6 +50,7 @@ struct ShadowBatch {
     contribution.clear();
     radiance.clear();
     pixel.clear();
+    sample.clear();
     vertex.clear();
   }
   void append(const ShadowBatch& o) {
@@ -56,6 +58,7 @@ struct ShadowBatch {
     contribution.insert(contribution.end(), o.contribution.begin(), o.contribution.end());
     radiance.insert(radiance.end(), o.radiance.begin(), o.radiance.end());
     pixel.insert(pixel.end(), o.pixel.begin(), o.pixel.end());
+    sample.insert(sample.end(), o.sample.begin(), o.sample.end());
     vertex.insert(vertex.end(), o.vertex.begin(), o.vertex.end());
   }
 };
@@ -171,7 +174,7 @@ struct WavefrontEngine::Impl {
         Ray ray;
         ray.o = cam.o;
         ray.d = cam.d;
-        film.add_weight(pixel, fs.weight);
+        film.add_weight(pixel, sample, fs.weight);
         PathState& ps = pool[slots[i]];
         ps.beta = RGB(1.0f);
         ps.prev_p = ray.o;
@@ -336,7 +339,7 @@ struct WavefrontEngine::Impl {
           float light_pdf = light_sampler.pmf(prev_ctx, l) * infinite_light_pdf(lights, l, d);
           w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
-        film.splat(pixel, fw * beta * w * Le);
+        film.splat(pixel, sample, fw * beta * w * Le);
         if constexpr (kObserve) observer->emission_added(ps.vertex, w * Le);
       }
       finish_path<kObserve>(slot, out);
@@ -358,7 +361,7 @@ struct WavefrontEngine::Impl {
                             area_light_pdf(lights, si.area_light, prev_ctx, glm::normalize(ray.d), si);
           w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
-        film.splat(pixel, fw * beta * w * Le);
+        film.splat(pixel, sample, fw * beta * w * Le);
         if constexpr (kObserve) observer->emission_added(ps.vertex, w * Le);
       }
     }
@@ -392,6 +395,7 @@ struct WavefrontEngine::Impl {
               sb.contribution.push_back(contribution);
               sb.radiance.push_back(w * ls->L);
               sb.pixel.push_back(pixel);
+              sb.sample.push_back(sample);
               uint32_t v = kNoVertex;
               if constexpr (kObserve) {
                 PathVertexInfo info{si.p, si.ns, ls->wi, beta * f / light_pdf, light_pdf, pixel, sample,
@@ -484,7 +488,7 @@ struct WavefrontEngine::Impl {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t k = r.begin(); k < r.end(); ++k) {
           size_t i = order.empty() ? k : order[k];
-          if (!blocked[k]) film.splat(s.pixel[i], s.contribution[i]);
+          if (!blocked[k]) film.splat(s.pixel[i], s.sample[i], s.contribution[i]);
           if (observer) {
             if (!blocked[k]) observer->emission_added(s.vertex[i], s.radiance[i]);
             observer->vertex_done(s.vertex[i]);
@@ -497,12 +501,15 @@ struct WavefrontEngine::Impl {
 
   // ---------------------------------------------------------------- the loop
 
-  void render(uint32_t s_begin, uint32_t s_end, const std::function<void(double)>& progress) {
+  uint64_t render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const std::function<void(double)>& progress) {
     auto t0 = std::chrono::steady_clock::now();
     sample_begin = s_begin;
     sample_count = s_end > s_begin ? s_end - s_begin : 0;
-    next_camera = 0;
     camera_end = uint64_t(film.pixel_count()) * sample_count;
+    next_camera = std::min(first_camera, camera_end);
+    // Once stopped, no camera ray is generated: the paths in flight finish,
+    // so exactly the pixel-samples [first_camera, next_camera) are complete.
+    auto stopped = [&] { return opt.stop && opt.stop->load(std::memory_order_relaxed); };
     const size_t capacity = pool.capacity();
     const size_t refill_below = size_t(opt.occupancy_threshold * float(capacity));
 
@@ -510,7 +517,7 @@ struct WavefrontEngine::Impl {
       if (progress) progress(camera_end ? double(next_camera) / double(camera_end) : 1.0);
     };
     while (true) {
-      if (pool.live() <= refill_below && next_camera < camera_end) {
+      if (pool.live() <= refill_below && next_camera < camera_end && !stopped()) {
         generate_camera_rays(capacity - pool.live());
         report();
       }
@@ -522,7 +529,7 @@ struct WavefrontEngine::Impl {
         spare.push_back(std::move(b));
         continue;
       }
-      if (next_camera < camera_end && !pool.free_slots.empty()) {
+      if (next_camera < camera_end && !pool.free_slots.empty() && !stopped()) {
         generate_camera_rays(capacity - pool.live());
         report();
         continue;
@@ -546,6 +553,7 @@ struct WavefrontEngine::Impl {
     }
     report();
     stats.render_seconds += seconds_since(t0);
+    return next_camera;
   }
 
   size_t memory_bytes() const {
@@ -563,8 +571,9 @@ WavefrontEngine::WavefrontEngine(const Scene& scene, const Accel& accel, const L
 
 WavefrontEngine::~WavefrontEngine() { delete impl_; }
 
-void WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress) {
-  impl_->render(sample_begin, sample_end, progress);
+uint64_t WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress,
+                                 uint64_t first_camera_sample) {
+  return impl_->render(sample_begin, sample_end, first_camera_sample, progress);
 }
 
 const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }

@@ -19,6 +19,7 @@
 #include "wavefront/film.h"
 #include "wavefront/observer.h"
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 
@@ -32,6 +33,9 @@ struct EngineOptions {
   float occupancy_threshold = 0.5f;       // refill the pool below this fraction
   bool sort = true;                       // sort rays and hits (off: queue order)
   int rr_min_depth = 1;                   // Russian roulette from this depth on (pbrt-v4: depth > 1)
+  // When set (e.g. by a SIGTERM handler), render() generates no more camera
+  // rays, finishes the paths in flight and returns early.
+  const std::atomic<bool>* stop = nullptr;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
@@ -66,7 +70,14 @@ class WavefrontEngine {
   // Renders samples [sample_begin, sample_end) of every pixel and returns
   // when no ray is in flight (one scheduler iteration).  `progress` is called
   // from the driving thread with the fraction of camera samples generated.
-  void render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {});
+  //
+  // Camera samples are numbered in pixel-sample order, g = pixel * n + (sample
+  // - sample_begin) with n = sample_end - sample_begin; the call renders
+  // g in [first_camera_sample, end) and returns how far it got: the end, or
+  // less if options.stop was raised.  A stopped iteration is continued
+  // exactly by calling again with that value as first_camera_sample.
+  uint64_t render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {},
+                  uint64_t first_camera_sample = 0);
 
   const EngineStats& stats() const;
   // Memory the engine holds for paths and queues at their peak.

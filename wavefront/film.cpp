@@ -4,18 +4,39 @@ namespace theia {
 
 static void atomic_add(float& target, float v) { std::atomic_ref<float>(target).fetch_add(v, std::memory_order_relaxed); }
 
-Film::Film(int w, int h) : width(w), height(h) {
-  size_t n = pixel_count();
-  for (auto* v : {&r, &g, &b, &weight, &alpha, &depth}) v->assign(n, 0.0f);
-  for (int c = 0; c < 3; ++c) {
-    albedo[c].assign(n, 0.0f);
-    normal[c].assign(n, 0.0f);
-  }
+const char* const Film::kPlaneNames[Film::kPlaneCount] = {
+    "R",    "G",    "B",    "weight", "alpha", "albedo.R", "albedo.G", "albedo.B", "N.X",
+    "N.Y",  "N.Z",  "depth", "odd.R", "odd.G", "odd.B",    "odd.weight"};
+
+std::vector<float>* Film::plane(size_t i) {
+  std::vector<float>* all[kPlaneCount] = {&r,         &g,         &b,         &weight,    &alpha,     &albedo[0],
+                                              &albedo[1], &albedo[2], &normal[0], &normal[1], &normal[2], &depth,
+                                              &r_odd,     &g_odd,     &b_odd,     &weight_odd};
+  return i < kPlaneCount ? all[i] : nullptr;
 }
 
-void Film::add_weight(uint32_t pixel, float w) { atomic_add(weight[pixel], w); }
+Film::Film(int w, int h) : width(w), height(h) { clear(); }
 
-void Film::splat(uint32_t pixel, const RGB& L) {
+void Film::clear() {
+  for (size_t i = 0; i < kPlaneCount; ++i) plane(i)->assign(pixel_count(), 0.0f);
+  dropped = 0;
+}
+
+void Film::add(const Film& o) {
+  for (size_t i = 0; i < kPlaneCount; ++i) {
+    std::vector<float>* p = plane(i);
+    const std::vector<float>& q = *o.plane(i);
+    for (size_t k = 0; k < p->size(); ++k) (*p)[k] += q[k];
+  }
+  dropped += o.dropped.load();
+}
+
+void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
+  atomic_add(weight[pixel], w);
+  if (sample & 1) atomic_add(weight_odd[pixel], w);
+}
+
+void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L) {
   if (!is_finite(L)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
     return;
@@ -23,6 +44,11 @@ void Film::splat(uint32_t pixel, const RGB& L) {
   atomic_add(r[pixel], L.x);
   atomic_add(g[pixel], L.y);
   atomic_add(b[pixel], L.z);
+  if (sample & 1) {
+    atomic_add(r_odd[pixel], L.x);
+    atomic_add(g_odd[pixel], L.y);
+    atomic_add(b_odd[pixel], L.z);
+  }
 }
 
 void Film::splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& a, const vec3& n, float d) {

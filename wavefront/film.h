@@ -23,14 +23,28 @@ struct Film {
   std::vector<float> albedo[3];    // first-hit AOVs, sums of w * value
   std::vector<float> normal[3];
   std::vector<float> depth;
+  // The same sums over odd-numbered samples only: with the full sums they give
+  // two independent half estimates of each pixel, whose difference estimates
+  // its variance (adaptive sampling, inverse-variance combination).
+  std::vector<float> r_odd, g_odd, b_odd, weight_odd;
   std::atomic<uint64_t> dropped{0};  // non-finite contributions discarded
 
   Film(int w, int h);
   size_t pixel_count() const { return size_t(width) * size_t(height); }
-  size_t memory_bytes() const { return pixel_count() * 13 * sizeof(float); }
+  size_t memory_bytes() const { return pixel_count() * kPlaneCount * sizeof(float); }
 
-  void add_weight(uint32_t pixel, float w);
-  void splat(uint32_t pixel, const RGB& weighted_L);
+  // Every per-pixel plane, named, in a fixed order: for clearing, summing
+  // iterations and checkpoints.
+  static constexpr size_t kPlaneCount = 16;
+  static const char* const kPlaneNames[kPlaneCount];
+  std::vector<float>* plane(size_t i);
+  const std::vector<float>* plane(size_t i) const { return const_cast<Film*>(this)->plane(i); }
+  void clear();
+  // this += o, plane by plane (o must have the same size).
+  void add(const Film& o);
+
+  void add_weight(uint32_t pixel, uint32_t sample, float w);
+  void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
 };
 

@@ -19,10 +19,12 @@ struct Position {
   uint64_t generation = 0;      // of the last checkpoint written or read
 };
 
-void put_planes(ImageBuffer& img, const std::string& prefix, const Film& f, std::vector<const float*>& src) {
+void put_planes(ImageBuffer& img, const std::string& prefix, const Film& f, std::vector<const float*>& src,
+                std::vector<size_t>& stride) {
   for (size_t p = 0; p < Film::kPlaneCount; ++p) {
     img.channels.push_back(prefix + Film::kPlaneNames[p]);
     src.push_back(f.plane(p)->data());
+    stride.push_back(1);
   }
 }
 
@@ -57,15 +59,14 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
     src.push_back(view.data.data() + ch);
     src_stride.push_back(view.channels.size());
   }
-  put_planes(img, "total.", acc.total, src);
-  if (pos.camera_done > 0) put_planes(img, "partial.", partial, src);
+  put_planes(img, "total.", acc.total, src, src_stride);
+  if (pos.camera_done > 0) put_planes(img, "partial.", partial, src, src_stride);
   for (size_t k = 0; k < acc.recent.size(); ++k)
     for (int ch = 0; ch < 3; ++ch) {
       img.channels.push_back(fmt::format("iteration{}.{}", k, "RGB"[ch]));
       src.push_back(acc.recent[k].rgb.data() + ch);
       src_stride.push_back(3);
     }
-  src_stride.resize(src.size(), 1);
   const size_t nc = img.channels.size(), n = img.pixel_count();
   img.data.resize(n * nc);
   for (size_t c2 = 0; c2 < nc; ++c2)

@@ -50,6 +50,8 @@ int main(int argc, char** argv) {
   render->add_option("--combine", rc.combine, "Combining iterations: equal, or inverse-variance (last four)")
       ->check(CLI::IsMember({"equal", "inverse-variance"}))
       ->capture_default_str();
+  render->add_flag("--adaptive", rc.adaptive,
+                   "Adaptive sampling: --spp is a budget over the frame; alpha keeps --spp samples in every pixel");
   render->add_option("--checkpoint-dir", rc.checkpoint_dir,
                      "Write checkpoints here; if it holds one, resume from it (exit code 75 when stopped)");
   render->add_flag("--resume", rc.resume, "Resume from --checkpoint-dir; fail if there is no checkpoint");

@@ -51,9 +51,9 @@ static ScheduleOptions schedule_options(const RenderConfig& c) {
 // The options that change the image; threads, batch size, pool size and
 // sorting change only the floating-point summation order.
 static uint64_t options_fingerprint(const RenderConfig& c, int spp, int max_depth, const ScheduleOptions& s) {
-  std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
+  std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
                                  s.first_size, s.repeat_first, s.growth, s.max_size, c.combine,
-                                 c.checkpoint_first_ideal);
+                                 c.checkpoint_first_ideal, c.adaptive);
   return hash_bytes(text.data(), text.size());
 }
 
@@ -83,10 +83,13 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.max_paths = config.max_paths;
   opt.sort = config.sort;
   opt.stop = config.stop;
+  // Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
+  opt.alpha_spp = config.adaptive ? uint32_t(spp) : 0;
+  const ScheduleOptions schedule = schedule_options(config);
   WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt);
 
   IterationConfig ic;
-  ic.schedule = schedule_options(config);
+  ic.schedule = schedule;
   ic.total_spp = spp;
   ic.combination = parse_combination(config.combine);
   ic.seed = config.seed;
@@ -97,6 +100,11 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   ic.scene_hash = scene_fingerprint(scene);
   ic.options_hash = options_fingerprint(config, spp, max_depth, ic.schedule);
   ic.stop = config.stop;
+  std::unique_ptr<AdaptiveSampler> adaptive;
+  if (config.adaptive) {
+    adaptive = std::make_unique<AdaptiveSampler>(film.width, film.height, make_schedule(schedule, spp), uint32_t(spp));
+    ic.adaptive = adaptive.get();
+  }
   const std::vector<int> cumulative = cumulative_spp(make_schedule(ic.schedule, spp));
   ProgressBar bar(config.progress);
   const EngineStats& st = engine.stats();
@@ -128,7 +136,8 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                     {"sort", config.sort},
                     {"light_sampler", light_sampler->name()},
                     {"schedule", config.schedule},
-                    {"combine", config.combine}};
+                    {"combine", config.combine},
+                    {"adaptive", config.adaptive}};
   nlohmann::json phases;
   for (size_t p = 0; p < size_t(Phase::Count); ++p) phases[kPhaseNames[p]] = st.phases.seconds[p];
   phases["accel_build"] = accel_seconds;

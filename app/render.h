@@ -34,6 +34,7 @@ struct RenderConfig {
   int iteration_first = -1, iteration_repeat = -1, iteration_max = -1;
   double iteration_growth = 0.0;
   std::string combine = "equal";     // equal | inverse-variance
+  bool adaptive = false;             // adaptive sampling, alpha at a fixed spp per pixel
   // Checkpoints (checkpoint/checkpoint.h); none without a directory.
   std::string checkpoint_dir;
   bool resume = false;               // fail unless a checkpoint is found

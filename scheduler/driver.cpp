@@ -146,7 +146,9 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
 }  // namespace
 
 IterationResult render_iterations(WavefrontEngine& engine, Film& film, IterationTasks tasks,
-                                  const IterationConfig& cfg) {
+                                  const IterationConfig& config) {
+  IterationConfig cfg = config;
+  if (cfg.adaptive) cfg.participants.push_back(cfg.adaptive->participant());
   auto t0 = std::chrono::steady_clock::now();
   const std::vector<int> sizes = make_schedule(cfg.schedule, cfg.total_spp);
   const std::vector<int> cumulative = cumulative_spp(sizes);
@@ -188,6 +190,9 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   info.count = int(sizes.size());
   // The checkpoint task: the skipping logic's choice, or any boundary where a stop was asked for.
   bool wrote_this_iteration = false;
+  if (cfg.adaptive)
+    tasks.add(BetweenIterationSlot::AdaptiveSamplerUpdate,
+              [&](const IterationInfo& it) { cfg.adaptive->update(acc.total, it.index); });
   if (checkpoints)
     tasks.add(BetweenIterationSlot::Checkpoint, [&](const IterationInfo& it) {
       wrote_this_iteration = planned[size_t(it.index)] || (stop_requested() && !it.last());
@@ -200,13 +205,17 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     info.spp_end = uint32_t(cumulative[size_t(i)]);
     auto ti = std::chrono::steady_clock::now();
     tasks.begin_iteration(info);
-    const uint64_t camera_total = uint64_t(film.pixel_count()) * uint64_t(sizes[size_t(i)]);
-    uint64_t done = engine.render(
-        info.spp_begin, info.spp_end,
-        [&](double f) {
-          if (cfg.progress) cfg.progress(i, f);
-        },
-        pos.camera_done);
+    auto progress = [&](double f) {
+      if (cfg.progress) cfg.progress(i, f);
+    };
+    uint64_t camera_total, done;
+    if (cfg.adaptive) {
+      camera_total = cfg.adaptive->ranges().total();
+      done = engine.render(cfg.adaptive->ranges(), progress, pos.camera_done);
+    } else {
+      camera_total = uint64_t(film.pixel_count()) * uint64_t(sizes[size_t(i)]);
+      done = engine.render(info.spp_begin, info.spp_end, progress, pos.camera_done);
+    }
     if (done < camera_total) {
       // Stopped inside the iteration: keep exactly the pixel-samples done.
       pos.iteration = i;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "checkpoint/checkpoint.h"
+#include "scheduler/adaptive.h"
 #include "scheduler/combine.h"
 #include "scheduler/schedule.h"
 #include "wavefront/engine.h"
@@ -29,6 +30,8 @@ struct IterationConfig {
   int checkpoint_first_ideal = 4;        // skipping: ideal checkpoints at 4 8 16 ... total spp
   uint64_t scene_hash = 0, options_hash = 0;
   std::vector<CheckpointParticipant> participants;
+  // Adaptive sampling: iterations render its per-pixel ranges; it plans the next between iterations.
+  AdaptiveSampler* adaptive = nullptr;
   // Raised (by a signal handler): finish the paths in flight, checkpoint, return.
   const std::atomic<bool>* stop = nullptr;
   // (iteration index, fraction of its camera samples generated), from the driving thread.

@@ -107,6 +107,7 @@ struct WavefrontEngine::Impl {
 
   uint64_t next_camera = 0, camera_end = 0;
   uint32_t sample_begin = 0, sample_count = 0;
+  const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
 
   Impl(const Scene& s, const Accel& a, const LightSet& l, const LightSampler& ls, const Camera& c, const Filter& f,
        Film& fi, const EngineOptions& o, PathObserver* obs)
@@ -120,6 +121,8 @@ struct WavefrontEngine::Impl {
     }
     opt.batch_size = std::max<size_t>(opt.batch_size, 1);
   }
+
+  bool counts_for_alpha(uint32_t sample) const { return opt.alpha_spp == 0 || sample < opt.alpha_spp; }
 
   float sample1(uint32_t pixel, uint32_t sample, uint32_t dim) const {
     return sample_1d(SamplerKey{opt.seed, pixel, sample}, dim);
@@ -165,8 +168,17 @@ struct WavefrontEngine::Impl {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         uint64_t g = first + i;
-        uint32_t pixel = uint32_t(g / sample_count);
-        uint32_t sample = sample_begin + uint32_t(g % sample_count);
+        uint32_t pixel, sample;
+        bool alpha_only = false;
+        if (ranges) {
+          auto it = std::upper_bound(ranges->offset.begin(), ranges->offset.end(), g);
+          pixel = uint32_t(it - ranges->offset.begin()) - 1;
+          sample = ranges->begin[pixel] + uint32_t(g - ranges->offset[pixel]);
+          alpha_only = sample >= ranges->colour_end[pixel];
+        } else {
+          pixel = uint32_t(g / sample_count);
+          sample = sample_begin + uint32_t(g % sample_count);
+        }
         int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
         FilterSample fs = sample_filter(filter, sample2(pixel, sample, kDimFilm));
         vec2 p_film(float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y);
@@ -174,7 +186,8 @@ struct WavefrontEngine::Impl {
         Ray ray;
         ray.o = cam.o;
         ray.d = cam.d;
-        film.add_weight(pixel, sample, fs.weight);
+        if (!alpha_only) film.add_weight(pixel, sample, fs.weight);
+        if (counts_for_alpha(sample)) film.add_alpha_weight(pixel, fs.weight);
         PathState& ps = pool[slots[i]];
         ps.beta = RGB(1.0f);
         ps.prev_p = ray.o;
@@ -186,6 +199,7 @@ struct WavefrontEngine::Impl {
         ps.prev_pdf = 0.0f;
         ps.depth = 0;
         ps.prev_specular = 1;
+        ps.alpha_only = alpha_only ? 1 : 0;
         all.rays[i] = ray;
       }
     });
@@ -329,6 +343,10 @@ struct WavefrontEngine::Impl {
     LightSampleContext prev_ctx{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
 
     // Escaped: infinite lights, MIS-weighted against light sampling.
+    if (hit.geom == kInvalidId && ps.alpha_only) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
     if (hit.geom == kInvalidId) {
       vec3 d = glm::normalize(ray.d);
       for (int l : lights.infinite_lights) {
@@ -349,6 +367,16 @@ struct WavefrontEngine::Impl {
     ++out.vertices;
     SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
     const vec3 wo = si.wo;
+    // A holdout matte blocks the ray and adds neither colour nor alpha.
+    if (si.shape >= 0 && scene.shapes[size_t(si.shape)].holdout) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
+    if (ps.alpha_only) {
+      film.splat_first_hit(pixel, fw, true, bsdf_albedo(make_bsdf(scene, si)), si.ns, si.t);
+      finish_path<kObserve>(slot, out);
+      return;
+    }
 
     // Emission found by the BSDF-sampled ray.
     if (si.area_light >= 0) {
@@ -367,7 +395,7 @@ struct WavefrontEngine::Impl {
     }
 
     BSDF bsdf = make_bsdf(scene, si);
-    if (depth == 0) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
+    if (depth == 0 && counts_for_alpha(sample)) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
 
     if (int(depth) >= opt.max_depth) {
       finish_path<kObserve>(slot, out);
@@ -505,7 +533,7 @@ struct WavefrontEngine::Impl {
     auto t0 = std::chrono::steady_clock::now();
     sample_begin = s_begin;
     sample_count = s_end > s_begin ? s_end - s_begin : 0;
-    camera_end = uint64_t(film.pixel_count()) * sample_count;
+    camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
     next_camera = std::min(first_camera, camera_end);
     // Once stopped, no camera ray is generated: the paths in flight finish,
     // so exactly the pixel-samples [first_camera, next_camera) are complete.
@@ -573,7 +601,16 @@ WavefrontEngine::~WavefrontEngine() { delete impl_; }
 
 uint64_t WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress,
                                  uint64_t first_camera_sample) {
+  impl_->ranges = nullptr;
   return impl_->render(sample_begin, sample_end, first_camera_sample, progress);
+}
+
+uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function<void(double)>& progress,
+                                 uint64_t first_camera_sample) {
+  impl_->ranges = &ranges;
+  uint64_t done = impl_->render(0, 0, first_camera_sample, progress);
+  impl_->ranges = nullptr;
+  return done;
 }
 
 const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }

@@ -36,10 +36,24 @@ struct EngineOptions {
   // When set (e.g. by a SIGTERM handler), render() generates no more camera
   // rays, finishes the paths in flight and returns early.
   const std::atomic<bool>* stop = nullptr;
+  // Consistent alpha: only samples with index below alpha_spp count for alpha
+  // (and the first-hit AOVs), so alpha has the same samples in every render
+  // pass whatever adaptive sampling does with colour.  0: every sample counts.
+  uint32_t alpha_spp = 0;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
   std::vector<Ray>* capture_shadow_rays = nullptr;
+};
+
+// Per-pixel samples of one iteration (adaptive sampling).  Pixel p renders
+// samples [begin[p], begin[p] + offset[p+1] - offset[p]); those at or past
+// colour_end[p] are alpha-only rays: they measure coverage and nothing else.
+struct SampleRanges {
+  std::vector<uint32_t> begin;
+  std::vector<uint32_t> colour_end;
+  std::vector<uint64_t> offset;  // pixel_count + 1 prefix sums of the per-pixel counts
+  uint64_t total() const { return offset.empty() ? 0 : offset.back(); }
 };
 
 enum class Phase { Generate, Sort, Trace, TraceShadow, Shade, Queue, Count };
@@ -77,6 +91,9 @@ class WavefrontEngine {
   // less if options.stop was raised.  A stopped iteration is continued
   // exactly by calling again with that value as first_camera_sample.
   uint64_t render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {},
+                  uint64_t first_camera_sample = 0);
+  // The same with a sample range per pixel, numbered g = offset[pixel] + (sample - begin[pixel]).
+  uint64_t render(const SampleRanges& ranges, const std::function<void(double)>& progress = {},
                   uint64_t first_camera_sample = 0);
 
   const EngineStats& stats() const;

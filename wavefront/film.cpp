@@ -6,12 +6,12 @@ static void atomic_add(float& target, float v) { std::atomic_ref<float>(target).
 
 const char* const Film::kPlaneNames[Film::kPlaneCount] = {
     "R",    "G",    "B",    "weight", "alpha", "albedo.R", "albedo.G", "albedo.B", "N.X",
-    "N.Y",  "N.Z",  "depth", "odd.R", "odd.G", "odd.B",    "odd.weight"};
+    "N.Y",  "N.Z",  "depth", "odd.R", "odd.G", "odd.B",    "odd.weight", "alpha_weight"};
 
 std::vector<float>* Film::plane(size_t i) {
   std::vector<float>* all[kPlaneCount] = {&r,         &g,         &b,         &weight,    &alpha,     &albedo[0],
                                               &albedo[1], &albedo[2], &normal[0], &normal[1], &normal[2], &depth,
-                                              &r_odd,     &g_odd,     &b_odd,     &weight_odd};
+                                              &r_odd,     &g_odd,     &b_odd,     &weight_odd, &alpha_weight};
   return i < kPlaneCount ? all[i] : nullptr;
 }
 
@@ -35,6 +35,8 @@ void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
   atomic_add(weight[pixel], w);
   if (sample & 1) atomic_add(weight_odd[pixel], w);
 }
+
+void Film::add_alpha_weight(uint32_t pixel, float w) { atomic_add(alpha_weight[pixel], w); }
 
 void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L) {
   if (!is_finite(L)) {
@@ -73,14 +75,15 @@ ImageBuffer resolve_film(const Film& film) {
   const size_t nc = img.channels.size();
   img.data.assign(film.pixel_count() * nc, 0.0f);
   for (size_t i = 0; i < film.pixel_count(); ++i) {
+    float* px = &img.data[i * nc];
+    // Alpha has its own sample count (consistent alpha): its own denominator.
+    if (film.alpha_weight[i] > 0.0f) px[3] = film.alpha[i] / film.alpha_weight[i];
     float w = film.weight[i];
     if (w == 0.0f) continue;
     float inv = 1.0f / w;
-    float* px = &img.data[i * nc];
     px[0] = film.r[i] * inv;
     px[1] = film.g[i] * inv;
     px[2] = film.b[i] * inv;
-    px[3] = film.alpha[i] * inv;
     // AOVs average over the samples that hit something, so edges do not fade to zero.
     float a = film.alpha[i];
     if (a > 0.0f) {

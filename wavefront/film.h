@@ -19,7 +19,8 @@ struct Film {
   // Planar float sums, one entry per pixel each.
   std::vector<float> r, g, b;      // sum of w * L
   std::vector<float> weight;       // sum of w
-  std::vector<float> alpha;        // sum of w where the camera ray hit geometry
+  std::vector<float> alpha;        // sum of w where the camera ray hit geometry (alpha samples only)
+  std::vector<float> alpha_weight; // sum of w over the samples that count for alpha
   std::vector<float> albedo[3];    // first-hit AOVs, sums of w * value
   std::vector<float> normal[3];
   std::vector<float> depth;
@@ -35,7 +36,7 @@ struct Film {
 
   // Every per-pixel plane, named, in a fixed order: for clearing, summing
   // iterations and checkpoints.
-  static constexpr size_t kPlaneCount = 16;
+  static constexpr size_t kPlaneCount = 17;
   static const char* const kPlaneNames[kPlaneCount];
   std::vector<float>* plane(size_t i);
   const std::vector<float>* plane(size_t i) const { return const_cast<Film*>(this)->plane(i); }
@@ -44,6 +45,7 @@ struct Film {
   void add(const Film& o);
 
   void add_weight(uint32_t pixel, uint32_t sample, float w);
+  void add_alpha_weight(uint32_t pixel, float w);
   void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
 };

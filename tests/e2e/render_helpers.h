@@ -6,7 +6,10 @@
 #include "scene/parser.h"
 #include "scene/texture.h"
 
+#include <array>
+#include <cstdio>
 #include <string>
+#include <sys/wait.h>
 
 namespace theia::test {
 
@@ -55,6 +58,22 @@ inline double max_relative_difference(const ImageBuffer& a, const ImageBuffer& b
         worst = std::max(worst, std::abs(va - vb) / std::max({std::abs(va), std::abs(vb), floor}));
       }
   return worst;
+}
+
+struct RunResult {
+  int exit_code;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs the `theia` binary with these arguments.
+inline RunResult run_theia(const std::string& args) {
+  std::string cmd = std::string(THEIA_BINARY) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), p)) out.append(buf.data(), n);
+  int status = pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
 }
 
 }  // namespace theia::test

@@ -21,20 +21,8 @@ namespace {
 
 constexpr int kInterrupted = 75;  // app/render.h kExitInterrupted
 
-struct RunResult {
-  int exit_code;
-  std::string output;
-};
-
-RunResult run(const std::string& args) {
-  std::string cmd = std::string(THEIA_BINARY) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), p)) out.append(buf.data(), n);
-  int status = pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using test::RunResult;
+RunResult run(const std::string& args) { return test::run_theia(args); }
 
 fs::path temp_dir(const std::string& name) {
   fs::path d = fs::temp_directory_path() / ("theia_resume_" + name + "_" + std::to_string(::getpid()));

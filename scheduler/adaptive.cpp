@@ -9,6 +9,20 @@
 
 namespace theia {
 
+namespace {
+// The film's sums carry float noise from the order of atomic adds (different
+// in every run, and after a resume).  Rounding the error estimate to 8
+// significant bits makes the plan, and so the image, the same run to run
+// unless a value lies within that noise of a rounding boundary.  The blur
+// and the shares below then add exactly (few-bit values in double).
+double quantize(double v) {
+  if (!(v > 0.0) || !std::isfinite(v)) return 0.0;
+  int e;
+  double m = std::frexp(v, &e);
+  return std::ldexp(std::round(m * 256.0) / 256.0, e);
+}
+}  // namespace
+
 AdaptiveSampler::AdaptiveSampler(int width, int height, std::vector<int> sizes, uint32_t alpha_spp)
     : width_(width), height_(height), sizes_(std::move(sizes)), alpha_spp_(alpha_spp),
       counts_(size_t(width) * size_t(height), 0) {
@@ -45,7 +59,7 @@ void AdaptiveSampler::update(const Film& total, int index) {
     double w = total.weight[p];
     double lum = (double(total.r[p]) + total.g[p] + total.b[p]) / (3.0 * w);
     // The relMSE denominator (core/metrics.h): dark pixels matter less.
-    s[p] = std::sqrt(double(var[p]) * counts_[p] / (lum * lum + 0.01));
+    s[p] = quantize(std::sqrt(double(var[p]) * counts_[p] / (lum * lum + 0.01)));
   }
   // A 3x3 box blur: one pair of halves gives a chi-square(1) estimate; pixels
   // whose halves agree by chance must not be starved.

@@ -170,3 +170,17 @@ TEST(Resume, CheckpointShareOfWallTimeIsLoggedWithAndWithoutSkipping) {
   EXPECT_GT(all["checkpoint"]["share_of_wall"].get<double>(), skip["checkpoint"]["share_of_wall"].get<double>());
   EXPECT_EQ(skip["iterations"].size(), 12u);
 }
+
+TEST(Resume, AdaptiveSamplingResumesExactly) {
+  // 40 spp as 4 8 16 12: the sampler's plan and its partial iteration are in the checkpoint.
+  Fixture f("adaptive", " --adaptive --iteration-first 4 --iteration-repeat 1");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  for (const char* at : {"2:0.5", "3:0.3"}) {
+    std::string ck = f.out(std::string("ck") + at[0]);
+    ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at).exit_code, kInterrupted);
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5) << at;
+  }
+}

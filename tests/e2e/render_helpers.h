@@ -65,9 +65,9 @@ struct RunResult {
   std::string output;  // stdout and stderr together
 };
 
-// Runs the `theia` binary with these arguments.
-inline RunResult run_theia(const std::string& args) {
-  std::string cmd = std::string(THEIA_BINARY) + " " + args + " 2>&1";
+// Runs a shell command; its stdout and stderr together.
+inline RunResult run_shell(const std::string& command) {
+  std::string cmd = command + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   std::string out;
   std::array<char, 4096> buf;
@@ -75,5 +75,8 @@ inline RunResult run_theia(const std::string& args) {
   int status = pclose(p);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
 }
+
+// Runs the `theia` binary with these arguments.
+inline RunResult run_theia(const std::string& args) { return run_shell(std::string(THEIA_BINARY) + " " + args); }
 
 }  // namespace theia::test

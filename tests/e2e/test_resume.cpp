@@ -22,6 +22,7 @@ namespace {
 constexpr int kInterrupted = 75;  // app/render.h kExitInterrupted
 
 using test::RunResult;
+using test::run_shell;
 RunResult run(const std::string& args) { return test::run_theia(args); }
 
 fs::path temp_dir(const std::string& name) {
@@ -183,4 +184,23 @@ TEST(Resume, AdaptiveSamplingResumesExactly) {
     ASSERT_EQ(r.exit_code, 0) << r.output;
     EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5) << at;
   }
+}
+
+TEST(Resume, SigtermFromAnotherProcess) {
+  // As a farm does it: kill -TERM from outside, once the render is under way
+  // (its first checkpoint exists, so the handler is installed).
+  Fixture f("external", " --spp 512 --threads 1");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  std::string ck = f.out("ck");
+  std::string cmd = "sh -c '" + std::string(THEIA_BINARY) + " render " + f.scene + " -o " + f.out("out.exr") +
+                    f.common + " --checkpoint-dir " + ck + " & pid=$!; while [ ! -e " + checkpoint_bin_path(ck, 1) +
+                    " ] && kill -0 $pid 2>/dev/null; do sleep 0.02; done; kill -TERM $pid; wait $pid; echo exit=$?'";
+  RunResult r = run_shell(cmd);
+  ASSERT_NE(r.output.find("exit=75"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(f.out("out.exr")));
+  r = f.render("out.exr", " --checkpoint-dir " + ck);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("out.json")));
+  EXPECT_GT(log["scheduler"]["resumed_at_iteration"].get<int>(), 0);
+  EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), read_image_file(f.out("ref.exr"))), 1e-5);
 }

@@ -5,8 +5,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <unistd.h>
+
+namespace {
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) { g_stop.store(true); }
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace theia;
@@ -46,6 +53,28 @@ int main(int argc, char** argv) {
                      "Render the 'throughput reset at bounce N' image as the beauty");
   render->add_option("--log", rc.log_path, "JSON log file (default: OUTPUT with .json)");
   render->add_flag("-q,--quiet", quiet, "Print only warnings and errors");
+  render->add_option("--schedule", rc.schedule, "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16)")
+      ->check(CLI::IsMember({"regular", "guiding"}))
+      ->capture_default_str();
+  render->add_option("--iteration-first", rc.iteration_first, "First iteration size in spp (default: the schedule's)");
+  render->add_option("--iteration-repeat", rc.iteration_repeat, "Iterations of the first size (default: the schedule's)");
+  render->add_option("--iteration-growth", rc.iteration_growth, "Growth factor of iteration sizes (default: the schedule's)");
+  render->add_option("--iteration-max", rc.iteration_max, "Largest iteration size in spp (default: the schedule's)");
+  render->add_option("--combine", rc.combine, "Combining iterations: equal, or inverse-variance (last four)")
+      ->check(CLI::IsMember({"equal", "inverse-variance"}))
+      ->capture_default_str();
+  render->add_flag("--adaptive", rc.adaptive,
+                   "Adaptive sampling: --spp is a budget over the frame; alpha keeps --spp samples in every pixel");
+  render->add_option("--checkpoint-dir", rc.checkpoint_dir,
+                     "Write checkpoints here; if it holds one, resume from it (exit code 75 when stopped)");
+  render->add_flag("--resume", rc.resume, "Resume from --checkpoint-dir; fail if there is no checkpoint");
+  render->add_flag("--checkpoint-every-iteration", rc.checkpoint_every_iteration,
+                   "Checkpoint after every iteration instead of at 4 8 16 ... spp (skipping)");
+  render->add_option("--checkpoint-first", rc.checkpoint_first_ideal, "Cumulative spp of the first ideal checkpoint")
+      ->capture_default_str();
+  // Tests only: raise SIGTERM in iteration I once a fraction F of its camera rays were generated.
+  std::string test_sigterm;
+  render->add_option("--test-sigterm-at", test_sigterm, "")->group("");
 
   std::string diff_a, diff_b, diff_image;
   CLI::App* diff = app.add_subcommand("diff", "Compare two images: relMSE, RMSE and more");
@@ -59,6 +88,17 @@ int main(int argc, char** argv) {
       if (quiet) set_verbosity(Verbosity::Quiet);
       rc.sort = sort == "on";
       rc.progress = !quiet && isatty(fileno(stderr));
+      // A farm stops a job with SIGTERM: finish what is in flight, checkpoint, exit 75.
+      std::signal(SIGTERM, on_stop_signal);
+      std::signal(SIGINT, on_stop_signal);
+      rc.stop = &g_stop;
+      if (!test_sigterm.empty()) {
+        int it = std::stoi(test_sigterm.substr(0, test_sigterm.find(':')));
+        double at = std::stod(test_sigterm.substr(test_sigterm.find(':') + 1));
+        rc.on_iteration_progress = [it, at](int i, double f) {
+          if (i == it && f >= at && !g_stop.load()) std::raise(SIGTERM);
+        };
+      }
       return run_render(rc);
     }
     if (diff->parsed()) return run_diff(diff_a, diff_b, diff_image);

@@ -11,6 +11,9 @@
 #include "scene/lights.h"
 #include "scene/parser.h"
 #include "scene/texture.h"
+#include "checkpoint/fingerprint.h"
+#include "core/hash.h"
+#include "scheduler/driver.h"
 #include "wavefront/engine.h"
 
 #include <tbb/global_control.h>
@@ -39,6 +42,30 @@ static void check_config(const RenderConfig& c) {
     throw_error("--recorder-vertex-skip must be in [0, 1), got {}", c.recorder_vertex_skip);
   if (!(c.recorder_min_distance >= 0.0f))
     throw_error("--recorder-min-distance must be zero or positive, got {}", c.recorder_min_distance);
+  if ((c.recorder_debug || c.recorder_debug_bounce >= 0) && !c.checkpoint_dir.empty())
+    throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
+  if (c.schedule != "regular" && c.schedule != "guiding")
+    throw_error("--schedule {}: expected regular or guiding", c.schedule);
+  if (c.checkpoint_first_ideal <= 0)
+    throw_error("--checkpoint-first must be positive, got {}", c.checkpoint_first_ideal);
+}
+
+static ScheduleOptions schedule_options(const RenderConfig& c) {
+  ScheduleOptions o = c.schedule == "guiding" ? guiding_schedule() : regular_schedule();
+  if (c.iteration_first >= 0) o.first_size = c.iteration_first;
+  if (c.iteration_repeat >= 0) o.repeat_first = c.iteration_repeat;
+  if (c.iteration_max >= 0) o.max_size = c.iteration_max;
+  if (c.iteration_growth != 0.0) o.growth = c.iteration_growth;
+  return o;
+}
+
+// The options that change the image; threads, batch size, pool size and
+// sorting change only the floating-point summation order.
+static uint64_t options_fingerprint(const RenderConfig& c, int spp, int max_depth, const ScheduleOptions& s) {
+  std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
+                                 s.first_size, s.repeat_first, s.growth, s.max_size, c.combine,
+                                 c.checkpoint_first_ideal, c.adaptive);
+  return hash_bytes(text.data(), text.size());
 }
 
 RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
@@ -82,23 +109,60 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     ro.debug_bounce = config.recorder_debug_bounce;
     recorder = std::make_unique<RadianceRecorder>(ro);
   }
+  opt.stop = config.stop;
+  // Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
+  opt.alpha_spp = config.adaptive ? uint32_t(spp) : 0;
+  const ScheduleOptions schedule = schedule_options(config);
   WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt, recorder.get());
 
+  IterationConfig ic;
+  ic.schedule = schedule;
+  ic.total_spp = spp;
+  ic.combination = parse_combination(config.combine);
+  ic.seed = config.seed;
+  ic.checkpoint_dir = config.checkpoint_dir;
+  ic.resume_required = config.resume;
+  ic.checkpoint_every_iteration = config.checkpoint_every_iteration;
+  ic.checkpoint_first_ideal = config.checkpoint_first_ideal;
+  ic.scene_hash = scene_fingerprint(scene);
+  ic.options_hash = options_fingerprint(config, spp, max_depth, ic.schedule);
+  ic.stop = config.stop;
+  std::unique_ptr<AdaptiveSampler> adaptive;
+  if (config.adaptive) {
+    adaptive = std::make_unique<AdaptiveSampler>(film.width, film.height, make_schedule(schedule, spp), uint32_t(spp));
+    ic.adaptive = adaptive.get();
+  }
+  const std::vector<int> cumulative = cumulative_spp(make_schedule(ic.schedule, spp));
   ProgressBar bar(config.progress);
   const EngineStats& st = engine.stats();
-  // One iteration until the scheduler calls render() once per iteration.
-  if (recorder) recorder->begin_iteration();
-  engine.render(0, uint32_t(spp), [&](double fraction) { bar.update(fraction, st.total_rays()); });
-  if (recorder) recorder->end_iteration();
+  ic.progress = [&](int it, double fraction) {
+    double before = it > 0 ? cumulative[size_t(it) - 1] : 0;
+    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / spp, st.total_rays());
+    if (config.on_iteration_progress) config.on_iteration_progress(it, fraction);
+  };
+  // Subsystems register their between-iteration work here, one line each
+  // (guiding update, cache-point update, adaptive sampler, recorder skip rate).
+  IterationTasks tasks;
+  if (recorder) {
+    tasks.on_begin([&](const IterationInfo&) { recorder->begin_iteration(); });
+    tasks.on_end([&](const IterationInfo&) { recorder->end_iteration(); });
+    tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [&](const IterationInfo&) { recorder->update_skip_rate(); });
+  }
+  IterationResult iterations = render_iterations(engine, film, tasks, ic);
   bar.finish();
-  if (recorder && config.recorder_debug) film.layers.push_back({"recorder", recorder->debug_primary()});
-  if (recorder && config.recorder_debug_bounce >= 0)
-    film.layers.push_back({fmt::format("recorder_bounce{}", config.recorder_debug_bounce), recorder->debug_bounce()});
-
   RenderResult result;
-  result.image = resolve_film(film);
+  result.image = std::move(iterations.image);
+  // The recorder's debug buffers sum over every iteration: they share the
+  // combined film's per-pixel weight (compare them with --combine equal).
+  std::vector<FilmLayer> layers;
+  if (recorder && config.recorder_debug) layers.push_back({"recorder", recorder->debug_primary()});
+  if (recorder && config.recorder_debug_bounce >= 0)
+    layers.push_back({fmt::format("recorder_bounce{}", config.recorder_debug_bounce), recorder->debug_bounce()});
+  if (!iterations.interrupted) append_film_layers(result.image, layers, iterations.weight);
+  result.interrupted = iterations.interrupted;
 
   nlohmann::json& log = result.log;
+  log["scheduler"] = iterations.log;
   log["scene"] = scene.path;
   log["resolution"] = {scene.film.width, scene.film.height};
   log["options"] = {{"spp", spp},
@@ -108,7 +172,10 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                     {"batch_size", config.batch_size},
                     {"max_paths", config.max_paths},
                     {"sort", config.sort},
-                    {"light_sampler", light_sampler->name()}};
+                    {"light_sampler", light_sampler->name()},
+                    {"schedule", config.schedule},
+                    {"combine", config.combine},
+                    {"adaptive", config.adaptive}};
   nlohmann::json phases;
   for (size_t p = 0; p < size_t(Phase::Count); ++p) phases[kPhaseNames[p]] = st.phases.seconds[p];
   phases["accel_build"] = accel_seconds;
@@ -150,7 +217,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     log["memory"]["recorder"] = recorder->peak_bytes();
   }
   if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;
-  log["dropped_samples"] = film.dropped.load();
+  log["dropped_samples"] = iterations.dropped_samples;
   log["warnings"] = warning_count();
   return result;
 }
@@ -182,6 +249,13 @@ int run_render(const RenderConfig& in) {
   if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
 
   RenderResult result = render_scene(scene, config);
+  if (result.interrupted) {
+    if (config.checkpoint_dir.empty())
+      log_warning("stopped before the end; without --checkpoint-dir nothing was kept");
+    else
+      log_info("stopped before the end; state saved in {}; run the same command to resume", config.checkpoint_dir);
+    return kExitInterrupted;
+  }
   std::string png = fs::path(config.output).replace_extension(".png").string();
   write_exr(config.output, result.image);
   write_png_srgb(png, result.image, 0, 1, 2);

@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <atomic>
+#include <functional>
 #include <string>
 
 namespace theia {
@@ -32,11 +34,34 @@ struct RenderConfig {
   float recorder_vertex_skip = 0.0f;// stochastic vertex-skipping probability
   float recorder_min_distance = 0.0f;
   int throughput_reset_bounce = -1; // >= 0: the beauty is the "throughput reset at bounce N" image
+
+  // Iterations (scheduler/schedule.h): a named schedule, then any of its
+  // numbers overridden (-1 / 0: keep the schedule's).
+  std::string schedule = "regular";  // regular | guiding
+  int iteration_first = -1, iteration_repeat = -1, iteration_max = -1;
+  double iteration_growth = 0.0;
+  std::string combine = "equal";     // equal | inverse-variance
+  bool adaptive = false;             // adaptive sampling, alpha at a fixed spp per pixel
+  // Checkpoints (checkpoint/checkpoint.h); none without a directory.
+  std::string checkpoint_dir;
+  bool resume = false;               // fail unless a checkpoint is found
+  bool checkpoint_every_iteration = false;
+  int checkpoint_first_ideal = 4;
+  // Raised to stop early (the command line's SIGTERM/SIGINT handler).
+  const std::atomic<bool>* stop = nullptr;
+  // Called with (iteration, fraction of its camera samples generated).
+  std::function<void(int, double)> on_iteration_progress;
 };
+
+// `theia render` exits with this when a stop was requested (SIGTERM, SIGINT)
+// before the render finished: the state is in the checkpoint (if any), and
+// running the same command again resumes.  75 is EX_TEMPFAIL: "try again".
+inline constexpr int kExitInterrupted = 75;
 
 struct RenderResult {
   ImageBuffer image;                // R G B A albedo.* N.* depth.Z
   nlohmann::json log;
+  bool interrupted = false;         // stopped early: no image; resume from the checkpoint
 };
 
 // Renders an already-loaded scene (images must be loaded).  Throws theia::Error on bad options.

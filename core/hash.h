@@ -5,6 +5,7 @@
 
 #include "core/math.h"
 
+#include <cstddef>
 #include <cstdint>
 #include <type_traits>
 
@@ -29,6 +30,22 @@ constexpr uint64_t hash(Args... args) {
   uint64_t h = 0x9e3779b97f4a7c15ull;
   ((h = mix_bits(h ^ (static_cast<uint64_t>(args) * 0xbf58476d1ce4e5b9ull + 0x94d049bb133111ebull))), ...);
   return h;
+}
+
+// Hash of a byte string (checksums of checkpoint files, scene fingerprints).
+// Not cryptographic: it detects truncation and corruption, not tampering.
+inline uint64_t hash_bytes(const void* data, size_t size, uint64_t seed = 0) {
+  const unsigned char* p = static_cast<const unsigned char*>(data);
+  uint64_t h = mix_bits(seed ^ 0x9e3779b97f4a7c15ull ^ size);
+  size_t i = 0;
+  for (; i + 8 <= size; i += 8) {
+    uint64_t w;
+    __builtin_memcpy(&w, p + i, 8);
+    h = mix_bits(h ^ w) + 0x94d049bb133111ebull;
+  }
+  uint64_t tail = 0;
+  for (size_t k = 0; i < size; ++i, ++k) tail |= uint64_t(p[i]) << (8 * k);
+  return mix_bits(h ^ tail);
 }
 
 // Uniform float in [0, 1).  Only the top 24 bits are used so that the

@@ -316,8 +316,9 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
 
 // ---------------------------------------------------------------- iterations
 
+void RadianceRecorder::update_skip_rate() { skip_rate_ = path_skip_rate(last_paths_, last_events_, opt_.vertex_budget); }
+
 void RadianceRecorder::begin_iteration() {
-  skip_rate_ = path_skip_rate(last_paths_, last_events_, opt_.vertex_budget);
   run_peak_live_ = std::max(run_peak_live_, peak_live_.load());
   peak_live_.store(live_.load());
   RecorderStats s = stats();

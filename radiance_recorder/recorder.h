@@ -129,6 +129,9 @@ class RadianceRecorder final : public PathObserver {
   // the samples to the sink and checks that nothing is left allocated.
   void begin_iteration();
   void end_iteration();
+  // Between iterations (the scheduler's recorder-skip-rate slot): the next
+  // iteration's path skip rate from this one's average path length and the budget.
+  void update_skip_rate();
 
   uint32_t path_started(uint32_t pixel, uint32_t sample) override;
   uint32_t vertex_created(uint32_t parent, const PathVertexInfo& v) override;

@@ -695,6 +695,7 @@ void SceneParser::add_shape(Shape s, const ParamList& params) {
   s.reverse_orientation = gs_.reverse_orientation;
   s.transform_swaps_handedness = gs_.ctm.swaps_handedness();
   s.material = gs_.material >= 0 ? gs_.material : default_material();
+  s.holdout = params.get_bool("holdout", false);
   if (const Param* a = params.find_any("alpha", {ParamType::Float, ParamType::Texture})) {
     s.alpha = texture_param(params, "alpha", true, RGB(1.0f), SpectrumUse::Unbounded);
     if (!warned_alpha_) {

@@ -102,6 +102,7 @@ struct Shape {
   int material = -1;                // index into Scene::materials
   int area_light = -1;              // index into Scene::lights, if emissive
   int alpha = -1;                   // float texture: cut-out where < 1 (issue 3)
+  bool holdout = false;             // "bool holdout": blocks rays, contributes neither colour nor alpha
   SourceLoc loc;
 };
 

@@ -42,6 +42,7 @@ struct ShadowBatch {
   std::vector<RGB> contribution;  // beta * f * L * w / pdf * filter weight: what reaches the film if unoccluded
   std::vector<float> mis_weight;  // the MIS weight inside the contribution (only when observed)
   std::vector<uint32_t> pixel;
+  std::vector<uint32_t> sample;   // which half buffer of the film it belongs to
   std::vector<uint32_t> vertex;
   size_t size() const { return rays.size(); }
   void clear() {
@@ -49,6 +50,7 @@ struct ShadowBatch {
     contribution.clear();
     mis_weight.clear();
     pixel.clear();
+    sample.clear();
     vertex.clear();
   }
   void append(const ShadowBatch& o) {
@@ -56,6 +58,7 @@ struct ShadowBatch {
     contribution.insert(contribution.end(), o.contribution.begin(), o.contribution.end());
     mis_weight.insert(mis_weight.end(), o.mis_weight.begin(), o.mis_weight.end());
     pixel.insert(pixel.end(), o.pixel.begin(), o.pixel.end());
+    sample.insert(sample.end(), o.sample.begin(), o.sample.end());
     vertex.insert(vertex.end(), o.vertex.begin(), o.vertex.end());
   }
 };
@@ -104,6 +107,7 @@ struct WavefrontEngine::Impl {
 
   uint64_t next_camera = 0, camera_end = 0;
   uint32_t sample_begin = 0, sample_count = 0;
+  const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
 
   Impl(const Scene& s, const Accel& a, const LightSet& l, const LightSampler& ls, const Camera& c, const Filter& f,
        Film& fi, const EngineOptions& o, PathObserver* obs)
@@ -117,6 +121,8 @@ struct WavefrontEngine::Impl {
     }
     opt.batch_size = std::max<size_t>(opt.batch_size, 1);
   }
+
+  bool counts_for_alpha(uint32_t sample) const { return opt.alpha_spp == 0 || sample < opt.alpha_spp; }
 
   float sample1(uint32_t pixel, uint32_t sample, uint32_t dim) const {
     return sample_1d(SamplerKey{opt.seed, pixel, sample}, dim);
@@ -162,8 +168,17 @@ struct WavefrontEngine::Impl {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         uint64_t g = first + i;
-        uint32_t pixel = uint32_t(g / sample_count);
-        uint32_t sample = sample_begin + uint32_t(g % sample_count);
+        uint32_t pixel, sample;
+        bool alpha_only = false;
+        if (ranges) {
+          auto it = std::upper_bound(ranges->offset.begin(), ranges->offset.end(), g);
+          pixel = uint32_t(it - ranges->offset.begin()) - 1;
+          sample = ranges->begin[pixel] + uint32_t(g - ranges->offset[pixel]);
+          alpha_only = sample >= ranges->colour_end[pixel];
+        } else {
+          pixel = uint32_t(g / sample_count);
+          sample = sample_begin + uint32_t(g % sample_count);
+        }
         int x = int(pixel % uint32_t(width)), y = int(pixel / uint32_t(width));
         FilterSample fs = sample_filter(filter, sample2(pixel, sample, kDimFilm));
         vec2 p_film(float(x) + 0.5f + fs.p.x, float(y) + 0.5f + fs.p.y);
@@ -171,7 +186,8 @@ struct WavefrontEngine::Impl {
         Ray ray;
         ray.o = cam.o;
         ray.d = cam.d;
-        film.add_weight(pixel, fs.weight);
+        if (!alpha_only) film.add_weight(pixel, sample, fs.weight);
+        if (counts_for_alpha(sample)) film.add_alpha_weight(pixel, fs.weight);
         PathState& ps = pool[slots[i]];
         ps.beta = RGB(1.0f);
         ps.prev_p = ray.o;
@@ -183,6 +199,7 @@ struct WavefrontEngine::Impl {
         ps.prev_pdf = 0.0f;
         ps.depth = 0;
         ps.prev_specular = 1;
+        ps.alpha_only = alpha_only ? 1 : 0;
         all.rays[i] = ray;
       }
     });
@@ -331,6 +348,10 @@ struct WavefrontEngine::Impl {
     const bool splat_emission = reset_depth < 0 || int(depth) > reset_depth;
 
     // Escaped: infinite lights, MIS-weighted against light sampling.
+    if (hit.geom == kInvalidId && ps.alpha_only) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
     if (hit.geom == kInvalidId) {
       vec3 d = glm::normalize(ray.d);
       for (int l : lights.infinite_lights) {
@@ -342,7 +363,7 @@ struct WavefrontEngine::Impl {
           w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
         RGB contribution = fw * beta * w * Le;
-        if (splat_emission) film.splat(pixel, contribution);
+        if (splat_emission) film.splat(pixel, sample, contribution);
         if constexpr (kObserve) observer->emission_added(ps.vertex, pixel, contribution, w);
       }
       finish_path<kObserve>(slot, out);
@@ -351,6 +372,16 @@ struct WavefrontEngine::Impl {
 
     SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
     const vec3 wo = si.wo;
+    // A holdout matte blocks the ray and adds neither colour nor alpha.
+    if (si.shape >= 0 && scene.shapes[size_t(si.shape)].holdout) {
+      finish_path<kObserve>(slot, out);
+      return;
+    }
+    if (ps.alpha_only) {
+      film.splat_first_hit(pixel, fw, true, bsdf_albedo(make_bsdf(scene, si)), si.ns, si.t);
+      finish_path<kObserve>(slot, out);
+      return;
+    }
 
     // Emission found by the BSDF-sampled ray.
     if (si.area_light >= 0) {
@@ -364,7 +395,7 @@ struct WavefrontEngine::Impl {
           w = power_heuristic(1, ps.prev_pdf, 1, light_pdf);
         }
         RGB contribution = fw * beta * w * Le;
-        if (splat_emission) film.splat(pixel, contribution);
+        if (splat_emission) film.splat(pixel, sample, contribution);
         if constexpr (kObserve) observer->emission_added(ps.vertex, pixel, contribution, w);
       }
       // A virtual light emits but does not block: the same ray goes on from
@@ -382,7 +413,7 @@ struct WavefrontEngine::Impl {
     ++out.vertices;
 
     BSDF bsdf = make_bsdf(scene, si);
-    if (depth == 0) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
+    if (depth == 0 && counts_for_alpha(sample)) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
 
     if (int(depth) >= opt.max_depth) {
       finish_path<kObserve>(slot, out);
@@ -410,6 +441,7 @@ struct WavefrontEngine::Impl {
               sb.rays.push_back(spawn_ray_to(si, ls->p_light, ls->p_light_error, ls->n_light));
               sb.contribution.push_back(contribution);
               sb.pixel.push_back(pixel);
+              sb.sample.push_back(sample);
               uint32_t v = kNoVertex;
               if constexpr (kObserve) {
                 sb.mis_weight.push_back(w);
@@ -527,7 +559,7 @@ struct WavefrontEngine::Impl {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t k = r.begin(); k < r.end(); ++k) {
           size_t i = order.empty() ? k : order[k];
-          if (!blocked[k]) film.splat(s.pixel[i], s.contribution[i]);
+          if (!blocked[k]) film.splat(s.pixel[i], s.sample[i], s.contribution[i]);
           if (observer) {
             // An occluded NEE ray still finishes its vertex: a zero sample.
             if (!blocked[k]) observer->emission_added(s.vertex[i], s.pixel[i], s.contribution[i], s.mis_weight[i]);
@@ -541,12 +573,15 @@ struct WavefrontEngine::Impl {
 
   // ---------------------------------------------------------------- the loop
 
-  void render(uint32_t s_begin, uint32_t s_end, const std::function<void(double)>& progress) {
+  uint64_t render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const std::function<void(double)>& progress) {
     auto t0 = std::chrono::steady_clock::now();
     sample_begin = s_begin;
     sample_count = s_end > s_begin ? s_end - s_begin : 0;
-    next_camera = 0;
-    camera_end = uint64_t(film.pixel_count()) * sample_count;
+    camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
+    next_camera = std::min(first_camera, camera_end);
+    // Once stopped, no camera ray is generated: the paths in flight finish,
+    // so exactly the pixel-samples [first_camera, next_camera) are complete.
+    auto stopped = [&] { return opt.stop && opt.stop->load(std::memory_order_relaxed); };
     const size_t capacity = pool.capacity();
     const size_t refill_below = size_t(opt.occupancy_threshold * float(capacity));
 
@@ -554,7 +589,7 @@ struct WavefrontEngine::Impl {
       if (progress) progress(camera_end ? double(next_camera) / double(camera_end) : 1.0);
     };
     while (true) {
-      if (pool.live() <= refill_below && next_camera < camera_end) {
+      if (pool.live() <= refill_below && next_camera < camera_end && !stopped()) {
         generate_camera_rays(capacity - pool.live());
         report();
       }
@@ -566,7 +601,7 @@ struct WavefrontEngine::Impl {
         spare.push_back(std::move(b));
         continue;
       }
-      if (next_camera < camera_end && !pool.free_slots.empty()) {
+      if (next_camera < camera_end && !pool.free_slots.empty() && !stopped()) {
         generate_camera_rays(capacity - pool.live());
         report();
         continue;
@@ -590,6 +625,7 @@ struct WavefrontEngine::Impl {
     }
     report();
     stats.render_seconds += seconds_since(t0);
+    return next_camera;
   }
 
   size_t memory_bytes() const {
@@ -607,8 +643,18 @@ WavefrontEngine::WavefrontEngine(const Scene& scene, const Accel& accel, const L
 
 WavefrontEngine::~WavefrontEngine() { delete impl_; }
 
-void WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress) {
-  impl_->render(sample_begin, sample_end, progress);
+uint64_t WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress,
+                                 uint64_t first_camera_sample) {
+  impl_->ranges = nullptr;
+  return impl_->render(sample_begin, sample_end, first_camera_sample, progress);
+}
+
+uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function<void(double)>& progress,
+                                 uint64_t first_camera_sample) {
+  impl_->ranges = &ranges;
+  uint64_t done = impl_->render(0, 0, first_camera_sample, progress);
+  impl_->ranges = nullptr;
+  return done;
 }
 
 const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }

@@ -19,6 +19,7 @@
 #include "wavefront/film.h"
 #include "wavefront/observer.h"
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 
@@ -36,10 +37,27 @@ struct EngineOptions {
   // N-th bounce debug buffer is compared with (only light arriving at
   // vertices of depth >= N, throughput 1 at hit N).
   int throughput_reset_depth = -1;
+  // When set (e.g. by a SIGTERM handler), render() generates no more camera
+  // rays, finishes the paths in flight and returns early.
+  const std::atomic<bool>* stop = nullptr;
+  // Consistent alpha: only samples with index below alpha_spp count for alpha
+  // (and the first-hit AOVs), so alpha has the same samples in every render
+  // pass whatever adaptive sampling does with colour.  0: every sample counts.
+  uint32_t alpha_spp = 0;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
   std::vector<Ray>* capture_shadow_rays = nullptr;
+};
+
+// Per-pixel samples of one iteration (adaptive sampling).  Pixel p renders
+// samples [begin[p], begin[p] + offset[p+1] - offset[p]); those at or past
+// colour_end[p] are alpha-only rays: they measure coverage and nothing else.
+struct SampleRanges {
+  std::vector<uint32_t> begin;
+  std::vector<uint32_t> colour_end;
+  std::vector<uint64_t> offset;  // pixel_count + 1 prefix sums of the per-pixel counts
+  uint64_t total() const { return offset.empty() ? 0 : offset.back(); }
 };
 
 enum class Phase { Generate, Sort, Trace, TraceShadow, Shade, Queue, Count };
@@ -70,7 +88,17 @@ class WavefrontEngine {
   // Renders samples [sample_begin, sample_end) of every pixel and returns
   // when no ray is in flight (one scheduler iteration).  `progress` is called
   // from the driving thread with the fraction of camera samples generated.
-  void render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {});
+  //
+  // Camera samples are numbered in pixel-sample order, g = pixel * n + (sample
+  // - sample_begin) with n = sample_end - sample_begin; the call renders
+  // g in [first_camera_sample, end) and returns how far it got: the end, or
+  // less if options.stop was raised.  A stopped iteration is continued
+  // exactly by calling again with that value as first_camera_sample.
+  uint64_t render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {},
+                  uint64_t first_camera_sample = 0);
+  // The same with a sample range per pixel, numbered g = offset[pixel] + (sample - begin[pixel]).
+  uint64_t render(const SampleRanges& ranges, const std::function<void(double)>& progress = {},
+                  uint64_t first_camera_sample = 0);
 
   const EngineStats& stats() const;
   // Memory the engine holds for paths and queues at their peak.

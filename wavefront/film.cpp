@@ -6,18 +6,41 @@ namespace theia {
 
 static void atomic_add(float& target, float v) { std::atomic_ref<float>(target).fetch_add(v, std::memory_order_relaxed); }
 
-Film::Film(int w, int h) : width(w), height(h) {
-  size_t n = pixel_count();
-  for (auto* v : {&r, &g, &b, &weight, &alpha, &depth}) v->assign(n, 0.0f);
-  for (int c = 0; c < 3; ++c) {
-    albedo[c].assign(n, 0.0f);
-    normal[c].assign(n, 0.0f);
-  }
+const char* const Film::kPlaneNames[Film::kPlaneCount] = {
+    "R",    "G",    "B",    "weight", "alpha", "albedo.R", "albedo.G", "albedo.B", "N.X",
+    "N.Y",  "N.Z",  "depth", "odd.R", "odd.G", "odd.B",    "odd.weight", "alpha_weight"};
+
+std::vector<float>* Film::plane(size_t i) {
+  std::vector<float>* all[kPlaneCount] = {&r,         &g,         &b,         &weight,    &alpha,     &albedo[0],
+                                              &albedo[1], &albedo[2], &normal[0], &normal[1], &normal[2], &depth,
+                                              &r_odd,     &g_odd,     &b_odd,     &weight_odd, &alpha_weight};
+  return i < kPlaneCount ? all[i] : nullptr;
 }
 
-void Film::add_weight(uint32_t pixel, float w) { atomic_add(weight[pixel], w); }
+Film::Film(int w, int h) : width(w), height(h) { clear(); }
 
-void Film::splat(uint32_t pixel, const RGB& L) {
+void Film::clear() {
+  for (size_t i = 0; i < kPlaneCount; ++i) plane(i)->assign(pixel_count(), 0.0f);
+  dropped = 0;
+}
+
+void Film::add(const Film& o) {
+  for (size_t i = 0; i < kPlaneCount; ++i) {
+    std::vector<float>* p = plane(i);
+    const std::vector<float>& q = *o.plane(i);
+    for (size_t k = 0; k < p->size(); ++k) (*p)[k] += q[k];
+  }
+  dropped += o.dropped.load();
+}
+
+void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
+  atomic_add(weight[pixel], w);
+  if (sample & 1) atomic_add(weight_odd[pixel], w);
+}
+
+void Film::add_alpha_weight(uint32_t pixel, float w) { atomic_add(alpha_weight[pixel], w); }
+
+void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L) {
   if (!is_finite(L)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
     return;
@@ -25,6 +48,11 @@ void Film::splat(uint32_t pixel, const RGB& L) {
   atomic_add(r[pixel], L.x);
   atomic_add(g[pixel], L.y);
   atomic_add(b[pixel], L.z);
+  if (sample & 1) {
+    atomic_add(r_odd[pixel], L.x);
+    atomic_add(g_odd[pixel], L.y);
+    atomic_add(b_odd[pixel], L.z);
+  }
 }
 
 void Film::splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& a, const vec3& n, float d) {
@@ -41,26 +69,44 @@ void Film::splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& a, cons
   atomic_add(depth[pixel], w * d);
 }
 
+void append_film_layers(ImageBuffer& img, const std::vector<FilmLayer>& layers, const std::vector<float>& weight) {
+  const size_t n = size_t(img.width) * size_t(img.height);
+  const size_t old_nc = img.channels.size();
+  for (const FilmLayer& l : layers)
+    for (const char* c : {".R", ".G", ".B"}) img.channels.push_back(l.name + c);
+  const size_t nc = img.channels.size();
+  std::vector<float> data(n * nc, 0.0f);
+  for (size_t i = 0; i < n; ++i) {
+    std::copy_n(&img.data[i * old_nc], old_nc, &data[i * nc]);
+    if (weight[i] == 0.0f) continue;
+    for (size_t l = 0; l < layers.size(); ++l) {
+      const std::vector<float>& rgb = layers[l].rgb;
+      if (rgb.size() != 3 * n) continue;
+      RGB v = working_to_srgb(RGB(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]) / weight[i]);
+      for (int c = 0; c < 3; ++c) data[i * nc + old_nc + 3 * l + size_t(c)] = v[c];
+    }
+  }
+  img.data.swap(data);
+}
+
 ImageBuffer resolve_film(const Film& film) {
   ImageBuffer img;
   img.width = film.width;
   img.height = film.height;
   img.channels = {"R", "G", "B", "A", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "depth.Z"};
-  const size_t first_layer = img.channels.size();
-  for (const FilmLayer& l : film.layers)
-    for (const char* c : {".R", ".G", ".B"}) img.channels.push_back(l.name + c);
   const size_t nc = img.channels.size();
   img.data.assign(film.pixel_count() * nc, 0.0f);
   for (size_t i = 0; i < film.pixel_count(); ++i) {
+    float* px = &img.data[i * nc];
+    // Alpha has its own sample count (consistent alpha): its own denominator.
+    if (film.alpha_weight[i] > 0.0f) px[3] = film.alpha[i] / film.alpha_weight[i];
     float w = film.weight[i];
     if (w == 0.0f) continue;
     float inv = 1.0f / w;
-    float* px = &img.data[i * nc];
     RGB c = working_to_srgb(RGB(film.r[i], film.g[i], film.b[i]) * inv);
     px[0] = c.x;
     px[1] = c.y;
     px[2] = c.z;
-    px[3] = film.alpha[i] * inv;
     // AOVs average over the samples that hit something, so edges do not fade to zero.
     float a = film.alpha[i];
     if (a > 0.0f) {
@@ -71,13 +117,8 @@ ImageBuffer resolve_film(const Film& film) {
       }
       px[10] = film.depth[i] / a;
     }
-    for (size_t l = 0; l < film.layers.size(); ++l) {
-      const std::vector<float>& rgb = film.layers[l].rgb;
-      if (rgb.size() != 3 * film.pixel_count()) continue;
-      RGB v = working_to_srgb(RGB(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]) * inv);
-      for (int c = 0; c < 3; ++c) px[first_layer + 3 * l + c] = v[c];
-    }
   }
+  if (!film.layers.empty()) append_film_layers(img, film.layers, film.weight);
   return img;
 }
 

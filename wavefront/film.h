@@ -28,21 +28,41 @@ struct Film {
   // Planar float sums, one entry per pixel each.
   std::vector<float> r, g, b;      // sum of w * L
   std::vector<float> weight;       // sum of w
-  std::vector<float> alpha;        // sum of w where the camera ray hit geometry
+  std::vector<float> alpha;        // sum of w where the camera ray hit geometry (alpha samples only)
+  std::vector<float> alpha_weight; // sum of w over the samples that count for alpha
   std::vector<float> albedo[3];    // first-hit AOVs, sums of w * value
   std::vector<float> normal[3];
   std::vector<float> depth;
+  // The same sums over odd-numbered samples only: with the full sums they give
+  // two independent half estimates of each pixel, whose difference estimates
+  // its variance (adaptive sampling, inverse-variance combination).
+  std::vector<float> r_odd, g_odd, b_odd, weight_odd;
   std::atomic<uint64_t> dropped{0};  // non-finite contributions discarded
   std::vector<FilmLayer> layers;     // extra layers, after the AOVs
 
   Film(int w, int h);
   size_t pixel_count() const { return size_t(width) * size_t(height); }
-  size_t memory_bytes() const { return pixel_count() * 13 * sizeof(float); }
+  size_t memory_bytes() const { return pixel_count() * kPlaneCount * sizeof(float); }
 
-  void add_weight(uint32_t pixel, float w);
-  void splat(uint32_t pixel, const RGB& weighted_L);
+  // Every per-pixel plane, named, in a fixed order: for clearing, summing
+  // iterations and checkpoints.
+  static constexpr size_t kPlaneCount = 17;
+  static const char* const kPlaneNames[kPlaneCount];
+  std::vector<float>* plane(size_t i);
+  const std::vector<float>* plane(size_t i) const { return const_cast<Film*>(this)->plane(i); }
+  void clear();
+  // this += o, plane by plane (o must have the same size).
+  void add(const Film& o);
+
+  void add_weight(uint32_t pixel, uint32_t sample, float w);
+  void add_alpha_weight(uint32_t pixel, float w);
+  void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
 };
+
+// Appends each layer (per-pixel sums of w * value, working space) to `image`
+// as NAME.R/G/B in linear sRGB, divided by the per-pixel weight sums.
+void append_film_layers(ImageBuffer& image, const std::vector<FilmLayer>& layers, const std::vector<float>& weight);
 
 // Resolve to an image with channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z depth.Z,
 // then LAYER.R LAYER.G LAYER.B for each extra layer.

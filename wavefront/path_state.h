@@ -24,7 +24,8 @@ namespace theia {
   F(float, filter_weight)     /* filter-importance-sampling weight of the camera sample */    \
   F(float, prev_pdf)          /* solid-angle pdf of the BSDF sample that made the ray */      \
   F(uint16_t, depth)          /* bounces so far: 0 for the camera ray */                      \
-  F(uint8_t, prev_specular)   /* that sample came from a specular lobe */
+  F(uint8_t, prev_specular)   /* that sample came from a specular lobe */                     \
+  F(uint8_t, alpha_only)      /* consistent alpha: the camera ray only measures coverage */
 
 struct alignas(64) PathState {
 #define THEIA_DECLARE_FIELD(type, name) type name;

@@ -6,7 +6,10 @@
 #include "scene/parser.h"
 #include "scene/texture.h"
 
+#include <array>
+#include <cstdio>
 #include <string>
+#include <sys/wait.h>
 
 namespace theia::test {
 
@@ -56,5 +59,24 @@ inline double max_relative_difference(const ImageBuffer& a, const ImageBuffer& b
       }
   return worst;
 }
+
+struct RunResult {
+  int exit_code;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs a shell command; its stdout and stderr together.
+inline RunResult run_shell(const std::string& command) {
+  std::string cmd = command + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), p)) out.append(buf.data(), n);
+  int status = pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// Runs the `theia` binary with these arguments.
+inline RunResult run_theia(const std::string& args) { return run_shell(std::string(THEIA_BINARY) + " " + args); }
 
 }  // namespace theia::test

@@ -1,4 +1,5 @@
 // The command line as a user meets it: outputs written, errors named, exit codes.
+#include "render_helpers.h"
 #include "tests/test_util.h"
 
 #include <gtest/gtest.h>
@@ -14,20 +15,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
-
-RunResult run(const std::string& args) {
-  std::string cmd = std::string(THEIA_BINARY) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), p)) out.append(buf.data(), n);
-  int status = pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using theia::test::RunResult;
+RunResult run(const std::string& args) { return theia::test::run_theia(args); }
 
 
 const char* kSmallScene = R"(Film "rgb" "integer xresolution" [16] "integer yresolution" [12]

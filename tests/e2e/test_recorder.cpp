@@ -45,6 +45,7 @@ RecordedRender render_recorded(const Scene& scene, const EngineOptions& opt, Rec
     engine.render(uint32_t(it * spp), uint32_t((it + 1) * spp));
     if (rec) {
       rec->end_iteration();
+      rec->update_skip_rate();
       out.iteration_peaks.push_back(rec->stats().iteration_peak_live_vertices);
     }
   }
@@ -226,4 +227,18 @@ TEST(RecorderMemory, PeakDoesNotGrowWithPathLength) {
   double short_free = peak(4, 0.0f), long_free = peak(32, 0.0f);
   EXPECT_GT(long_free, 1.5 * short_free) << "without a budget, longer paths hold more vertices";
   EXPECT_LT(long_budget, 1.25 * short_budget) << short_budget << " vs " << long_budget;
+}
+
+// Through the command-line path: the scheduler runs several iterations (16 +
+// 16 spp) with the recorder's begin/end hooks and its skip-rate task, and the
+// debug layer, resolved against the combined film, still equals the beauty.
+TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyAcrossSchedulerIterations) {
+  Scene scene = cornell(24);
+  RenderConfig c = quick_config(32);
+  c.recorder_debug = true;
+  c.recorder_budget = 0.0f;  // no path skipping: the buffers must agree exactly
+  RenderResult r = render_scene(scene, c);
+  ASSERT_EQ(r.log["scheduler"]["iterations"].size(), 2u);
+  EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4);
+  EXPECT_EQ(r.log["recorder"]["skipped_paths"].get<uint64_t>(), 0u);
 }

@@ -235,6 +235,8 @@ TEST(RadianceRecorder, PathSkipRateArithmetic) {
   rec.end_iteration();
   EXPECT_EQ(sink.samples.size(), 64u);
   EXPECT_DOUBLE_EQ(rec.stats().average_path_length, 8.0);
+  EXPECT_EQ(rec.stats().path_skip_rate, 0.0);  // only the scheduler's skip-rate task changes it
+  rec.update_skip_rate();
   rec.begin_iteration();
   EXPECT_DOUBLE_EQ(rec.stats().path_skip_rate, 0.5);
   // Skipped paths carry SKIPPED, never allocate and have no children.

@@ -1,0 +1,91 @@
+#include "checkpoint/fingerprint.h"
+
+#include "core/hash.h"
+
+#include <fstream>
+#include <iterator>
+
+namespace theia {
+
+namespace {
+
+struct Hasher {
+  uint64_t h = 0;
+  void bytes(const void* p, size_t n) { h = hash_bytes(p, n, h); }
+  template <typename T>
+  void pod(const T& v) {
+    bytes(&v, sizeof(T));
+  }
+  template <typename T>
+  void vec(const std::vector<T>& v) {
+    pod(v.size());
+    bytes(v.data(), v.size() * sizeof(T));
+  }
+  void str(const std::string& s) { bytes(s.data(), s.size()); }
+};
+
+}  // namespace
+
+uint64_t scene_fingerprint(const Scene& s) {
+  Hasher h;
+  if (std::ifstream f{s.path, std::ios::binary}) {
+    std::string text((std::istreambuf_iterator<char>(f)), {});
+    h.str(text);
+  }
+  for (const TriangleMesh& m : s.meshes) {
+    h.vec(m.p);
+    h.vec(m.n);
+    h.vec(m.uv);
+    h.vec(m.indices);
+  }
+  for (const Shape& sh : s.shapes) {
+    h.pod(sh.kind);
+    h.pod(sh.mesh);
+    h.pod(sh.sphere);
+    h.pod(sh.disk);
+    h.pod(sh.render_from_object);
+    h.pod(sh.reverse_orientation);
+    h.pod(sh.material);
+    h.pod(sh.area_light);
+  }
+  for (const Material& m : s.materials) {
+    h.pod(m.kind);
+    h.pod(m.reflectance);
+  }
+  for (const Texture& t : s.textures) {
+    h.pod(t.kind);
+    h.pod(t.value);
+    h.pod(t.mapping);
+    h.pod(t.image);
+    h.pod(t.scale);
+    h.pod(t.tex1);
+    h.pod(t.tex2);
+    h.pod(t.amount);
+  }
+  for (const Image& img : s.images) h.vec(img.pixels);
+  for (const Light& l : s.lights) {
+    h.pod(l.kind);
+    h.pod(l.L);
+    h.pod(l.two_sided);
+    h.pod(l.shape);
+    h.pod(l.position);
+    h.pod(l.image);
+  }
+  for (const Instance& i : s.instances) {
+    h.pod(i.prototype);
+    h.pod(i.render_from_instance);
+  }
+  h.pod(s.camera.render_from_camera);
+  h.pod(s.camera.fov);
+  h.pod(s.camera.lens_radius);
+  h.pod(s.camera.focal_distance);
+  h.pod(s.camera.screen_window);
+  h.pod(s.film.width);
+  h.pod(s.film.height);
+  h.pod(s.filter.kind);
+  h.pod(s.filter.radius);
+  h.pod(s.filter.sigma);
+  return h.h;
+}
+
+}  // namespace theia

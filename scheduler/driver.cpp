@@ -1,0 +1,276 @@
+#include "scheduler/driver.h"
+
+#include "core/log.h"
+#include "core/stats.h"
+
+#include <chrono>
+
+namespace theia {
+
+namespace {
+
+constexpr const char* kSchedulerSection = "scheduler";
+constexpr uint32_t kSchedulerSectionVersion = 1;
+
+// Where the render is: restored from and saved into a checkpoint.
+struct Position {
+  int iteration = 0;            // the iteration to render next (or being rendered)
+  uint64_t camera_done = 0;     // camera samples of that iteration already complete
+  uint64_t generation = 0;      // of the last checkpoint written or read
+};
+
+void put_planes(ImageBuffer& img, const std::string& prefix, const Film& f, std::vector<const float*>& src,
+                std::vector<size_t>& stride) {
+  for (size_t p = 0; p < Film::kPlaneCount; ++p) {
+    img.channels.push_back(prefix + Film::kPlaneNames[p]);
+    src.push_back(f.plane(p)->data());
+    stride.push_back(1);
+  }
+}
+
+std::vector<float> channel(const ImageBuffer& img, const std::string& name, const std::string& what) {
+  int c = img.channel_index(name);
+  if (c < 0) throw_error("{}: the checkpoint image lacks channel {}", what, name);
+  std::vector<float> v(img.pixel_count());
+  for (size_t i = 0; i < v.size(); ++i) v[i] = img.data[i * img.channels.size() + size_t(c)];
+  return v;
+}
+
+void get_planes(const ImageBuffer& img, const std::string& prefix, Film& f, const std::string& what) {
+  for (size_t p = 0; p < Film::kPlaneCount; ++p) *f.plane(p) = channel(img, prefix + Film::kPlaneNames[p], what);
+}
+
+Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& sizes, const Position& pos,
+                           const ImageAccumulator& acc, const Film& partial) {
+  Checkpoint c;
+  c.generation = pos.generation;
+  c.scene_hash = cfg.scene_hash;
+  c.options_hash = cfg.options_hash;
+
+  // R G B A first: what a user opening the file sees is the image so far.
+  ImageBuffer view = acc.resolve(cfg.combination);
+  ImageBuffer& img = c.image;
+  img.width = acc.total.width;
+  img.height = acc.total.height;
+  std::vector<const float*> src;
+  std::vector<size_t> src_stride;
+  for (int ch = 0; ch < 4; ++ch) {
+    img.channels.push_back(view.channels[size_t(ch)]);
+    src.push_back(view.data.data() + ch);
+    src_stride.push_back(view.channels.size());
+  }
+  put_planes(img, "total.", acc.total, src, src_stride);
+  if (pos.camera_done > 0) put_planes(img, "partial.", partial, src, src_stride);
+  for (size_t k = 0; k < acc.recent.size(); ++k)
+    for (int ch = 0; ch < 3; ++ch) {
+      img.channels.push_back(fmt::format("iteration{}.{}", k, "RGB"[ch]));
+      src.push_back(acc.recent[k].rgb.data() + ch);
+      src_stride.push_back(3);
+    }
+  const size_t nc = img.channels.size(), n = img.pixel_count();
+  img.data.resize(n * nc);
+  for (size_t c2 = 0; c2 < nc; ++c2)
+    for (size_t i = 0; i < n; ++i) img.data[i * nc + c2] = src[c2][i * src_stride[c2]];
+
+  ByteWriter w;
+  w.put<int32_t>(cfg.total_spp);
+  w.put_vector(sizes);
+  w.put<int32_t>(pos.iteration);
+  w.put<uint64_t>(pos.camera_done);
+  w.put<uint32_t>(cfg.seed);
+  w.put<uint64_t>(acc.total.dropped.load());
+  w.put<uint64_t>(partial.dropped.load());
+  std::vector<double> variances;
+  for (const auto& r : acc.recent) variances.push_back(r.mean_variance);
+  w.put_vector(variances);
+  c.sections.push_back({kSchedulerSection, kSchedulerSectionVersion, std::move(w.bytes)});
+  for (const auto& p : cfg.participants) c.sections.push_back({p.name, p.version, p.save()});
+  return c;
+}
+
+void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<int>& sizes, Position& pos,
+             ImageAccumulator& acc, Film& partial) {
+  const std::string what = checkpoint_bin_path(cfg.checkpoint_dir, c.generation);
+  if (c.scene_hash != cfg.scene_hash)
+    throw_error("{}: this checkpoint was written for a different scene (the scene file or something it loads has "
+                "changed); refusing to resume. Remove the checkpoints or use another --checkpoint-dir",
+                what);
+  if (c.options_hash != cfg.options_hash)
+    throw_error("{}: this checkpoint was written with different image-affecting options (spp, seed, max depth, "
+                "light sampler, schedule or combination); refusing to resume. Use the same options, remove the "
+                "checkpoints or use another --checkpoint-dir",
+                what);
+  const CheckpointSection* s = c.find(kSchedulerSection);
+  if (!s) throw_error("{}: no scheduler section", what);
+  if (s->version != kSchedulerSectionVersion)
+    throw_error("{}: scheduler section version {}, expected {}", what, s->version, kSchedulerSectionVersion);
+  ByteReader r(s->bytes, what);
+  int total = r.get<int32_t>();
+  std::vector<int> saved_sizes = r.get_vector<int>();
+  if (total != cfg.total_spp || saved_sizes != sizes) throw_error("{}: written for a different schedule", what);
+  pos.iteration = r.get<int32_t>();
+  pos.camera_done = r.get<uint64_t>();
+  if (r.get<uint32_t>() != cfg.seed) throw_error("{}: written with a different seed", what);
+  uint64_t dropped_total = r.get<uint64_t>(), dropped_partial = r.get<uint64_t>();
+  std::vector<double> variances = r.get_vector<double>();
+  if (pos.iteration < 0 || pos.iteration > int(sizes.size())) throw_error("{}: iteration out of range", what);
+  if (c.image.width != acc.total.width || c.image.height != acc.total.height)
+    throw_error("{}: image size differs from the scene's film", what);
+
+  get_planes(c.image, "total.", acc.total, what);
+  acc.total.dropped = dropped_total;
+  partial.clear();
+  if (pos.camera_done > 0) {
+    get_planes(c.image, "partial.", partial, what);
+    partial.dropped = dropped_partial;
+  }
+  acc.recent.clear();
+  for (size_t k = 0; k < variances.size(); ++k) {
+    IterationImage img;
+    img.mean_variance = variances[k];
+    img.rgb.resize(c.image.pixel_count() * 3);
+    for (int ch = 0; ch < 3; ++ch) {
+      std::vector<float> v = channel(c.image, fmt::format("iteration{}.{}", k, "RGB"[ch]), what);
+      for (size_t i = 0; i < v.size(); ++i) img.rgb[3 * i + size_t(ch)] = v[i];
+    }
+    acc.recent.push_back(std::move(img));
+  }
+  for (const auto& p : cfg.participants) {
+    const CheckpointSection* ps = c.find(p.name);
+    if (!ps) throw_error("{}: no section '{}' for a subsystem this render uses", what, p.name);
+    p.load(*ps);
+  }
+  pos.generation = c.generation;
+}
+
+}  // namespace
+
+IterationResult render_iterations(WavefrontEngine& engine, Film& film, IterationTasks tasks,
+                                  const IterationConfig& config) {
+  IterationConfig cfg = config;
+  if (cfg.adaptive) cfg.participants.push_back(cfg.adaptive->participant());
+  auto t0 = std::chrono::steady_clock::now();
+  const std::vector<int> sizes = make_schedule(cfg.schedule, cfg.total_spp);
+  const std::vector<int> cumulative = cumulative_spp(sizes);
+  const std::vector<bool> planned =
+      checkpoint_iterations(cumulative, cfg.checkpoint_first_ideal, cfg.checkpoint_every_iteration);
+  const bool checkpoints = !cfg.checkpoint_dir.empty();
+  if (cfg.resume_required && !checkpoints) throw_error("--resume needs --checkpoint-dir");
+
+  ImageAccumulator acc(film.width, film.height);
+  Position pos;
+  film.clear();
+  bool resumed = false;
+  if (checkpoints) {
+    if (auto c = read_latest_checkpoint(cfg.checkpoint_dir)) {
+      restore(*c, cfg, sizes, pos, acc, film);
+      resumed = true;
+      log_info("resuming from {} at iteration {} of {} ({} camera samples of it done)",
+               checkpoint_bin_path(cfg.checkpoint_dir, c->generation), pos.iteration + 1, sizes.size(),
+               pos.camera_done);
+    } else if (cfg.resume_required) {
+      throw_error("--resume: no checkpoint in {}", cfg.checkpoint_dir);
+    }
+  }
+  const int first_iteration = pos.iteration;
+
+  double checkpoint_seconds = 0.0;
+  int checkpoints_written = 0;
+  auto write = [&] {
+    ScopedTimer timer(checkpoint_seconds);
+    ++pos.generation;
+    write_checkpoint(cfg.checkpoint_dir, make_checkpoint(cfg, sizes, pos, acc, film));
+    ++checkpoints_written;
+  };
+  auto stop_requested = [&] { return cfg.stop && cfg.stop->load(); };
+
+  nlohmann::json iterations = nlohmann::json::array();
+  bool interrupted = false;
+  IterationInfo info;
+  info.count = int(sizes.size());
+  // The checkpoint task: the skipping logic's choice, or any boundary where a stop was asked for.
+  bool wrote_this_iteration = false;
+  if (cfg.adaptive)
+    tasks.add(BetweenIterationSlot::AdaptiveSamplerUpdate,
+              [&](const IterationInfo& it) { cfg.adaptive->update(acc.total, it.index); });
+  if (checkpoints)
+    tasks.add(BetweenIterationSlot::Checkpoint, [&](const IterationInfo& it) {
+      wrote_this_iteration = planned[size_t(it.index)] || (stop_requested() && !it.last());
+      if (wrote_this_iteration) write();
+    });
+
+  for (int i = pos.iteration; i < int(sizes.size()); ++i) {
+    info.index = i;
+    info.spp_begin = uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
+    info.spp_end = uint32_t(cumulative[size_t(i)]);
+    auto ti = std::chrono::steady_clock::now();
+    tasks.begin_iteration(info);
+    auto progress = [&](double f) {
+      if (cfg.progress) cfg.progress(i, f);
+    };
+    uint64_t camera_total, done;
+    if (cfg.adaptive) {
+      camera_total = cfg.adaptive->ranges().total();
+      done = engine.render(cfg.adaptive->ranges(), progress, pos.camera_done);
+    } else {
+      camera_total = uint64_t(film.pixel_count()) * uint64_t(sizes[size_t(i)]);
+      done = engine.render(info.spp_begin, info.spp_end, progress, pos.camera_done);
+    }
+    if (done < camera_total) {
+      // Stopped inside the iteration: keep exactly the pixel-samples done.
+      pos.iteration = i;
+      pos.camera_done = done;
+      if (checkpoints) write();
+      iterations.push_back({{"spp", {info.spp_begin, info.spp_end}}, {"seconds", seconds_since(ti)},
+                            {"stopped_after_camera_samples", done}});
+      interrupted = true;
+      break;
+    }
+    acc.fold(film);
+    film.clear();
+    pos.iteration = i + 1;
+    pos.camera_done = 0;
+    double before = checkpoint_seconds;
+    tasks.end_iteration(info);
+    iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
+                          {"seconds", seconds_since(ti)},
+                          {"checkpoint", wrote_this_iteration},
+                          {"checkpoint_seconds", checkpoint_seconds - before}});
+    if (stop_requested() && !info.last()) {
+      interrupted = true;
+      break;
+    }
+  }
+
+  IterationResult result;
+  result.interrupted = interrupted;
+  result.dropped_samples = acc.total.dropped.load() + film.dropped.load();
+  if (!interrupted) {
+    result.image = acc.resolve(cfg.combination);
+    result.weight = acc.total.weight;
+  }
+  double wall = seconds_since(t0);
+  nlohmann::json slot_seconds;
+  for (size_t s = 0; s < size_t(BetweenIterationSlot::Count); ++s)
+    slot_seconds[kSlotNames[s]] = tasks.seconds(BetweenIterationSlot(s));
+  result.log = {{"schedule", sizes},
+                {"combination", combination_name(cfg.combination)},
+                {"resumed", resumed},
+                {"resumed_at_iteration", first_iteration},
+                {"iterations", iterations},
+                {"between_iteration_seconds", slot_seconds},
+                {"checkpoint",
+                 {{"dir", cfg.checkpoint_dir},
+                  {"skipping", !cfg.checkpoint_every_iteration},
+                  {"written", checkpoints_written},
+                  {"seconds", checkpoint_seconds},
+                  {"wall_seconds", wall},
+                  {"share_of_wall", wall > 0 ? checkpoint_seconds / wall : 0.0}}}};
+  if (checkpoints)
+    log_info("checkpoints: {} written, {:.3f} s = {:.2f}% of {:.2f} s wall ({})", checkpoints_written,
+             checkpoint_seconds, wall > 0 ? 100.0 * checkpoint_seconds / wall : 0.0, wall,
+             cfg.checkpoint_every_iteration ? "after every iteration" : "with skipping");
+  return result;
+}
+
+}  // namespace theia

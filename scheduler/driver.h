@@ -1,0 +1,56 @@
+// The render as a series of iterations: the engine renders one, the image is
+// folded in, the between-iteration tasks run (checkpoint last), and so on; a
+// render resumes from a checkpoint and stops early on request.
+#pragma once
+
+#include "checkpoint/checkpoint.h"
+#include "scheduler/adaptive.h"
+#include "scheduler/combine.h"
+#include "scheduler/schedule.h"
+#include "wavefront/engine.h"
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace theia {
+
+struct IterationConfig {
+  ScheduleOptions schedule = regular_schedule();
+  int total_spp = 16;
+  Combination combination = Combination::Equal;
+  uint32_t seed = 0;
+  // Checkpoints: none when checkpoint_dir is empty.
+  std::string checkpoint_dir;
+  bool resume_required = false;          // --resume: fail if there is nothing to resume
+  bool checkpoint_every_iteration = false;
+  int checkpoint_first_ideal = 4;        // skipping: ideal checkpoints at 4 8 16 ... total spp
+  uint64_t scene_hash = 0, options_hash = 0;
+  std::vector<CheckpointParticipant> participants;
+  // Adaptive sampling: iterations render its per-pixel ranges; it plans the next between iterations.
+  AdaptiveSampler* adaptive = nullptr;
+  // Raised (by a signal handler): finish the paths in flight, checkpoint, return.
+  const std::atomic<bool>* stop = nullptr;
+  // (iteration index, fraction of its camera samples generated), from the driving thread.
+  std::function<void(int, double)> progress;
+};
+
+struct IterationResult {
+  ImageBuffer image;
+  bool interrupted = false;        // stopped before the end; the state is in the checkpoint
+  uint64_t dropped_samples = 0;    // non-finite samples dropped over every iteration
+  std::vector<float> weight;       // per-pixel sum of filter weights over every iteration
+  nlohmann::json log;              // schedule, per-iteration times, checkpoint share of wall time
+};
+
+// `tasks` is copied: the driver adds its own checkpoint task to the copy.
+// `film` must be the film the engine splats into; the engine's options.stop
+// must be config.stop.  Throws theia::Error when a checkpoint cannot be
+// resumed (different scene or options, none valid while --resume).
+IterationResult render_iterations(WavefrontEngine& engine, Film& film, IterationTasks tasks,
+                                  const IterationConfig& config);
+
+}  // namespace theia

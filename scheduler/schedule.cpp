@@ -1,0 +1,70 @@
+#include "scheduler/schedule.h"
+
+#include "core/log.h"
+#include "core/stats.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace theia {
+
+std::vector<int> make_schedule(const ScheduleOptions& o, int total_spp) {
+  if (total_spp <= 0) throw_error("the schedule needs a positive total spp, got {}", total_spp);
+  if (o.first_size <= 0) throw_error("the first iteration size must be positive, got {}", o.first_size);
+  if (o.max_size < o.first_size)
+    throw_error("the maximum iteration size ({}) is below the first size ({})", o.max_size, o.first_size);
+  if (o.repeat_first < 1) throw_error("the first iteration size must be used at least once, got {}", o.repeat_first);
+  if (!(o.growth >= 1.0) || !std::isfinite(o.growth))
+    throw_error("the iteration growth factor must be at least 1, got {}", o.growth);
+  std::vector<int> sizes;
+  int done = 0;
+  double size = o.first_size;
+  while (done < total_spp) {
+    int n = int(std::min<double>(std::floor(size), o.max_size));
+    n = std::min(n, total_spp - done);
+    sizes.push_back(n);
+    done += n;
+    if (int(sizes.size()) >= o.repeat_first) size = std::min<double>(size * o.growth, o.max_size);
+  }
+  return sizes;
+}
+
+std::vector<int> cumulative_spp(const std::vector<int>& sizes) {
+  std::vector<int> c(sizes.size());
+  int sum = 0;
+  for (size_t i = 0; i < sizes.size(); ++i) c[i] = sum += sizes[i];
+  return c;
+}
+
+std::vector<bool> checkpoint_iterations(const std::vector<int>& cumulative, int first_ideal, bool every_iteration) {
+  std::vector<bool> write(cumulative.size(), every_iteration);
+  if (every_iteration || cumulative.empty()) return write;
+  const int total = cumulative.back();
+  std::vector<int> ideals;
+  for (int64_t ideal = std::max(first_ideal, 1); ideal < total; ideal *= 2) ideals.push_back(int(ideal));
+  ideals.push_back(total);
+  for (int ideal : ideals) {
+    // The last iteration whose running total does not pass the ideal count.
+    auto it = std::upper_bound(cumulative.begin(), cumulative.end(), ideal);
+    if (it != cumulative.begin()) write[size_t(it - cumulative.begin()) - 1] = true;
+  }
+  return write;
+}
+
+void IterationTasks::add(BetweenIterationSlot slot, Task task) { slots_[size_t(slot)].push_back(std::move(task)); }
+
+void IterationTasks::begin_iteration(const IterationInfo& it) const {
+  for (const Task& h : begin_hooks_) h(it);
+}
+
+void IterationTasks::end_iteration(const IterationInfo& it) {
+  for (const Task& h : end_hooks_) h(it);
+  for (size_t s = 0; s < size_t(BetweenIterationSlot::Count); ++s) {
+    if (slots_[s].empty()) continue;
+    ScopedTimer timer(seconds_[s]);
+    for (const Task& t : slots_[s]) t(it);
+  }
+}
+
+}  // namespace theia

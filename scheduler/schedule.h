@@ -1,0 +1,93 @@
+// Render iterations: how many samples per pixel each one renders, after which
+// ones a checkpoint is written, and what runs between them.
+//
+// Between iterations no ray is in flight, so subsystems update their data
+// structures there without locks (seeds/000 section 5.2.1).  The order of those
+// updates is fixed by BetweenIterationSlot, not by who registered first, so a
+// render is the same whatever order the subsystems were set up in.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace theia {
+
+// first_size repeated `repeat_first` times, then each iteration `growth` times
+// the previous one, capped at max_size; the last one shortened to hit the total.
+struct ScheduleOptions {
+  int first_size = 16;
+  int repeat_first = 2;
+  double growth = 2.0;
+  int max_size = 256;
+};
+
+// Hyperion's batch schedule: 16 16 32 64 128 256 256 ...
+inline ScheduleOptions regular_schedule() { return {16, 2, 2.0, 256}; }
+// For path guiding: small iterations early (frequent updates), a smaller cap
+// (bounded recorder memory): 1 x8, 2 4 8 16 16 ...
+inline ScheduleOptions guiding_schedule() { return {1, 8, 2.0, 16}; }
+
+// Iteration sizes summing to exactly total_spp.  Throws theia::Error on
+// options that cannot make progress (non-positive sizes, growth < 1).
+std::vector<int> make_schedule(const ScheduleOptions& options, int total_spp);
+
+// Running totals of a schedule: cumulative[i] = sizes[0] + ... + sizes[i].
+std::vector<int> cumulative_spp(const std::vector<int>& sizes);
+
+// Checkpoint skipping (seeds/000 section 5.2.2).  Checkpoints are ideally
+// written at cumulative spp first_ideal, 2 first_ideal, 4 first_ideal, ...,
+// total; for each ideal count the iteration with the largest cumulative spp
+// not above it is chosen.  Returns one flag per iteration.  `every_iteration`
+// turns skipping off (a checkpoint after every iteration).
+std::vector<bool> checkpoint_iterations(const std::vector<int>& cumulative, int first_ideal = 4,
+                                        bool every_iteration = false);
+
+// One iteration as the between-iteration tasks see it.
+struct IterationInfo {
+  int index = 0;            // 0-based
+  int count = 0;            // iterations in the schedule
+  uint32_t spp_begin = 0;   // samples [spp_begin, spp_end) of every pixel
+  uint32_t spp_end = 0;
+  bool last() const { return index + 1 == count; }
+};
+
+// The fixed order of the work between iterations.  Checkpoint comes last so a
+// checkpoint holds the state after every update: a resume continues with the
+// next iteration and never replays an update (whose inputs, e.g. the
+// recorder's training samples, are gone by then).  Add a slot here to add a task.
+enum class BetweenIterationSlot {
+  GuidingUpdate,
+  CachePointUpdate,
+  AdaptiveSamplerUpdate,
+  RecorderSkipRateUpdate,
+  Checkpoint,
+  Count
+};
+inline constexpr const char* kSlotNames[] = {"guiding_update", "cache_point_update", "adaptive_sampler_update",
+                                             "recorder_skip_rate_update", "checkpoint"};
+
+// What runs around and between iterations.  A subsystem registers itself with
+// one line: tasks.add(BetweenIterationSlot::GuidingUpdate, [&](auto& it) { ... }).
+// The radiance recorder hooks begin_iteration()/end_iteration() in with
+// on_begin/on_end.
+class IterationTasks {
+ public:
+  using Task = std::function<void(const IterationInfo&)>;
+  void add(BetweenIterationSlot slot, Task task);
+  void on_begin(Task hook) { begin_hooks_.push_back(std::move(hook)); }
+  void on_end(Task hook) { end_hooks_.push_back(std::move(hook)); }
+
+  void begin_iteration(const IterationInfo& it) const;
+  // end hooks, then every slot in order; each slot's wall time is added to seconds().
+  void end_iteration(const IterationInfo& it);
+  double seconds(BetweenIterationSlot slot) const { return seconds_[size_t(slot)]; }
+
+ private:
+  std::vector<Task> slots_[size_t(BetweenIterationSlot::Count)];
+  double seconds_[size_t(BetweenIterationSlot::Count)] = {};
+  std::vector<Task> begin_hooks_, end_hooks_;
+};
+
+}  // namespace theia

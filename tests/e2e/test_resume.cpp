@@ -1,0 +1,206 @@
+// Stopping and resuming the `theia` binary as a render farm does: SIGTERM in
+// different iterations (at a boundary and in the middle), checkpoint files
+// damaged, the scene or options changed between runs.
+#include "checkpoint/checkpoint.h"
+#include "core/image.h"
+#include "render_helpers.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace fs = std::filesystem;
+using namespace theia;
+
+namespace {
+
+constexpr int kInterrupted = 75;  // app/render.h kExitInterrupted
+
+using test::RunResult;
+using test::run_shell;
+RunResult run(const std::string& args) { return test::run_theia(args); }
+
+fs::path temp_dir(const std::string& name) {
+  fs::path d = fs::temp_directory_path() / ("theia_resume_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// Diffuse sphere and floor under an environment: a few bounces, fast.
+std::string scene_text(float radius) {
+  return R"(Film "rgb" "integer xresolution" [32] "integer yresolution" [24]
+LookAt 0 1 -5  0 0 0  0 1 0
+Camera "perspective" "float fov" [35]
+Sampler "sobol" "integer pixelsamples" [40]
+WorldBegin
+LightSource "infinite" "rgb L" [1 1 1]
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [4 4 4]
+  Shape "sphere" "float radius" [0.3]
+AttributeEnd
+Material "diffuse" "rgb reflectance" [0.7 0.5 0.3]
+Shape "sphere" "float radius" [)" +
+         std::to_string(radius) + R"(]
+Shape "trianglemesh" "point3 P" [-4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4] "integer indices" [0 1 2 0 2 3]
+)";
+}
+
+struct Fixture {
+  fs::path dir;
+  std::string scene, common;
+  explicit Fixture(const std::string& name, const std::string& extra = "") : dir(temp_dir(name)) {
+    scene = (dir / "s.pbrt").string();
+    std::ofstream(scene) << scene_text(1.0f);
+    // A small pool so that one iteration takes many camera-ray generations:
+    // a stop can land in the middle of it.
+    common = " --max-paths 1024 -q " + extra;
+  }
+  ~Fixture() { fs::remove_all(dir); }
+  std::string out(const std::string& name) const { return (dir / name).string(); }
+  RunResult render(const std::string& output, const std::string& more = "") const {
+    return run("render " + scene + " -o " + out(output) + common + more);
+  }
+};
+
+}  // namespace
+
+TEST(Resume, SigtermInDifferentIterationsThenResumeEqualsAnUninterruptedRender) {
+  Fixture f("kill");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  // Schedule for 40 spp: 16 16 8.  Stops at the very start, mid-way through the
+  // first, second and last iterations; one run is stopped twice before it finishes.
+  const std::vector<std::vector<std::string>> stops = {{"0:0"}, {"0:0.5"}, {"1:0.3", "2:0.6"}, {"2:0.9"}};
+  for (size_t k = 0; k < stops.size(); ++k) {
+    std::string ck = f.out("ck" + std::to_string(k));
+    for (const std::string& at : stops[k]) {
+      RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at);
+      ASSERT_EQ(r.exit_code, kInterrupted) << at << "\n" << r.output;
+      EXPECT_FALSE(fs::exists(f.out("out.exr"))) << "an interrupted render writes no image";
+    }
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --resume");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    ImageBuffer img = read_image_file(f.out("out.exr"));
+    EXPECT_LT(test::max_relative_difference(img, ref), 1e-5) << "stopped at " << stops[k][0];
+    nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("out.json")));
+    EXPECT_TRUE(log["scheduler"]["resumed"].get<bool>());
+    fs::remove(f.out("out.exr"));
+  }
+}
+
+TEST(Resume, GuidingScheduleWithInverseVarianceWeightingResumesExactly) {
+  Fixture f("guiding", " --schedule guiding --combine inverse-variance --spp 24");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  std::string ck = f.out("ck");
+  // Guiding schedule for 24 spp: 1 x8, 2 4 8 2: stop inside the 4-spp iteration (index 9).
+  ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at 9:0.5").exit_code, kInterrupted);
+  ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck).exit_code, 0);
+  EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5);
+  // Inverse-variance weighting changed the image relative to equal weighting.
+  ASSERT_EQ(run("render " + f.scene + " -o " + f.out("eq.exr") + " --max-paths 1024 -q --spp 24 --schedule guiding")
+                .exit_code,
+            0);
+  EXPECT_GT(test::max_relative_difference(read_image_file(f.out("eq.exr")), ref), 1e-3);
+}
+
+TEST(Resume, CorruptNewestCheckpointFallsBackToThePreviousOrFailsClearly) {
+  Fixture f("corrupt");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  std::string ck = f.out("ck");
+  // Checkpoints after every iteration, stopped in the last one: generations 1 2 3 on disk (1 dropped).
+  RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --checkpoint-every-iteration --test-sigterm-at 2:0.5");
+  ASSERT_EQ(r.exit_code, kInterrupted) << r.output;
+  ASSERT_TRUE(fs::exists(checkpoint_bin_path(ck, 3)));
+  ASSERT_TRUE(fs::exists(checkpoint_bin_path(ck, 2)));
+  fs::resize_file(checkpoint_bin_path(ck, 3), fs::file_size(checkpoint_bin_path(ck, 3)) / 2);
+  r = f.render("out.exr", " --checkpoint-dir " + ck + " --checkpoint-every-iteration");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("skipping a bad checkpoint"), std::string::npos) << r.output;
+  EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5);
+
+  // Every checkpoint damaged: one clear error, non-zero exit.
+  for (const auto& e : fs::directory_iterator(ck))
+    if (e.path().extension() == ".exr") fs::resize_file(e.path(), 100);
+  r = f.render("out2.exr", " --checkpoint-dir " + ck);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, kInterrupted);
+  EXPECT_NE(r.output.find("no valid checkpoint"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(f.out("out2.exr")));
+}
+
+TEST(Resume, RefusedOnAChangedSceneOrImageOption) {
+  Fixture f("changed");
+  std::string ck = f.out("ck");
+  ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at 1:0.5").exit_code, kInterrupted);
+  RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --seed 7");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("different image-affecting options"), std::string::npos) << r.output;
+  std::ofstream(f.scene) << scene_text(1.1f);
+  r = f.render("out.exr", " --checkpoint-dir " + ck);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("different scene"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(f.out("out.exr")));
+  // Back to the same scene; threads do not change the image: accepted.
+  std::ofstream(f.scene) << scene_text(1.0f);
+  r = f.render("out.exr", " --checkpoint-dir " + ck + " --threads 1");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+
+  // --resume with nothing to resume is an error; without --resume it starts afresh.
+  r = f.render("o2.exr", " --checkpoint-dir " + f.out("empty") + " --resume");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("no checkpoint"), std::string::npos) << r.output;
+}
+
+TEST(Resume, CheckpointShareOfWallTimeIsLoggedWithAndWithoutSkipping) {
+  Fixture f("share", " --schedule guiding --spp 24");
+  ASSERT_EQ(f.render("a.exr", " --checkpoint-dir " + f.out("ck_skip")).exit_code, 0);
+  nlohmann::json skip = nlohmann::json::parse(std::ifstream(f.out("a.json")))["scheduler"];
+  ASSERT_EQ(f.render("b.exr", " --checkpoint-dir " + f.out("ck_all") + " --checkpoint-every-iteration").exit_code, 0);
+  nlohmann::json all = nlohmann::json::parse(std::ifstream(f.out("b.json")))["scheduler"];
+  // 1 x8, 2 4 8 2 = cumulative 1..8 10 14 22 24; ideals 4 8 16 24 -> 4 written.
+  EXPECT_EQ(skip["checkpoint"]["written"].get<int>(), 4);
+  EXPECT_EQ(all["checkpoint"]["written"].get<int>(), 12);
+  EXPECT_GT(all["checkpoint"]["share_of_wall"].get<double>(), skip["checkpoint"]["share_of_wall"].get<double>());
+  EXPECT_EQ(skip["iterations"].size(), 12u);
+}
+
+TEST(Resume, AdaptiveSamplingResumesExactly) {
+  // 40 spp as 4 8 16 12: the sampler's plan and its partial iteration are in the checkpoint.
+  Fixture f("adaptive", " --adaptive --iteration-first 4 --iteration-repeat 1");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  for (const char* at : {"2:0.5", "3:0.3"}) {
+    std::string ck = f.out(std::string("ck") + at[0]);
+    ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at).exit_code, kInterrupted);
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5) << at;
+  }
+}
+
+TEST(Resume, SigtermFromAnotherProcess) {
+  // As a farm does it: kill -TERM from outside, once the render is under way
+  // (its first checkpoint exists, so the handler is installed).
+  Fixture f("external", " --spp 512 --threads 1");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  std::string ck = f.out("ck");
+  std::string cmd = "sh -c '" + std::string(THEIA_BINARY) + " render " + f.scene + " -o " + f.out("out.exr") +
+                    f.common + " --checkpoint-dir " + ck + " & pid=$!; while [ ! -e " + checkpoint_bin_path(ck, 1) +
+                    " ] && kill -0 $pid 2>/dev/null; do sleep 0.02; done; kill -TERM $pid; wait $pid; echo exit=$?'";
+  RunResult r = run_shell(cmd);
+  ASSERT_NE(r.output.find("exit=75"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(f.out("out.exr")));
+  r = f.render("out.exr", " --checkpoint-dir " + ck);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("out.json")));
+  EXPECT_GT(log["scheduler"]["resumed_at_iteration"].get<int>(), 0);
+  EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), read_image_file(f.out("ref.exr"))), 1e-5);
+}

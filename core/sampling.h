@@ -82,6 +82,57 @@ inline float sample_tent(float u, float r) {
 }
 inline float tent_pdf(float x, float r) { return std::abs(x) >= r ? 0.0f : (1.0f / r - std::abs(x) / (r * r)); }
 
+// ---------------------------------------------------------------- sphere parameterisations
+
+// Clarberg's equal-area octahedral map of the unit square onto the unit
+// sphere (pbrt-v4's EqualAreaSquareToSphere): equal areas of the square map to
+// equal solid angles, so a pixel of a square environment map covers
+// 4 pi / (width * height) steradians wherever it is.  The centre of the
+// square is +z, its corners -z; the inner diamond |2u-1| + |2v-1| <= 1 is the
+// upper hemisphere.
+inline vec3 equal_area_square_to_sphere(vec2 p) {
+  float u = 2.0f * p.x - 1.0f, v = 2.0f * p.y - 1.0f;
+  float up = std::abs(u), vp = std::abs(v);
+  float signed_distance = 1.0f - (up + vp);  // > 0 inside the diamond (upper hemisphere)
+  float r = 1.0f - std::abs(signed_distance);
+  float phi = (r == 0.0f ? 1.0f : (vp - up) / r + 1.0f) * (kPi / 4.0f);
+  float z = std::copysign(1.0f - r * r, signed_distance);
+  float s = r * safe_sqrt(2.0f - r * r);
+  return {std::copysign(std::cos(phi), u) * s, std::copysign(std::sin(phi), v) * s, z};
+}
+
+// The inverse of equal_area_square_to_sphere for a unit vector.
+inline vec2 equal_area_sphere_to_square(const vec3& d) {
+  float x = std::abs(d.x), y = std::abs(d.y), z = std::abs(d.z);
+  float r = safe_sqrt(1.0f - z);
+  // Angle within the first quadrant, as a fraction of pi / 2.
+  float phi = (x == 0.0f && y == 0.0f) ? 0.0f : std::atan2(y, x) * (2.0f / kPi);
+  float v = phi * r, u = r - v;
+  if (d.z < 0.0f) {
+    float t = u;
+    u = 1.0f - v;
+    v = 1.0f - t;
+  }
+  u = std::copysign(u, d.x);
+  v = std::copysign(v, d.y);
+  return {std::clamp(0.5f * (u + 1.0f), 0.0f, 1.0f), std::clamp(0.5f * (v + 1.0f), 0.0f, 1.0f)};
+}
+
+// Latitude-longitude (equirectangular) map, pbrt-v3's convention: u = phi /
+// 2 pi with phi measured from +x towards +y, v = theta / pi from +z (row 0 of
+// the image is the +z pole).  Its Jacobian is d(omega) = 2 pi^2 sin(theta) du dv.
+inline vec3 equirect_to_sphere(vec2 p) {
+  float phi = 2.0f * kPi * p.x, theta = kPi * p.y;
+  float st = std::sin(theta);
+  return {st * std::cos(phi), st * std::sin(phi), std::cos(theta)};
+}
+inline vec2 sphere_to_equirect(const vec3& d) {
+  float phi = std::atan2(d.y, d.x);
+  if (phi < 0.0f) phi += 2.0f * kPi;
+  float theta = std::acos(std::clamp(d.z, -1.0f, 1.0f));
+  return {std::clamp(phi * kInv2Pi, 0.0f, 1.0f), std::clamp(theta * kInvPi, 0.0f, 1.0f)};
+}
+
 // ---------------------------------------------------------------- MIS
 
 inline float power_heuristic(float nf, float f_pdf, float ng, float g_pdf) {

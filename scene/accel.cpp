@@ -1,7 +1,9 @@
 #include "scene/accel.h"
 
+#include "core/hash.h"
 #include "core/log.h"
 #include "scene/shapes.h"
+#include "scene/texture.h"
 
 #include <embree3/rtcore.h>
 
@@ -91,6 +93,46 @@ void quadric_occluded(const RTCOccludedFunctionNArguments* args) {
   }
 }
 
+// A triangle mesh with an "alpha" texture: Embree's filter functions turn
+// its hits into cut-outs.
+struct AlphaGeom {
+  const Scene* scene;
+  const TriangleMesh* mesh;
+  int alpha;  // float texture index
+};
+
+uint32_t float_bits(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, sizeof b);
+  return b;
+}
+
+// pbrt-v4's stochastic alpha test: a hit where alpha < 1 is kept with
+// probability alpha, decided by a hash of the ray and the primitive so that
+// the answer is a pure function of the query (deterministic, and the same
+// for the closest-hit and the shadow query along one ray).  alpha <= 0 never
+// keeps a hit.
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* g = static_cast<const AlphaGeom*>(args->geometryUserPtr);
+  const unsigned n = args->N;
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] == 0) continue;
+    uint32_t prim = RTCHitN_primID(args->hit, n, i);
+    float b1 = RTCHitN_u(args->hit, n, i), b2 = RTCHitN_v(args->hit, n, i);
+    vec2 uv[3];
+    triangle_uvs(*g->mesh, prim, uv);
+    vec3 o(RTCRayN_org_x(args->ray, n, i), RTCRayN_org_y(args->ray, n, i), RTCRayN_org_z(args->ray, n, i));
+    vec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
+    TextureEvalContext ctx{(1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2], o + RTCRayN_tfar(args->ray, n, i) * d};
+    float a = eval_float_texture(*g->scene, g->alpha, ctx);
+    if (a >= 1.0f) continue;
+    float u = a <= 0.0f ? 1.0f
+                        : to_unit_float(uint32_t(hash(float_bits(o.x), float_bits(o.y), float_bits(o.z), float_bits(d.x),
+                                                      float_bits(d.y), float_bits(d.z), prim) >> 32));
+    if (u >= a) args->valid[i] = 0;
+  }
+}
+
 Bounds3 quadric_object_bounds(const Shape& s) {
   if (s.kind == ShapeKind::Sphere) {
     SphereShape sp = make_sphere_shape(s.sphere);
@@ -121,6 +163,7 @@ struct Accel::Impl {
   RTCScene top = nullptr;
   std::vector<RTCScene> prototypes;
   std::deque<QuadricGeom> quadrics;  // stable addresses: Embree holds pointers to them
+  std::deque<AlphaGeom> alpha_geoms; // likewise
   std::vector<int> top_shape;        // top-level geometry id -> shape index (-1 for instances)
   std::vector<int> top_instance;     // top-level geometry id -> instance index (-1 for shapes)
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
@@ -197,6 +240,14 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     }
     rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
                                3 * sizeof(uint32_t), m.triangle_count());
+    if (s.alpha >= 0) {
+      // Only meshes that have an alpha texture pay for the filter calls.
+      alpha_geoms.push_back(AlphaGeom{&sc, &m, s.alpha});
+      rtcSetGeometryUserData(geom, &alpha_geoms.back());
+      rtcSetGeometryIntersectFilterFunction(geom, alpha_filter);
+      if (!is_virtual) rtcSetGeometryOccludedFilterFunction(geom, alpha_filter);
+    }
+    // A virtual light never occludes, cut-out or not.
     if (is_virtual) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
   } else {
     QuadricGeom& q = quadrics.emplace_back();
@@ -392,7 +443,7 @@ Bounds3 Accel::bounds() const {
 
 size_t Accel::memory_bytes() const {
   int64_t embree = std::max<int64_t>(impl_->embree_bytes.load(), 0);
-  size_t own = impl_->quadrics.size() * sizeof(QuadricGeom) +
+  size_t own = impl_->quadrics.size() * sizeof(QuadricGeom) + impl_->alpha_geoms.size() * sizeof(AlphaGeom) +
                (impl_->top_shape.size() + impl_->top_instance.size()) * sizeof(int);
   for (const auto& t : impl_->proto_shape) own += t.size() * sizeof(int);
   return size_t(embree) + own;

@@ -2,8 +2,116 @@
 
 #include "core/log.h"
 #include "core/sampling.h"
+#include "scene/texture.h"
+
+#include <numeric>
 
 namespace theia {
+
+namespace {
+
+RGB environment_texel(const EnvironmentMap& env, vec2 uv) {
+  const Image& img = *env.image;
+  ivec2 p(std::clamp(int(uv.x * float(img.width)), 0, img.width - 1),
+          std::clamp(int(uv.y * float(img.height)), 0, img.height - 1));
+  return glm::max(image_texel(img, p, WrapMode::Clamp), RGB(0.0f));
+}
+
+// Solid angle of texel (x, y) and its centre direction, light space.
+float texel_solid_angle(const EnvironmentMap& env, int y) {
+  const Image& img = *env.image;
+  float n = float(img.width) * float(img.height);
+  if (env.equal_area) return 4.0f * kPi / n;
+  float theta = kPi * (float(y) + 0.5f) / float(img.height);
+  return 2.0f * kPi * kPi * std::sin(theta) / n;
+}
+
+EnvironmentMap make_environment(const Light& light, const Image& img) {
+  EnvironmentMap env;
+  env.image = &img;
+  if (img.pixels.empty() || img.width <= 0 || img.height <= 0)
+    throw_error("{}:{}: environment image \"{}\" was not loaded", light.loc.file, light.loc.line, img.filename);
+  if (img.width == img.height)
+    env.equal_area = true;
+  else if (img.width == 2 * img.height)
+    env.equal_area = false;
+  else
+    throw_error("{}:{}: environment image \"{}\" is {}x{}, expected a square equal-area map or a 2:1 "
+                "latitude-longitude map",
+                light.loc.file, light.loc.line, img.filename, img.width, img.height);
+  for (float v : img.pixels)
+    if (!std::isfinite(v))
+      throw_error("{}:{}: environment image \"{}\" has non-finite pixels", light.loc.file, light.loc.line,
+                  img.filename);
+
+  const int w = img.width, h = img.height;
+  std::vector<float> d(size_t(w) * size_t(h));
+  // "illuminance" as pbrt-v4 computes it for equal-area maps: the sum of
+  // luminance * cos(theta) over upper-hemisphere texels times 2 pi / texels,
+  // which is half the true upper-hemisphere illuminance.  Lat-long maps use
+  // the same definition (half the true integral) so both give one scale.
+  double illum = 0.0, integral = 0.0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      vec2 uv((float(x) + 0.5f) / float(w), (float(y) + 0.5f) / float(h));
+      RGB c = image_texel(img, {x, y}, WrapMode::Clamp);
+      vec3 dir = environment_direction(env, uv);
+      float sin_theta = env.equal_area ? 1.0f : std::sin(kPi * uv.y);
+      d[size_t(y) * size_t(w) + size_t(x)] = (c.x + c.y + c.z) / 3.0f * sin_theta;
+      float lum = luminance(glm::max(c, RGB(0.0f)));
+      float dw = texel_solid_angle(env, y);
+      integral += double(lum * dw);
+      if (dir.z > 0.0f) illum += double(lum * dir.z * dw);
+    }
+  illum *= 0.5;
+  env.scale = light.L;
+  if (light.illuminance > 0.0f) {
+    if (!(illum > 0.0))
+      throw_error("{}:{}: \"illuminance\" given for an environment image that is black above the horizon",
+                  light.loc.file, light.loc.line);
+    env.scale *= float(double(light.illuminance) / illum);
+  }
+  env.luminance_integral = float(integral) * luminance(env.scale);
+  env.distribution = Distribution2D(d, w, h);
+  double mean = std::accumulate(d.begin(), d.end(), 0.0) / double(d.size());
+  bool any = false;
+  for (float& v : d) {
+    v = std::max(0.0f, float(double(v) - mean));
+    any = any || v > 0.0f;
+  }
+  if (!any) std::fill(d.begin(), d.end(), 1.0f);
+  env.compensated = Distribution2D(d, w, h);
+  return env;
+}
+
+// pbrt-v4's SmoothStep: 0 below a, 1 above b, Hermite between.
+float smooth_step(float a, float b, float x) {
+  if (a == b) return x < a ? 0.0f : 1.0f;
+  float t = std::clamp((x - a) / (b - a), 0.0f, 1.0f);
+  return t * t * (3.0f - 2.0f * t);
+}
+
+vec3 to_light(const Light& light, const vec3& w) {
+  return glm::normalize(mat3(light.render_from_light.m_inv) * w);
+}
+
+}  // namespace
+
+vec3 environment_direction(const EnvironmentMap& env, vec2 uv) {
+  return env.equal_area ? equal_area_square_to_sphere(uv) : equirect_to_sphere(uv);
+}
+
+vec2 environment_uv(const EnvironmentMap& env, const vec3& w_light) {
+  return env.equal_area ? equal_area_sphere_to_square(w_light) : sphere_to_equirect(w_light);
+}
+
+float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compensated) {
+  vec2 uv = environment_uv(env, w_light);
+  float pdf_uv = (compensated ? env.compensated : env.distribution).pdf(uv);
+  if (env.equal_area) return pdf_uv * kInv4Pi;
+  float sin_theta = std::sin(kPi * uv.y);
+  return sin_theta > 0.0f ? pdf_uv / (2.0f * kPi * kPi * sin_theta) : 0.0f;
+}
 
 LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s), shapes(s) {
   Bounds3 b = accel.bounds();
@@ -11,20 +119,25 @@ LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s), shapes(s) {
     scene_center = 0.5f * (b.min + b.max);
     scene_radius = 0.5f * glm::length(b.max - b.min);
   }
+  environment_of_light.assign(s.lights.size(), -1);
   for (size_t i = 0; i < s.lights.size(); ++i) {
     const Light& l = s.lights[i];
-    if (l.kind == LightKind::Infinite) {
-      infinite_lights.push_back(int(i));
-      if (l.image >= 0)
-        log_warning("{}:{}: environment images are not supported yet: the infinite light uses constant L",
-                    l.loc.file, l.loc.line);
+    if (l.kind != LightKind::Infinite) continue;
+    infinite_lights.push_back(int(i));
+    if (l.image >= 0) {
+      environment_of_light[i] = int(environments.size());
+      environments.push_back(make_environment(l, s.images.at(size_t(l.image))));
     }
   }
 }
 
 std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, const LightSampleContext& ctx,
-                                       vec2 u, float u_prim) {
+                                       vec2 u, float u_prim, bool allow_incomplete_pdf) {
   const Light& light = lights.scene->lights[light_index];
+  // Far enough along wi to be outside the scene from any point in it.
+  auto far_point = [&](const vec3& wi) {
+    return ctx.p + wi * (2.0f * lights.scene_radius + glm::length(ctx.p - lights.scene_center) + 1.0f);
+  };
   switch (light.kind) {
     case LightKind::Area: {
       auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim);
@@ -37,17 +150,46 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
       if (is_black(L)) return std::nullopt;
       return LightLiSample{L, wi, ss->pdf, ss->p, ss->p_error, ss->n, false, false};
     }
-    case LightKind::Point: {
+    case LightKind::Point:
+    case LightKind::Spot: {
       vec3 d = light.position - ctx.p;
       float dist2 = glm::dot(d, d);
       if (dist2 == 0.0f) return std::nullopt;
       vec3 wi = d / std::sqrt(dist2);
-      return LightLiSample{light.L / dist2, wi, 1.0f, light.position, vec3(0.0f), vec3(0.0f), true, false};
+      RGB I = light.L;
+      if (light.kind == LightKind::Spot) {
+        I *= smooth_step(light.cos_falloff_end, light.cos_falloff_start, glm::dot(-wi, light.direction));
+        if (is_black(I)) return std::nullopt;
+      }
+      return LightLiSample{I / dist2, wi, 1.0f, light.position, vec3(0.0f), vec3(0.0f), true, false};
+    }
+    case LightKind::Distant: {
+      vec3 wi = light.direction;
+      return LightLiSample{light.L, wi, 1.0f, far_point(wi), vec3(0.0f), -wi, true, true};
     }
     case LightKind::Infinite: {
-      vec3 wi = sample_uniform_sphere(u);
-      float far = 2.0f * lights.scene_radius + glm::length(ctx.p - lights.scene_center) + 1.0f;
-      return LightLiSample{light.L, wi, uniform_sphere_pdf(), ctx.p + wi * far, vec3(0.0f), -wi, false, true};
+      int e = lights.environment_of_light[size_t(light_index)];
+      if (e < 0) {
+        vec3 wi = sample_uniform_sphere(u);
+        return LightLiSample{light.L, wi, uniform_sphere_pdf(), far_point(wi), vec3(0.0f), -wi, false, true};
+      }
+      const EnvironmentMap& env = lights.environments[size_t(e)];
+      float pdf_uv = 0.0f;
+      vec2 uv = (allow_incomplete_pdf ? env.compensated : env.distribution).sample_continuous(u, &pdf_uv);
+      if (pdf_uv == 0.0f) return std::nullopt;
+      vec3 w_light = environment_direction(env, uv);
+      float pdf;
+      if (env.equal_area) {
+        pdf = pdf_uv * kInv4Pi;
+      } else {
+        float sin_theta = std::sin(kPi * uv.y);
+        if (sin_theta <= 0.0f) return std::nullopt;
+        pdf = pdf_uv / (2.0f * kPi * kPi * sin_theta);
+      }
+      vec3 wi = glm::normalize(light.render_from_light.vector(w_light));
+      RGB L = env.scale * environment_texel(env, uv);
+      if (is_black(L)) return std::nullopt;
+      return LightLiSample{L, wi, pdf, far_point(wi), vec3(0.0f), -wi, false, true};
     }
   }
   return std::nullopt;
@@ -59,27 +201,44 @@ float area_light_pdf(const LightSet& lights, int light_index, const LightSampleC
   return lights.shapes.pdf(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, wi, hit);
 }
 
-float infinite_light_pdf(const LightSet&, int, const vec3&) { return uniform_sphere_pdf(); }
+float infinite_light_pdf(const LightSet& lights, int light_index, const vec3& wi, bool allow_incomplete_pdf) {
+  int e = lights.environment_of_light[size_t(light_index)];
+  if (e < 0) return uniform_sphere_pdf();
+  const Light& light = lights.scene->lights[light_index];
+  return environment_pdf(lights.environments[size_t(e)], to_light(light, wi), allow_incomplete_pdf);
+}
 
 RGB area_light_L(const Light& light, const SurfaceInteraction& hit, const vec3& w) {
   if (!light.two_sided && glm::dot(hit.ng, w) <= 0.0f) return RGB(0.0f);
   return light.L;
 }
 
-RGB infinite_light_Le(const LightSet& lights, int light_index, const vec3&) {
-  return lights.scene->lights[light_index].L;
+RGB infinite_light_Le(const LightSet& lights, int light_index, const vec3& dir) {
+  const Light& light = lights.scene->lights[light_index];
+  int e = lights.environment_of_light[size_t(light_index)];
+  if (e < 0) return light.L;
+  const EnvironmentMap& env = lights.environments[size_t(e)];
+  return env.scale * environment_texel(env, environment_uv(env, to_light(light, dir)));
 }
 
 float light_power(const LightSet& lights, int light_index) {
   const Light& light = lights.scene->lights[light_index];
   float y = luminance(light.L);
+  float disk = kPi * sqr(lights.scene_radius);  // what a directional emitter illuminates
   switch (light.kind) {
     case LightKind::Area:
       return kPi * (light.two_sided ? 2.0f : 1.0f) * lights.shapes.area(light.shape) * y;
     case LightKind::Point:
       return 4.0f * kPi * y;
-    case LightKind::Infinite:
-      return kPi * sqr(lights.scene_radius) * 4.0f * kPi * y;
+    case LightKind::Spot:
+      return 2.0f * kPi * y *
+             ((1.0f - light.cos_falloff_start) + (light.cos_falloff_start - light.cos_falloff_end) / 2.0f);
+    case LightKind::Distant:
+      return disk * y;
+    case LightKind::Infinite: {
+      int e = lights.environment_of_light[size_t(light_index)];
+      return disk * (e < 0 ? 4.0f * kPi * y : lights.environments[size_t(e)].luminance_integral);
+    }
   }
   return 0.0f;
 }

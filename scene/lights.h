@@ -1,4 +1,5 @@
-// Light evaluation and sampling for the light kinds of scene/scene.h.
+// Light evaluation and sampling for the light kinds of scene/scene.h: area,
+// point, spot, distant, and infinite (constant or an environment image).
 //
 // Sampling is split the way pbrt-v4 splits it: a LightSampler
 // (cachepoints/light_sampler.h) chooses a light, then sample_li() chooses a
@@ -6,6 +7,7 @@
 // point and do not include the light-choice probability.
 #pragma once
 
+#include "core/distribution2d.h"
 #include "scene/accel.h"
 #include "scene/scene.h"
 #include "scene/shapes.h"
@@ -32,24 +34,56 @@ struct LightLiSample {
   bool is_infinite = false;
 };
 
+// An infinite light's environment image with its sampling tables.  Square
+// images are pbrt-v4's equal-area octahedral maps; images twice as wide as
+// tall are latitude-longitude maps (pbrt-v3's convention, see
+// core/sampling.h).  Radiance is the nearest texel (as pbrt-v4 looks it up),
+// so the piecewise-constant tables match it exactly.
+struct EnvironmentMap {
+  const Image* image = nullptr;
+  bool equal_area = true;
+  RGB scale{1.0f};                // Light::L, with "illuminance" applied
+  // Per texel: mean of the channels, times sin(theta) for lat-long maps.
+  Distribution2D distribution;
+  // The same minus its mean, clamped at zero (pbrt-v4's "compensated"
+  // distribution): with MIS, the BSDF samples the dim directions well
+  // enough, so light samples go where the map is brighter than average.
+  Distribution2D compensated;
+  float luminance_integral = 0.0f;  // integral of luminance(scale * texel) over the sphere
+};
+
 // Everything light sampling needs that is built once per scene.
 struct LightSet {
   const Scene* scene = nullptr;
   ShapeSampling shapes;
   vec3 scene_center{0.0f};
   float scene_radius = 0.0f;
-  std::vector<int> infinite_lights;  // indices into Scene::lights
+  std::vector<int> infinite_lights;  // indices into Scene::lights (those seen by escaped rays)
+  std::vector<EnvironmentMap> environments;
+  std::vector<int> environment_of_light;  // per light: index into environments, or -1
 
+  // Images must be loaded (scene/texture.h's load_images); throws
+  // theia::Error for an environment image that is neither square nor 2:1 or
+  // has non-finite pixels.
   LightSet(const Scene& scene, const Accel& accel);
 };
 
+// The map's parameterisation both ways.
+vec3 environment_direction(const EnvironmentMap& env, vec2 uv);  // light space, unit
+vec2 environment_uv(const EnvironmentMap& env, const vec3& w_light);
+// Directional density of sampling the map's uv table (per unit solid angle in light space).
+float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compensated);
+
+// `allow_incomplete_pdf`: environment maps sample their compensated
+// distribution, as pbrt-v4's path tracer asks; the engine's MIS weights use
+// the matching infinite_light_pdf(..., true).
 std::optional<LightLiSample> sample_li(const LightSet& lights, int light, const LightSampleContext& ctx, vec2 u,
-                                       float u_prim);
+                                       float u_prim, bool allow_incomplete_pdf = true);
 // Solid-angle pdf that sample_li() on `light` produces the point `hit` seen along wi (area lights).
 float area_light_pdf(const LightSet& lights, int light, const LightSampleContext& ctx, const vec3& wi,
                      const SurfaceInteraction& hit);
 // Solid-angle pdf that sample_li() on infinite `light` produces direction wi.
-float infinite_light_pdf(const LightSet& lights, int light, const vec3& wi);
+float infinite_light_pdf(const LightSet& lights, int light, const vec3& wi, bool allow_incomplete_pdf = true);
 
 // Radiance an area light emits from `hit` towards `w` (one- or two-sided).
 RGB area_light_L(const Light& light, const SurfaceInteraction& hit, const vec3& w);

@@ -30,6 +30,7 @@ struct GraphicsState {
   bool area_light = false;
   RGB area_L{0.0f};
   bool area_two_sided = false, area_virtual = false;
+  float area_power = -1.0f;    // "power" of the AreaLightSource: resolved per shape, by its area
   ParamList shape_attrs, light_attrs, material_attrs, texture_attrs;
 };
 
@@ -572,7 +573,14 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
     t.invert = params.get_bool("invert", false);
     std::string filter = params.get_string("filter", "bilinear");
     params.find("maxanisotropy", ParamType::Float);
-    if (filter != "bilinear") warn_at(loc, "texture filter \"{}\" is not supported; using bilinear", filter);
+    if (filter == "point") {
+      t.point_filter = true;
+    } else if (filter == "trilinear" || filter == "ewa") {
+      // MIP-mapping needs a filter footprint, i.e. ray differentials, which theia does not track yet.
+      warn_at(loc, "texture filter \"{}\" is not supported; using bilinear", filter);
+    } else if (filter != "bilinear") {
+      throw_at(loc, "texture filter \"{}\", expected point, bilinear, trilinear or ewa", filter);
+    }
   } else if (cls == "checkerboard") {
     t.kind = TextureKind::Checkerboard;
     if (int dim = params.get_int("dimension", 2); dim != 2)
@@ -638,39 +646,76 @@ void SceneParser::area_light_source(const std::string& type, ParamList& params, 
   }
   RGB L = params.get_spectrum("L", SpectrumUse::Illuminant, RGB(1.0f)).value_or(RGB(1.0f));
   float scale = params.get_float("scale", 1.0f);
-  for (const char* n : {"filename", "power"})
-    if (const Param* p = params.find_any(n, {ParamType::String, ParamType::Float}))
-      warn_at(p->loc, "area light parameter {} is not supported; ignored", p->label());
+  if (const Param* p = params.find("filename", ParamType::String))
+    warn_at(p->loc, "area light parameter {} is not supported; ignored", p->label());
   gs_.area_light = true;
   gs_.area_L = L * scale;
+  gs_.area_power = params.get_float("power", -1.0f);
   gs_.area_two_sided = params.get_bool("twosided", false);
   gs_.area_virtual = params.get_bool("virtual", false);
 }
 
 void SceneParser::light_source(const std::string& type, ParamList& params, const SourceLoc& loc,
                                const std::string& base_dir) {
+  // Each branch follows pbrt-v4's Light::Create for the type: the spectrum is
+  // luminance-normalised (scene/spectrum.h), then "scale", then "power" or
+  // "illuminance" divided by what a unit emitter of that shape gives (k_e).
   Light l;
   l.loc = loc;
   float scale = params.get_float("scale", 1.0f);
-  auto ignore = [&](const char* n) {
-    if (const Param* p = params.find_any(n, {ParamType::Float, ParamType::Point3, ParamType::String}))
-      warn_at(p->loc, "light parameter {} is not supported; ignored", p->label());
+  auto spectrum = [&](const char* name) {
+    return params.get_spectrum(name, SpectrumUse::Illuminant, RGB(1.0f)).value_or(RGB(1.0f));
+  };
+  auto positive = [&](const char* name) {
+    float v = params.get_float(name, -1.0f);
+    return v > 0.0f ? v : -1.0f;
   };
   if (type == "point") {
     l.kind = LightKind::Point;
-    l.L = params.get_spectrum("I", SpectrumUse::Illuminant, RGB(1.0f)).value_or(RGB(1.0f)) * scale;
+    if (float phi = positive("power"); phi > 0.0f) scale *= phi / (4.0f * kPi);
+    l.L = spectrum("I") * scale;
     l.position = gs_.ctm.point(params.get_point3("from", vec3(0.0f)));
-    ignore("power");
+  } else if (type == "spot") {
+    l.kind = LightKind::Spot;
+    float cone = params.get_float("coneangle", 30.0f);
+    float delta = params.get_float("conedeltaangle", 5.0f);
+    vec3 from = params.get_point3("from", vec3(0.0f)), to = params.get_point3("to", vec3(0.0f, 0.0f, 1.0f));
+    vec3 axis = gs_.ctm.vector(to - from);
+    if (!(glm::length(axis) > 0.0f)) throw_at(loc, "spot light with \"from\" == \"to\", expected a direction");
+    l.position = gs_.ctm.point(from);
+    l.direction = glm::normalize(axis);
+    l.cos_falloff_end = std::cos(radians(cone));
+    l.cos_falloff_start = std::cos(radians(cone - delta));
+    if (float phi = positive("power"); phi > 0.0f)
+      scale *= phi / (2.0f * kPi * ((1.0f - l.cos_falloff_start) + (l.cos_falloff_start - l.cos_falloff_end) / 2.0f));
+    l.L = spectrum("I") * scale;
+  } else if (type == "distant") {
+    l.kind = LightKind::Distant;
+    vec3 from = params.get_point3("from", vec3(0.0f)), to = params.get_point3("to", vec3(0.0f, 0.0f, 1.0f));
+    vec3 w = gs_.ctm.vector(from - to);
+    if (!(glm::length(w) > 0.0f)) throw_at(loc, "distant light with \"from\" == \"to\", expected a direction");
+    l.direction = glm::normalize(w);
+    // pbrt-v4: illuminance on a patch facing the light, so k_e = 1.
+    if (float e = positive("illuminance"); e > 0.0f) scale *= e;
+    l.L = spectrum("L") * scale;
   } else if (type == "infinite") {
     l.kind = LightKind::Infinite;
     l.render_from_light = gs_.ctm;
     std::optional<RGB> L = params.get_spectrum("L", SpectrumUse::Illuminant, RGB(1.0f));
     const Param* f = params.find("filename", ParamType::String);
     if (L && f) throw_at(loc, "infinite light with both \"L\" and \"filename\", expected one of them");
-    l.L = L.value_or(RGB(1.0f)) * scale;
-    if (f) l.image = image(resolve(base_dir, f->strings[0]), "", true, f->loc);
-    ignore("illuminance");
-    ignore("portal");
+    float e = positive("illuminance");
+    if (f) {
+      l.image = image(resolve(base_dir, f->strings[0]), "", true, f->loc);
+      l.L = RGB(scale);
+      l.illuminance = e;  // needs the pixels: applied by LightSet
+    } else {
+      // A uniform sky of radiance L gives an upward patch illuminance pi L.
+      if (e > 0.0f) scale *= e / kPi;
+      l.L = L.value_or(RGB(1.0f)) * scale;
+    }
+    if (const Param* p = params.find("portal", ParamType::Point3))
+      warn_at(p->loc, "infinite light portals are not supported; \"portal\" ignored");
   } else {
     warn_at(loc, "light \"{}\" is not supported yet; ignored", type);
     params.mark_all_used();
@@ -691,6 +736,38 @@ void SceneParser::bake(TriangleMesh& m) const {
     for (vec3& n : m.n) n = -n;
 }
 
+// The area pbrt-v4's DiffuseAreaLight divides "power" by.  pbrt-v4 makes one
+// light per triangle, so each triangle emits the whole "power" and its
+// radiance depends on its own area; theia keeps one radiance per shape and
+// uses the mean triangle area, which is exact for meshes of equal-area
+// triangles (quads, tessellated panels) and keeps the total power pbrt-v4
+// gives (triangles x power) for the others, with a warning.  Quadrics use
+// their object-space area, as pbrt-v4's Sphere::Area() and Disk::Area() do.
+static float pbrt_shape_area(const Scene& scene, const Shape& s) {
+  if (s.kind == ShapeKind::Sphere) {
+    double r = s.sphere.radius;
+    double zmin = std::clamp(double(std::min(s.sphere.zmin, s.sphere.zmax)), -r, r);
+    double zmax = std::clamp(double(std::max(s.sphere.zmin, s.sphere.zmax)), -r, r);
+    return float(radians(std::clamp(s.sphere.phimax, 0.0f, 360.0f)) * r * (zmax - zmin));
+  }
+  if (s.kind == ShapeKind::Disk)
+    return float(0.5 * radians(std::clamp(s.disk.phimax, 0.0f, 360.0f)) *
+                 (double(s.disk.radius) * s.disk.radius - double(s.disk.innerradius) * s.disk.innerradius));
+  const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
+  double total = 0.0, lo = kInfinity, hi = 0.0;
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    vec3 p0 = m.p[m.indices[3 * t]], p1 = m.p[m.indices[3 * t + 1]], p2 = m.p[m.indices[3 * t + 2]];
+    double a = 0.5 * double(glm::length(glm::cross(p1 - p0, p2 - p0)));
+    total += a;
+    lo = std::min(lo, a);
+    hi = std::max(hi, a);
+  }
+  if (hi > 1.01 * lo)
+    warn_at(s.loc, "area light \"power\" on a mesh of unequal triangles: pbrt-v4 gives each triangle the power "
+                   "(radiance varying with its area); theia uses the mean triangle area");
+  return float(total / double(std::max<size_t>(m.triangle_count(), 1)));
+}
+
 void SceneParser::add_shape(Shape s, const ParamList& params) {
   s.reverse_orientation = gs_.reverse_orientation;
   s.transform_swaps_handedness = gs_.ctm.swaps_handedness();
@@ -698,9 +775,13 @@ void SceneParser::add_shape(Shape s, const ParamList& params) {
   s.holdout = params.get_bool("holdout", false);
   if (const Param* a = params.find_any("alpha", {ParamType::Float, ParamType::Texture})) {
     s.alpha = texture_param(params, "alpha", true, RGB(1.0f), SpectrumUse::Unbounded);
-    if (!warned_alpha_) {
+    const Texture& t = scene_.textures[size_t(s.alpha)];
+    if (t.kind == TextureKind::Constant && t.value.x >= 1.0f) {
+      s.alpha = -1;  // opaque: no filter to pay for
+    } else if (s.kind != ShapeKind::TriangleMesh && !warned_alpha_) {
       warned_alpha_ = true;
-      warn_at(a->loc, "alpha cut-outs are not supported yet; \"alpha\" is recorded but not applied");
+      warn_at(a->loc, "alpha cut-outs are supported on triangle meshes only; \"alpha\" ignored on this {}",
+              s.kind == ShapeKind::Sphere ? "sphere" : "disk");
     }
   }
   int index = int(scene_.shapes.size());
@@ -711,6 +792,8 @@ void SceneParser::add_shape(Shape s, const ParamList& params) {
       Light l;
       l.kind = LightKind::Area;
       l.L = gs_.area_L;
+      if (gs_.area_power > 0.0f)
+        l.L *= gs_.area_power / (kPi * (gs_.area_two_sided ? 2.0f : 1.0f) * pbrt_shape_area(scene_, s));
       l.two_sided = gs_.area_two_sided;
       l.is_virtual = gs_.area_virtual;
       l.shape = index;

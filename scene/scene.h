@@ -53,6 +53,7 @@ struct Texture {
   WrapMode wrap = WrapMode::Repeat;
   float scale = 1.0f;          // ImageMap "scale"
   bool invert = false;         // ImageMap "invert"
+  bool point_filter = false;   // ImageMap "filter" "point" (nearest texel); otherwise bilinear
   int tex1 = -1, tex2 = -1;    // Checkerboard (tex1, tex2), Scale (tex, scale), Mix (tex1, tex2)
   int amount = -1;             // Mix amount (float texture)
   SourceLoc loc;
@@ -118,16 +119,30 @@ struct Instance {
 
 // ---------------------------------------------------------------- lights
 
-enum class LightKind { Area, Point, Infinite };
+enum class LightKind { Area, Point, Infinite, Spot, Distant };
 
+// pbrt-v4's light semantics, resolved at parse time: L holds the emission
+// with "scale" and "power" / "illuminance" already applied (spectra are
+// luminance-normalised by scene/spectrum.h, which is pbrt-v4's division by
+// SpectrumToPhotometric).  The one exception is an environment image's
+// "illuminance", which needs the pixels: scene/lights.cpp applies it when the
+// LightSet is built.
 struct Light {
   LightKind kind = LightKind::Area;
-  RGB L{0.0f};                      // radiance (area, infinite) or intensity (point), scale applied
+  // Radiance (area, infinite, distant) or intensity (point, spot).  For an
+  // infinite light with an image: the factor the image is multiplied by.
+  RGB L{0.0f};
   bool two_sided = false;           // area
   bool is_virtual = false;          // area: the scene's "bool virtual" parameter
   int shape = -1;                   // area: the emitting shape (index into Scene::shapes)
-  vec3 position{0.0f};              // point, in render space
+  vec3 position{0.0f};              // point, spot: in render space
+  // Spot: unit axis of the cone (from -> to).  Distant: unit direction
+  // towards the light (from - to), both in render space.
+  vec3 direction{0.0f, 0.0f, 1.0f};
+  float cos_falloff_start = 1.0f;   // spot: full intensity inside this cone
+  float cos_falloff_end = 1.0f;     // spot: zero outside this one (smoothstep between)
   int image = -1;                   // infinite: environment image (index into Scene::images), or -1
+  float illuminance = -1.0f;        // infinite with image: pbrt-v4 "illuminance" (> 0), applied by LightSet
   Transform render_from_light;      // infinite: orientation of the environment map
   SourceLoc loc;
 };

@@ -82,6 +82,14 @@ bool intersect_disk(const DiskShape& s, const dvec3& o, const dvec3& d, double t
 
 // ---------------------------------------------------------------- local geometry
 
+void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
+  if (m.uv.empty()) {
+    uv[0] = vec2(0, 0), uv[1] = vec2(1, 0), uv[2] = vec2(1, 1);
+    return;
+  }
+  for (int k = 0; k < 3; ++k) uv[k] = m.uv[m.indices[3 * tri + size_t(k)]];
+}
+
 namespace {
 
 // A quadric point in object space with pbrt-v4's derivatives and error.
@@ -154,14 +162,6 @@ vec3 triangle_normal(const TriangleMesh& m, bool flip, size_t tri, float b0, flo
   }
   if (ns) *ns = n;
   return ng;
-}
-
-void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
-  if (m.uv.empty()) {
-    uv[0] = vec2(0, 0), uv[1] = vec2(1, 0), uv[2] = vec2(1, 1);
-    return;
-  }
-  for (int k = 0; k < 3; ++k) uv[k] = m.uv[m.indices[3 * tri + size_t(k)]];
 }
 
 void coordinate_system(const vec3& n, vec3* a, vec3* b) {

@@ -57,6 +57,9 @@ struct SurfaceInteraction {
   int shape = -1, material = -1, area_light = -1, instance = -1;
 };
 
+// The (u, v) of triangle `tri`'s corners: the mesh's, or pbrt-v4's default (0,0) (1,0) (1,1).
+void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]);
+
 SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit);
 
 // pbrt-v4 OffsetRayOrigin: p pushed along ng past its error box, to w's side.

@@ -223,6 +223,12 @@ RGB image_bilerp(const Image& image, vec2 p, WrapMode wrap) {
   return (1 - dx) * (1 - dy) * v00 + dx * (1 - dy) * v10 + (1 - dx) * dy * v01 + dx * dy * v11;
 }
 
+RGB image_lookup_nearest(const Image& image, vec2 st, WrapMode wrap) {
+  if (image.pixels.empty() || image.width <= 0 || image.height <= 0) return RGB(0.0f);
+  float x = sane_coord(st.x * float(image.width) - 0.5f), y = sane_coord((1.0f - st.y) * float(image.height) - 0.5f);
+  return image_texel(image, {int(std::round(x)), int(std::round(y))}, wrap);
+}
+
 RGB image_lookup_bilinear(const Image& image, vec2 st, WrapMode wrap) {
   // Texture t runs bottom to top; image rows run top to bottom.
   return image_bilerp(image, vec2(st.x, 1.0f - st.y), wrap);
@@ -261,7 +267,9 @@ T eval(const Scene& scene, int index, const TextureEvalContext& ctx) {
     case TextureKind::ImageMap: {
       if (tex.image < 0) return T(0.0f);
       vec2 st = map_uv(tex.mapping, ctx.uv);
-      T v = tex.scale * first<T>(image_lookup_bilinear(scene.images[size_t(tex.image)], st, tex.wrap));
+      const Image& img = scene.images[size_t(tex.image)];
+      T v = tex.scale * first<T>(tex.point_filter ? image_lookup_nearest(img, st, tex.wrap)
+                                                  : image_lookup_bilinear(img, st, tex.wrap));
       if constexpr (std::is_same_v<T, float>) {
         return tex.invert ? std::max(0.0f, 1.0f - v) : v;
       } else {

@@ -1,7 +1,8 @@
 // Texture images and texture evaluation for scene/scene.h's Texture and Image.
 //
 // Conventions are pbrt-v4's: texture (s, t) has t = 0 at the bottom of the
-// image, pixel centres sit at half-integers, lookups are bilinear, and an
+// image, pixel centres sit at half-integers, lookups are bilinear (or nearest
+// for the "point" filter), and an
 // imagemap is scale * lookup, inverted (1 - that, clamped at 0) if asked.
 // Evaluation runs on the hot shading path: it allocates nothing, takes no
 // locks and makes no virtual calls (a switch on TextureKind).
@@ -41,6 +42,8 @@ float eval_float_texture(const Scene& scene, int texture, const TextureEvalConte
 // Bilinear lookup in texture coordinates: st in [0,1]^2, t = 0 the bottom row.
 // Grey images return (v, v, v).  An image without pixels returns black.
 RGB image_lookup_bilinear(const Image& image, vec2 st, WrapMode wrap);
+// Nearest texel (pbrt-v4's "point" filter), st as above.
+RGB image_lookup_nearest(const Image& image, vec2 st, WrapMode wrap);
 // The same in raster coordinates, p in [0,1]^2 with (0, 0) the top-left corner
 // (pbrt-v4's Image::Bilerp): for environment maps, which are not flipped.
 RGB image_bilerp(const Image& image, vec2 p, WrapMode wrap);

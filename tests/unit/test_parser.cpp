@@ -527,7 +527,59 @@ Shape "sphere")");
     EXPECT_TRUE(l.two_sided);
     EXPECT_TRUE(l.is_virtual);
   }
-  EXPECT_EQ(warnings_of("WorldBegin\nAreaLightSource \"diffuse\" \"float power\" 10\nShape \"sphere\""), 1);
+  EXPECT_EQ(warnings_of("WorldBegin\nAreaLightSource \"diffuse\" \"float power\" 10\nShape \"sphere\""), 0);
+}
+
+// pbrt-v4's "power": L *= power / (pi * sides * area), area per shape (per
+// triangle for meshes, as pbrt-v4 makes one light per triangle).
+TEST(Parser, AreaLightPowerNormalisesByAreaAndPi) {
+  Scene s = parse(R"(WorldBegin
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [1 2 3] "float power" 10 "float scale" 2
+Shape "sphere" "float radius" 2
+AttributeEnd
+AttributeBegin
+AreaLightSource "diffuse" "float power" 10 "bool twosided" true
+Shape "trianglemesh" "point3 P" [0 0 0 2 0 0 2 2 0 0 2 0] "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+AttributeBegin
+AreaLightSource "diffuse" "float power" 10
+Shape "disk" "float radius" 1 "float innerradius" 0.5 "float phimax" 180
+AttributeEnd)");
+  ASSERT_EQ(s.lights.size(), 3u);
+  const float sphere_area = 4.0f * kPi * 4.0f;
+  expect_scene_color(s.lights[0].L, RGB(1, 2, 3) * (2.0f * 10.0f / (kPi * sphere_area)));
+  // Two triangles of area 2, two-sided: each emits the power, as in pbrt-v4.
+  expect_scene_color(s.lights[1].L, RGB(10.0f / (kPi * 2.0f * 2.0f)));
+  const float disk_area = 0.5f * kPi * (1.0f - 0.25f);
+  expect_scene_color(s.lights[2].L, RGB(10.0f / (kPi * disk_area)));
+}
+
+TEST(Parser, PointSpotDistantPowerAndIlluminance) {
+  Scene s = parse(R"(WorldBegin
+LightSource "point" "rgb I" [1 1 1] "float power" 8
+LightSource "spot" "rgb I" [2 2 2] "float power" 8 "float coneangle" 40 "float conedeltaangle" 10
+  "point3 from" [1 0 0] "point3 to" [1 0 -5]
+AttributeBegin
+Rotate 90 0 1 0
+LightSource "distant" "rgb L" [1 1 1] "float illuminance" 3 "point3 from" [0 0 1] "point3 to" [0 0 0]
+AttributeEnd
+LightSource "infinite" "rgb L" [1 1 1] "float illuminance" 2)");
+  ASSERT_EQ(s.lights.size(), 4u);
+  EXPECT_NEAR(s.lights[0].L.x, 8.0f / (4.0f * kPi), 1e-6f);
+  const Light& spot = s.lights[1];
+  EXPECT_EQ(spot.kind, LightKind::Spot);
+  EXPECT_EQ(spot.position, vec3(1, 0, 0));
+  EXPECT_NEAR(glm::length(spot.direction - vec3(0, 0, -1)), 0.0f, 1e-6f);
+  float cs = std::cos(radians(30.0f)), ce = std::cos(radians(40.0f));
+  EXPECT_NEAR(spot.cos_falloff_start, cs, 1e-6f);
+  EXPECT_NEAR(spot.cos_falloff_end, ce, 1e-6f);
+  EXPECT_NEAR(spot.L.x, 2.0f * 8.0f / (2.0f * kPi * ((1.0f - cs) + (cs - ce) / 2.0f)), 1e-4f);
+  const Light& distant = s.lights[2];
+  EXPECT_EQ(distant.kind, LightKind::Distant);
+  EXPECT_NEAR(glm::length(distant.direction - vec3(1, 0, 0)), 0.0f, 1e-6f);  // from - to, rotated
+  EXPECT_NEAR(distant.L.x, 3.0f, 1e-6f);
+  EXPECT_NEAR(s.lights[3].L.x, 2.0f / kPi, 1e-6f);
 }
 
 TEST(Parser, BlackbodyLightIsLuminanceNormalised) {
@@ -550,8 +602,8 @@ Rotate 90 1 0 0
 LightSource "infinite" "string filename" "sky.exr" "float scale" 0.5
 AttributeEnd
 LightSource "infinite" "rgb L" [0.1 0.2 0.3]
-LightSource "spot" "rgb I" [1 1 1]
-LightSource "distant"
+LightSource "goniometric" "rgb I" [1 1 1]
+LightSource "projection"
 )", "test.pbrt", dir.path.string());
   EXPECT_EQ(warning_count() - before, 2);
   ASSERT_EQ(s.lights.size(), 3u);

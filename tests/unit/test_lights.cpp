@@ -1,0 +1,352 @@
+// Lights against their own pdfs and against closed forms: the sphere
+// parameterisations of environment maps, environment-map sampling (both
+// parameterisations, both distributions) by chi-square, importance sampling
+// against uniform sampling, spot and distant lights, light power; and alpha
+// cut-outs in the accel.
+#include "core/log.h"
+#include "core/sampling.h"
+#include "scene/accel.h"
+#include "scene/lights.h"
+#include "scene/parser.h"
+#include "scene/texture.h"
+#include "tests/unit/chi2.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include <random>
+
+using namespace theia;
+
+namespace {
+
+constexpr double kSignificance = 0.01;
+
+// A scene with one infinite light whose image is given in memory.
+struct EnvScene {
+  Scene scene;
+  std::unique_ptr<Accel> accel;
+  std::unique_ptr<LightSet> lights;
+
+  EnvScene(int w, int h, const std::function<RGB(int, int)>& texel, const Transform& render_from_light = {}) {
+    Image img;
+    img.width = w;
+    img.height = h;
+    img.channels = 3;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        RGB c = texel(x, y);
+        img.pixels.insert(img.pixels.end(), {c.x, c.y, c.z});
+      }
+    scene.images.push_back(std::move(img));
+    Light l;
+    l.kind = LightKind::Infinite;
+    l.L = RGB(1.0f);
+    l.image = 0;
+    l.render_from_light = render_from_light;
+    scene.lights.push_back(l);
+    accel = std::make_unique<Accel>(scene);
+    lights = std::make_unique<LightSet>(scene, *accel);
+  }
+};
+
+// A bright "sun" on a dim, uneven sky.
+RGB sun_texel(int x, int y, int w, int h) {
+  float fx = (float(x) + 0.5f) / float(w), fy = (float(y) + 0.5f) / float(h);
+  float sun = std::exp(-(sqr(fx - 0.4f) + sqr(fy - 0.35f)) / 0.002f);
+  return RGB(0.05f + 0.1f * fx, 0.1f, 0.2f * fy) + 200.0f * sun * RGB(1.0f, 0.9f, 0.7f);
+}
+
+Transform some_rotation() {
+  return Transform(glm::rotate(mat4(1.0f), 0.7f, glm::normalize(vec3(1.0f, 2.0f, 0.5f))));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- parameterisations
+
+TEST(EqualAreaMap, IsABijectionBetweenSquareAndSphere) {
+  for (int i = 0; i <= 64; ++i)
+    for (int j = 0; j <= 64; ++j) {
+      vec2 uv(float(i) / 64.0f, float(j) / 64.0f);
+      vec3 w = equal_area_square_to_sphere(uv);
+      ASSERT_NEAR(glm::length(w), 1.0f, 1e-5f);
+      vec2 back = equal_area_sphere_to_square(w);
+      vec3 w2 = equal_area_square_to_sphere(back);
+      // The square's boundary is folded (its edges meet on the lower hemisphere),
+      // so compare directions there; inside, the square point itself.
+      if (i > 0 && i < 64 && j > 0 && j < 64) {
+        EXPECT_NEAR(back.x, uv.x, 2e-5f) << i << " " << j;
+        EXPECT_NEAR(back.y, uv.y, 2e-5f) << i << " " << j;
+      }
+      EXPECT_NEAR(glm::length(w2 - w), 0.0f, 5e-5f);
+    }
+  EXPECT_NEAR(equal_area_square_to_sphere(vec2(0.5f)).z, 1.0f, 1e-6f);
+  EXPECT_NEAR(equal_area_square_to_sphere(vec2(0.0f)).z, -1.0f, 1e-6f);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int k = 0; k < 10000; ++k) {
+    vec3 w = sample_uniform_sphere(vec2(u(rng), u(rng)));
+    EXPECT_NEAR(glm::length(equal_area_square_to_sphere(equal_area_sphere_to_square(w)) - w), 0.0f, 5e-5f);
+    EXPECT_NEAR(glm::length(equirect_to_sphere(sphere_to_equirect(w)) - w), 0.0f, 5e-5f);
+  }
+}
+
+TEST(EqualAreaMap, PreservesArea) {
+  // |dw/du x dw/dv| = 4 pi everywhere (away from the folds, by central differences).
+  const float h = 1e-3f;
+  double worst = 0.0;
+  for (int i = 1; i < 40; ++i)
+    for (int j = 1; j < 40; ++j) {
+      vec2 uv(float(i) / 40.0f + 0.0123f, float(j) / 40.0f + 0.0071f);
+      if (std::abs(std::abs(2 * uv.x - 1) + std::abs(2 * uv.y - 1) - 1) < 0.01f) continue;  // the diamond's edge
+      if (std::abs(uv.x - 0.5f) < 0.01f || std::abs(uv.y - 0.5f) < 0.01f) continue;         // the axes
+      dvec3 du = dvec3(equal_area_square_to_sphere(uv + vec2(h, 0)) - equal_area_square_to_sphere(uv - vec2(h, 0))) /
+                 double(2 * h);
+      dvec3 dv = dvec3(equal_area_square_to_sphere(uv + vec2(0, h)) - equal_area_square_to_sphere(uv - vec2(0, h))) /
+                 double(2 * h);
+      double jac = glm::length(glm::cross(du, dv));
+      worst = std::max(worst, std::abs(jac / (4.0 * M_PI) - 1.0));
+    }
+  EXPECT_LT(worst, 0.01);
+}
+
+// ---------------------------------------------------------------- environment sampling
+
+TEST(Chi2EnvironmentMap, SamplingMatchesPdfForBothMapsAndDistributions) {
+  const int n_tests = 4;
+  for (bool equal_area : {true, false}) {
+    // Small maps: the harness integrates the pdf adaptively over each cell, and
+    // every texel edge inside a cell costs subdivisions.
+    int w = equal_area ? 8 : 16, h = 8;
+    EnvScene env(w, h, [&](int x, int y) { return sun_texel(x, y, w, h) * (x % 7 == 3 ? 0.0f : 1.0f); },
+                 some_rotation());
+    ASSERT_EQ(env.lights->environments[0].equal_area, equal_area);
+    for (bool compensated : {true, false}) {
+      LightSampleContext ctx{vec3(0.3f, 0.2f, 0.1f)};
+      // The sample's radiance and pdf agree with what escaped rays see (but
+      // for samples within rounding of a texel edge, which may land in the
+      // neighbour when mapped back).
+      int samples = 0, disagree = 0;
+      // Binned in the map's own (u, v), so cell edges fall on texel edges and
+      // the harness integrates the pdf cheaply; the density there is the
+      // solid-angle pdf times the parameterisation's Jacobian.
+      const EnvironmentMap& em = env.lights->environments[0];
+      const Transform& xf = env.scene.lights[0].render_from_light;
+      auto r = chi2_test(
+          fmt::format("{} {}", equal_area ? "equal-area" : "lat-long", compensated ? "compensated" : "full"),
+          [&](vec2 u, float) -> std::optional<vec2> {
+            auto ls = sample_li(*env.lights, 0, ctx, u, 0.5f, compensated);
+            if (!ls) return std::nullopt;
+            ++samples;
+            if (ls->L != infinite_light_Le(*env.lights, 0, ls->wi) ||
+                std::abs(ls->pdf / infinite_light_pdf(*env.lights, 0, ls->wi, compensated) - 1.0f) > 2e-3f)
+              ++disagree;
+            return environment_uv(em, glm::normalize(mat3(xf.m_inv) * ls->wi));
+          },
+          [&](vec2 uv) {
+            // The density is constant over each texel: evaluate it at the
+            // texel's centre, away from the rounding of its edges.
+            ivec2 res(em.image->width, em.image->height);
+            uv = (glm::floor(uv * vec2(res)) + 0.5f) / vec2(res);
+            vec3 wi = xf.vector(environment_direction(em, uv));
+            double jacobian = equal_area ? 4.0 * M_PI : 2.0 * M_PI * M_PI * std::sin(M_PI * uv.y);
+            return double(infinite_light_pdf(*env.lights, 0, wi, compensated)) * jacobian;
+          },
+          200'000, 16, 16, kSignificance, n_tests);
+      EXPECT_TRUE(r.passed) << r.report;
+      EXPECT_LT(disagree, samples / 1000) << disagree << " of " << samples;
+    }
+  }
+}
+
+TEST(EnvironmentMap, ImportanceSamplingBeatsUniformOnASun) {
+  const int w = 64, h = 64;
+  EnvScene env(w, h, [&](int x, int y) { return sun_texel(x, y, w, h); });
+  // Irradiance at an upward-facing point: exact by quadrature over the
+  // equal-area square (each point stands for equal solid angle).
+  const int q = 512;
+  double exact = 0.0;
+  for (int i = 0; i < q; ++i)
+    for (int j = 0; j < q; ++j) {
+      vec3 wi = equal_area_square_to_sphere(vec2((float(i) + 0.5f) / q, (float(j) + 0.5f) / q));
+      if (wi.z > 0.0f) exact += luminance(infinite_light_Le(*env.lights, 0, wi)) * wi.z;
+    }
+  exact *= 4.0 * M_PI / (double(q) * q);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const int n = 64, trials = 400;
+  double se_is = 0.0, se_uniform = 0.0;
+  LightSampleContext ctx{vec3(0.0f), vec3(0.0f), vec3(0, 0, 1), vec3(0, 0, 1)};
+  for (int t = 0; t < trials; ++t) {
+    double e_is = 0.0, e_u = 0.0;
+    for (int k = 0; k < n; ++k) {
+      vec2 r(u(rng), u(rng));
+      if (auto ls = sample_li(*env.lights, 0, ctx, r, 0.5f, false); ls && ls->wi.z > 0.0f)
+        e_is += luminance(ls->L) * ls->wi.z / ls->pdf;
+      vec3 wi = sample_uniform_sphere(r);
+      if (wi.z > 0.0f) e_u += luminance(infinite_light_Le(*env.lights, 0, wi)) * wi.z / uniform_sphere_pdf();
+    }
+    se_is += sqr(e_is / n - exact);
+    se_uniform += sqr(e_u / n - exact);
+  }
+  double rmse_is = std::sqrt(se_is / trials) / exact, rmse_u = std::sqrt(se_uniform / trials) / exact;
+  EXPECT_LT(rmse_is, 0.05);
+  EXPECT_LT(rmse_is * 5.0, rmse_u) << "importance " << rmse_is << " uniform " << rmse_u;
+}
+
+TEST(EnvironmentMap, OrientationFollowsTheTransformAndConstantMapsSampleUniformly) {
+  // A map that is bright only at the light-space +z pole, rotated so +z points along render-space +x.
+  const int w = 16;
+  EnvScene env(w, w, [&](int x, int y) { return (x == w / 2 || x == w / 2 - 1) && (y == w / 2 || y == w / 2 - 1)
+                                                    ? RGB(5.0f) : RGB(0.0f); },
+               Transform(glm::rotate(mat4(1.0f), kPi / 2.0f, vec3(0, 1, 0))));
+  EXPECT_EQ(infinite_light_Le(*env.lights, 0, vec3(1, 0, 0)), RGB(5.0f));
+  EXPECT_EQ(infinite_light_Le(*env.lights, 0, vec3(0, 0, 1)), RGB(0.0f));
+  EnvScene flat(8, 8, [](int, int) { return RGB(2.0f); });
+  for (vec3 wi : {vec3(0, 0, 1), vec3(0.6f, 0.0f, -0.8f)}) {
+    EXPECT_NEAR(infinite_light_pdf(*flat.lights, 0, wi, true), kInv4Pi, 1e-6f);
+    EXPECT_NEAR(infinite_light_pdf(*flat.lights, 0, wi, false), kInv4Pi, 1e-6f);
+  }
+}
+
+TEST(EnvironmentMap, IlluminanceAndPowerFollowPbrtV4) {
+  // A constant map of 1 has pbrt-v4 "illuminance" pi / 2 (its definition: half the true upper-hemisphere value).
+  for (int w : {32, 64}) {
+    Scene s = parse_scene_string("WorldBegin\nShape \"sphere\" \"float radius\" 2", "t.pbrt");
+    Image img;
+    img.width = w;
+    img.height = 32;
+    img.channels = 3;
+    img.pixels.assign(size_t(w) * 32 * 3, 1.0f);
+    s.images.push_back(img);
+    Light l;
+    l.kind = LightKind::Infinite;
+    l.L = RGB(3.0f);
+    l.image = 0;
+    l.illuminance = 10.0f;
+    s.lights.push_back(l);
+    Accel accel(s);
+    LightSet lights(s, accel);
+    EXPECT_NEAR(lights.environments[0].scale.x / (3.0f * 10.0f / (kPi / 2.0f)), 1.0f, 0.01f) << w;  // scale *= E / k_e
+    // Power: pi R^2 times the integral of radiance over the sphere.
+    EXPECT_NEAR(light_power(lights, 0) / (kPi * sqr(lights.scene_radius) * 4.0f * kPi * lights.environments[0].scale.x),
+                1.0f, 0.01f);
+  }
+}
+
+// ---------------------------------------------------------------- spot and distant
+
+TEST(SpotLight, IntensityFallsOffBetweenTheConesAndPowerMatches) {
+  Scene s = parse_scene_string(R"(WorldBegin
+LightSource "spot" "rgb I" [4 4 4] "point3 from" [0 0 2] "point3 to" [0 0 0] "float coneangle" 30 "float conedeltaangle" 10
+Shape "sphere" "float radius" 0.1)", "t.pbrt");
+  Accel accel(s);
+  LightSet lights(s, accel);
+  auto li_at = [&](float angle_deg) {
+    float r = 2.0f * std::tan(radians(angle_deg));
+    auto ls = sample_li(lights, 0, LightSampleContext{vec3(r, 0, 0)}, vec2(0.5f), 0.5f);
+    return ls ? ls->L.x * (4.0f + r * r) : 0.0f;  // intensity towards the point
+  };
+  EXPECT_NEAR(li_at(0.0f), 4.0f, 1e-5f);
+  EXPECT_NEAR(li_at(19.0f), 4.0f, 1e-4f);
+  EXPECT_NEAR(li_at(25.0f), 4.0f * 0.5f, 0.3f);  // mid-way through the smoothstep (in cosine)
+  EXPECT_EQ(li_at(31.0f), 0.0f);
+  float cs = std::cos(radians(20.0f)), ce = std::cos(radians(30.0f));
+  // Power = integral of I over the sphere, by midpoint quadrature in cos(theta).
+  double phi = 0.0;
+  const int n = 200000;
+  for (int i = 0; i < n; ++i) {
+    float c = -1.0f + 2.0f * (float(i) + 0.5f) / float(n);
+    float t = std::clamp((c - ce) / (cs - ce), 0.0f, 1.0f);
+    phi += 4.0 * t * t * (3 - 2 * t) * 2.0 * M_PI * (2.0 / n);
+  }
+  EXPECT_NEAR(light_power(lights, 0) / float(phi), 1.0f, 1e-3f);
+}
+
+TEST(DistantLight, ArrivesFromItsDirectionEverywhere) {
+  Scene s = parse_scene_string(R"(WorldBegin
+LightSource "distant" "rgb L" [2 2 2] "point3 from" [0 0 1] "point3 to" [1 0 0]
+Shape "sphere" "float radius" 3)", "t.pbrt");
+  Accel accel(s);
+  LightSet lights(s, accel);
+  vec3 expected = glm::normalize(vec3(-1, 0, 1));
+  for (vec3 p : {vec3(0.0f), vec3(2, -1, 0.5f)}) {
+    auto ls = sample_li(lights, 0, LightSampleContext{p}, vec2(0.3f), 0.1f);
+    ASSERT_TRUE(ls);
+    EXPECT_TRUE(ls->is_delta);
+    EXPECT_NEAR(glm::length(ls->wi - expected), 0.0f, 1e-6f);
+    EXPECT_NEAR(glm::length(ls->L - RGB(2.0f)), 0.0f, 1e-5f);  // grey survives the working space
+    EXPECT_GT(glm::length(ls->p_light - p), 2.0f * lights.scene_radius);  // outside the scene
+  }
+  EXPECT_TRUE(lights.infinite_lights.empty());  // escaped rays never see a delta light
+  EXPECT_NEAR(light_power(lights, 0), kPi * sqr(lights.scene_radius) * 2.0f, 1e-3f);
+}
+
+// ---------------------------------------------------------------- alpha cut-outs
+
+TEST(AlphaCutout, CheckerboardAlphaIsInvisibleWhereZeroForCameraAndShadowRays) {
+  Scene s = parse_scene_string(R"(WorldBegin
+Texture "a" "float" "checkerboard" "float uscale" 4 "float vscale" 4 "float tex1" 1 "float tex2" 0
+Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 1 1 0 0 1 0] "point2 uv" [0 0 1 0 1 1 0 1]
+  "integer indices" [0 1 2 0 2 3] "texture alpha" "a"
+)", "t.pbrt");
+  load_images(s);
+  ASSERT_GE(s.shapes[0].alpha, 0);
+  Accel accel(s);
+  int opaque = 0, clear = 0;
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j < 8; ++j) {
+      vec2 p((float(i) + 0.5f) / 8.0f, (float(j) + 0.5f) / 8.0f);
+      bool solid = (int(std::floor(4 * p.x)) + int(std::floor(4 * p.y))) % 2 == 0;
+      Ray r{vec3(p, 1.0f), 0.0f, vec3(0, 0, -1), kInfinity};
+      EXPECT_EQ(accel.intersect1(r).hit(), solid) << i << " " << j;
+      EXPECT_EQ(accel.occluded1(r), solid) << i << " " << j;
+      (solid ? opaque : clear)++;
+    }
+  EXPECT_EQ(opaque, 32);
+  EXPECT_EQ(clear, 32);
+}
+
+TEST(AlphaCutout, FractionalAlphaKeepsThatFractionOfHitsDeterministically) {
+  Scene s = parse_scene_string(R"(WorldBegin
+Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 1 1 0 0 1 0] "integer indices" [0 1 2 0 2 3] "float alpha" 0.25
+)", "t.pbrt");
+  Accel accel(s);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  int hits = 0;
+  const int n = 20000;
+  for (int k = 0; k < n; ++k) {
+    Ray r{vec3(u(rng), u(rng), 1.0f), 0.0f, vec3(0, 0, -1), kInfinity};
+    bool h = accel.intersect1(r).hit();
+    EXPECT_EQ(accel.intersect1(r).hit(), h);  // a pure function of the ray
+    EXPECT_EQ(accel.occluded1(r), h);
+    hits += h;
+  }
+  EXPECT_NEAR(double(hits) / n, 0.25, 0.015);
+}
+
+// ---------------------------------------------------------------- texture filter
+
+TEST(TextureFilter, PointPicksTheNearestTexel) {
+  Image img;
+  img.width = 2;
+  img.height = 2;
+  img.channels = 1;
+  img.pixels = {1.0f, 2.0f, 3.0f, 4.0f};  // top row 1 2, bottom row 3 4
+  EXPECT_EQ(image_lookup_nearest(img, vec2(0.1f, 0.9f), WrapMode::Repeat), RGB(1.0f));
+  EXPECT_EQ(image_lookup_nearest(img, vec2(0.74f, 0.9f), WrapMode::Repeat), RGB(2.0f));
+  EXPECT_EQ(image_lookup_nearest(img, vec2(0.26f, 0.1f), WrapMode::Repeat), RGB(3.0f));
+  EXPECT_EQ(image_lookup_nearest(img, vec2(0.9f, 0.4f), WrapMode::Repeat), RGB(4.0f));
+  EXPECT_EQ(image_lookup_nearest(img, vec2(1.1f, 0.9f), WrapMode::Repeat), RGB(1.0f));
+  Scene s = parse_scene_string(R"(WorldBegin
+Texture "p" "float" "imagemap" "string filename" "cornell-box.exr" "string filter" "point"
+Texture "t" "float" "imagemap" "string filename" "cornell-box.exr" "string filter" "trilinear"
+)", "t.pbrt", THEIA_TEST_DATA);
+  EXPECT_TRUE(s.textures[0].point_filter);
+  EXPECT_FALSE(s.textures[1].point_filter);  // MIP-mapping needs ray differentials: bilinear
+  EXPECT_THROW(parse_scene_string("WorldBegin\nTexture \"b\" \"float\" \"imagemap\" \"string filename\" "
+                                  "\"cornell-box.exr\" \"string filter\" \"cubic\"", "t.pbrt", THEIA_TEST_DATA),
+               Error);
+}

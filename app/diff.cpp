@@ -63,6 +63,8 @@ std::pair<double, double> write_error_image(const std::string& path, const Image
 
 }  // namespace
 
+constexpr int kDiffTile = 32, kDiffTileCount = 8;
+
 int run_diff(const std::string& a, const std::string& b, const std::string& error_image) {
   ImageBuffer x = read_image_file(a);
   ImageBuffer r = read_image_file(b);
@@ -74,6 +76,11 @@ int run_diff(const std::string& a, const std::string& b, const std::string& erro
   fmt::print("MAPE {:.9g}\n", m.mape);
   fmt::print("block_relMSE {:.9g}\n", m.block_rel_mse);
   fmt::print("channel_mean_deviation {:.9g}\n", m.channel_mean_deviation);
+  // Where the error lives: a biased material shows as a tile whose mean ratio is off 1.
+  fmt::print("worst {}x{} tiles (x0 y0 x1 y1 relMSE mean_ratio_R mean_ratio_G mean_ratio_B):\n", kDiffTile, kDiffTile);
+  for (const TileError& t : worst_tiles(x, r, kDiffTile, kDiffTileCount))
+    fmt::print("tile {} {} {} {} {:.6g} {:.4f} {:.4f} {:.4f}\n", t.x0, t.y0, t.x1, t.y1, t.rel_mse, t.mean_ratio[0],
+               t.mean_ratio[1], t.mean_ratio[2]);
   if (!error_image.empty()) {
     auto [lo, hi] = write_error_image(error_image, x, r);
     fmt::print("error_image {} log10_rel_error_range {:.3f} {:.3f}\n", error_image, lo, hi);

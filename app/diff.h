@@ -10,7 +10,8 @@ namespace theia {
 
 // Prints relMSE, RMSE, MAPE, block relMSE (8x8) and the channel-mean
 // deviation of `a` against the reference `b` to stdout, one "name value" per
-// line.  If `error_image` is not empty, also writes a PNG of the per-pixel
+// line, then the 8 worst 32x32 tiles by relMSE with their per-channel ratio of
+// means ("tile x0 y0 x1 y1 relMSE rR rG rB"), so a mismatch points at a region.  If `error_image` is not empty, also writes a PNG of the per-pixel
 // relative error |a - b| / (|b| + 1e-2) (mean over R, G, B) on a log10 scale
 // through the inferno colour map, and prints the log10 range it spans.
 // Returns 0; throws theia::Error on unreadable or mismatched images.

@@ -10,6 +10,8 @@ namespace theia {
 
 namespace {
 
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
 // The three (or fewer) channels both images are compared on, checked to agree.
 struct Channels {
   std::vector<int> x, r;
@@ -118,6 +120,32 @@ std::vector<float> per_pixel_rel_error(const ImageBuffer& x, const ImageBuffer& 
     err[i] = float(sum / double(ch.x.size()));
   }
   return err;
+}
+
+std::vector<TileError> worst_tiles(const ImageBuffer& x, const ImageBuffer& r, int tile, int count) {
+  if (tile < 1) throw_error("tile size must be at least 1, got {}", tile);
+  Channels ch = matched_channels(x, r);
+  std::vector<TileError> tiles;
+  for (int y0 = 0; y0 < x.height; y0 += tile)
+    for (int x0 = 0; x0 < x.width; x0 += tile) {
+      TileError t{x0, y0, std::min(x.width, x0 + tile), std::min(x.height, y0 + tile)};
+      double sq = 0.0, sx[3] = {0, 0, 0}, sr[3] = {0, 0, 0};
+      for (int y = t.y0; y < t.y1; ++y)
+        for (int px = t.x0; px < t.x1; ++px)
+          for (size_t c = 0; c < ch.x.size(); ++c) {
+            double xv = x.at(px, y, ch.x[c]), rv = r.at(px, y, ch.r[c]);
+            sq += rel_sq(xv, rv);
+            sx[c] += xv;
+            sr[c] += rv;
+          }
+      double n = double(t.x1 - t.x0) * double(t.y1 - t.y0) * double(ch.x.size());
+      t.rel_mse = sq / n;
+      for (size_t c = 0; c < ch.x.size(); ++c) t.mean_ratio[c] = sr[c] != 0.0 ? sx[c] / sr[c] : (sx[c] == 0.0 ? 1.0 : kInf);
+      tiles.push_back(t);
+    }
+  std::stable_sort(tiles.begin(), tiles.end(), [](const TileError& a, const TileError& b) { return a.rel_mse > b.rel_mse; });
+  if (count >= 0 && tiles.size() > size_t(count)) tiles.resize(size_t(count));
+  return tiles;
 }
 
 }  // namespace theia

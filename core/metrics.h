@@ -35,4 +35,14 @@ ErrorMetrics compute_error_metrics(const ImageBuffer& x, const ImageBuffer& r, i
 // row-major, one value per pixel (the quantity `theia diff` maps to colour).
 std::vector<float> per_pixel_rel_error(const ImageBuffer& x, const ImageBuffer& r);
 
+// One tile of the image and how far the test image is from the reference there.
+struct TileError {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // pixel range [x0, x1) x [y0, y1)
+  double rel_mse = 0;                   // relMSE over the tile's pixels
+  double mean_ratio[3] = {1, 1, 1};     // per channel: mean(x) / mean(r) over the tile (bias shows here)
+};
+// The `count` tiles of tile x tile pixels with the largest relMSE, worst first
+// (ties broken by position, so the report is deterministic).
+std::vector<TileError> worst_tiles(const ImageBuffer& x, const ImageBuffer& r, int tile = 32, int count = 8);
+
 }  // namespace theia

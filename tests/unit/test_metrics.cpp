@@ -119,6 +119,32 @@ TEST(Metrics, PerPixelRelativeError) {
   EXPECT_EQ(e[1], 0.0f);
 }
 
+// A bias confined to one region shows as the worst tile, with the bias in its
+// per-channel mean ratio; noise elsewhere ranks below it.
+TEST(Metrics, WorstTilesPointAtTheBiasedRegion) {
+  ImageBuffer ref(96, 64, {"R", "G", "B"}, 0.5f);
+  ImageBuffer test = ref;
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 96; ++x) test.at(x, y, 0) += ((x * 7 + y * 13) % 5 - 2) * 0.002f;  // small noise
+  for (int y = 32; y < 64; ++y)
+    for (int x = 64; x < 96; ++x) test.at(x, y, 2) *= 1.2f;  // a blue bias in the bottom-right tile
+  std::vector<TileError> tiles = worst_tiles(test, ref, 32, 3);
+  ASSERT_EQ(tiles.size(), 3u);
+  EXPECT_EQ(tiles[0].x0, 64);
+  EXPECT_EQ(tiles[0].y0, 32);
+  EXPECT_EQ(tiles[0].x1, 96);
+  EXPECT_NEAR(tiles[0].mean_ratio[2], 1.2, 1e-6);
+  EXPECT_NEAR(tiles[0].mean_ratio[1], 1.0, 1e-9);
+  EXPECT_GT(tiles[0].rel_mse, 10.0 * tiles[1].rel_mse);
+  EXPECT_GE(tiles[1].rel_mse, tiles[2].rel_mse);
+  // Partial tiles at the border are measured over the pixels they have.
+  std::vector<TileError> all = worst_tiles(test, ref, 40, -1);
+  EXPECT_EQ(all.size(), 6u);
+  double weighted = 0.0;
+  for (const TileError& t : all) weighted += t.rel_mse * (t.x1 - t.x0) * (t.y1 - t.y0);
+  EXPECT_NEAR(weighted / (96.0 * 64.0), rel_mse(test, ref), 1e-9);
+}
+
 TEST(DiffColormap, InfernoEndpointsAndMonotoneLightness) {
   // matplotlib: inferno(0) = (0.0015, 0.0005, 0.0139), inferno(1) = (0.9884, 0.9984, 0.6449).
   RGB lo = inferno_colormap(0.0f), hi = inferno_colormap(1.0f);
@@ -163,9 +189,22 @@ TEST_F(DiffFiles, PrintsEveryMetricAndWritesTheErrorImage) {
   EXPECT_EQ(rc, 0);
 
   std::map<std::string, double> values;
-  std::istringstream lines(out);
-  std::string name;
-  while (lines >> name) {
+  std::istringstream all(out);
+  std::string line, name;
+  int tile_lines = 0;
+  while (std::getline(all, line)) {
+    std::istringstream lines(line);
+    lines >> name;
+    if (name == "worst") continue;  // the tile report's header
+    if (name == "tile") {
+      int x0, y0, x1, y1;
+      double rel;
+      lines >> x0 >> y0 >> x1 >> y1 >> rel;
+      EXPECT_EQ(x1 - x0, 4);  // the whole 4x2 image is one 32x32 tile
+      EXPECT_NEAR(rel, rel_mse(test, ref), 1e-5 * rel_mse(test, ref));  // printed to 6 digits
+      ++tile_lines;
+      continue;
+    }
     if (name == "error_image") {
       std::string path, label;
       double lo, hi;
@@ -184,6 +223,7 @@ TEST_F(DiffFiles, PrintsEveryMetricAndWritesTheErrorImage) {
   EXPECT_NEAR(values["block_relMSE"], block_rel_mse(test, ref), 1e-6 * block_rel_mse(test, ref)) << out;
   EXPECT_NEAR(values["channel_mean_deviation"], channel_mean_deviation(test, ref), 1e-6) << out;
   EXPECT_NEAR(values["range_hi"], std::log10((1.0 / 0.51) / 3.0), 1e-3) << out;
+  EXPECT_EQ(tile_lines, 1) << out;
 
   ImageBuffer err = read_image_file(file("err.png"));
   ASSERT_EQ(err.width, 4);

@@ -109,7 +109,7 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
           if (((z < exit_z && w.z > 0.0f) || (z > exit_z && w.z < 0.0f)) && !L.top_specular) {
             RGB f_exit = bxdf_f(exit, -w, wi, mode);
             if (!is_black(f_exit)) {
-              float exit_pdf = bxdf_pdf(exit, -w, wi, mode, kSampleTransmission);
+              float exit_pdf = bxdf_pdf(exit, wi, -w, !mode, kSampleTransmission);
               result += beta * transmittance(zp - exit_z, w) * f_exit * power_heuristic(1, phase_pdf, 1, exit_pdf);
             }
           }
@@ -140,7 +140,7 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
           if (!is_black(f_exit)) {
             float wt = 1.0f;
             if (L.bottom_nonspecular)
-              wt = power_heuristic(1, bs->pdf, 1, bxdf_pdf(exit, -w, wi, mode, kSampleTransmission));
+              wt = power_heuristic(1, bs->pdf, 1, bxdf_pdf(exit, wi, -w, !mode, kSampleTransmission));
             result += beta * transmittance(thickness, bs->wi) * f_exit * wt;
           }
         }
@@ -232,12 +232,19 @@ float pdf(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
   const BxDF& t_iface = L.top;
   const BxDF& r_iface = L.bottom;
   const bool t_nonspecular = L.top_nonspecular, r_nonspecular = L.bottom_nonspecular;
-  float pdf_sum = float(n_samples) * bxdf_pdf(L.top, wo, wi, mode, kSampleReflection);
+  // Unlike pbrt-v4, which adds the reflection-only and the TRT densities
+  // unweighted (so its pdf integrates to about 2), both terms are weighted by
+  // the probability that sample() takes them: the coat's reflection density
+  // with its Fresnel share, and TRT only for walks whose first event refracts.
+  // The TRT term stays a heuristic (its MIS mixes densities over different
+  // variables), so the result integrates to 0.9-1.9, not 1: fine for MIS,
+  // which needs only a positive function evaluated the same way everywhere.
+  float pdf_sum = float(n_samples) * bxdf_pdf(L.top, wo, wi, mode, kSampleAll);
   for (int s = 0; s < n_samples; ++s) {
     // The transmission-reflection-transmission path, by MIS over which end was sampled.
-    auto wos = bxdf_sample(t_iface, wo, r(), vec2(r(), r()), mode, kSampleTransmission);
+    auto wos = bxdf_sample(t_iface, wo, r(), vec2(r(), r()), mode, kSampleAll);
     auto wis = bxdf_sample(t_iface, wi, r(), vec2(r(), r()), !mode, kSampleTransmission);
-    if (!usable(wos) || !usable(wis)) continue;
+    if (!usable(wos) || wos->is_reflection() || !usable(wis)) continue;
     if (!t_nonspecular) {
       pdf_sum += bxdf_pdf(r_iface, -wos->wi, -wis->wi, mode);
       continue;

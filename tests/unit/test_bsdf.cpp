@@ -207,35 +207,6 @@ TEST(BxDFFurnace, SmoothDielectricThinDielectricAndMirrorAreLossless) {
   }
 }
 
-// Directional albedo of a Trowbridge-Reitz reflector with F = 1, by a dense
-// deterministic quadrature written independently of scene/microfacet.h (double
-// precision, isotropic): over microfacet normals wm, with wi = reflect(wo, wm)
-// and d wi = 4 |wo.wm| d wm,
-//   E(wo) = integral D(wm) G(wo, wi) |wo.wm| / cos(theta_o) d wm   (wi above).
-// theta_m is parameterised by u in (0, 1) with tan(theta_m) = alpha sqrt(u / (1 - u)),
-// which puts the midpoint nodes where D is large for any alpha.
-double ggx_albedo_quadrature(double alpha, double theta_o, int n) {
-  const double pi = 3.14159265358979323846, a2 = alpha * alpha;
-  const double so = std::sin(theta_o), co = std::cos(theta_o);
-  auto lambda = [&](double cos_t) { return (std::sqrt(1.0 + a2 * (1.0 - cos_t * cos_t) / (cos_t * cos_t)) - 1.0) / 2.0; };
-  double sum = 0.0;
-  for (int i = 0; i < n; ++i) {
-    double u = (i + 0.5) / n, t = alpha * std::sqrt(u / (1.0 - u));
-    double theta = std::atan(t), ct = std::cos(theta), st = std::sin(theta);
-    double dtheta_du = alpha / (2.0 * std::sqrt(u) * std::pow(1.0 - u, 1.5)) / (1.0 + t * t);
-    double D = a2 / (pi * std::pow(ct, 4) * sqr(a2 + t * t));
-    for (int j = 0; j < n; ++j) {
-      double phi = 2.0 * pi * (j + 0.5) / n;
-      double o_dot_m = so * st * std::cos(phi) + co * ct;  // wo = (sin, 0, cos)
-      double wi_z = 2.0 * o_dot_m * ct - co;
-      if (o_dot_m <= 0.0 || wi_z <= 0.0) continue;
-      double G = 1.0 / (1.0 + lambda(co) + lambda(wi_z));
-      sum += D * G * o_dot_m / co * st * dtheta_du / n * (2.0 * pi / n);
-    }
-  }
-  return sum;
-}
-
 // Rough mirrors lose the energy that single scattering misses (Kulla & Conty
 // 2017 tabulate it against r = sqrt(alpha): alpha 0.3 keeps ~0.85, alpha 1
 // keeps ~0.3 at normal incidence).  The sampled albedo must match the

@@ -1,99 +1,274 @@
 #include "scene/bsdf.h"
 
+#include "core/color.h"
+
+#include "core/hash.h"
 #include "core/sampling.h"
 #include "scene/texture.h"
 
+#include <bit>
+
 namespace theia {
+
+namespace {
+
+uint32_t float_bits(float f) { return std::bit_cast<uint32_t>(f); }
+
+// pbrt-v4's MixMaterial::ChooseMaterial: amount is the probability of the
+// second material, decided by a hash of the hit so that it is deterministic.
+const Material* resolve_mix(const Scene& scene, const Material* m, const SurfaceInteraction& si,
+                            const TextureEvalContext& tc) {
+  for (int guard = 0; m && m->kind == MaterialKind::Mix && guard < 16; ++guard) {
+    float amount = m->amount >= 0 ? eval_float_texture(scene, m->amount, tc) : 0.5f;
+    int pick;
+    if (amount <= 0.0f) pick = m->mix[0];
+    else if (amount >= 1.0f) pick = m->mix[1];
+    else {
+      uint64_t h = hash(float_bits(si.p.x), float_bits(si.p.y), float_bits(si.p.z), float_bits(si.wo.x),
+                        float_bits(si.wo.y), float_bits(si.wo.z), m->mix[0], m->mix[1]);
+      float u = to_unit_float(uint32_t(h >> 32));
+      pick = amount < u ? m->mix[0] : m->mix[1];
+    }
+    m = pick >= 0 ? &scene.materials[size_t(pick)] : nullptr;
+  }
+  return m;
+}
+
+float tex_float(const Scene& scene, int t, const TextureEvalContext& tc, float def) {
+  return t >= 0 ? eval_float_texture(scene, t, tc) : def;
+}
+RGB tex_rgb(const Scene& scene, int t, const TextureEvalContext& tc, RGB def) {
+  return t >= 0 ? eval_texture(scene, t, tc) : def;
+}
+
+TrowbridgeReitz distribution(const Scene& scene, int u_tex, int v_tex, bool remap, const TextureEvalContext& tc) {
+  float u = tex_float(scene, u_tex, tc, 0.0f), v = tex_float(scene, v_tex, tc, 0.0f);
+  if (remap) {
+    u = TrowbridgeReitz::roughness_to_alpha(u);
+    v = TrowbridgeReitz::roughness_to_alpha(v);
+  }
+  return {std::max(u, 0.0f), std::max(v, 0.0f)};
+}
+
+// Shading frame with s along dpdu (so that anisotropic roughness follows the
+// surface parameterisation, as in pbrt-v4), bump- or normal-mapped if asked.
+Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteraction& si,
+                    const TextureEvalContext& tc) {
+  vec3 ns = si.ns, dpdu = si.dpdu, dpdv = si.dpdv;
+  bool mapped = false;
+  if (m && m->normal_map >= 0 && !scene.images[size_t(m->normal_map)].pixels.empty()) {
+    // Tangent-space normal in [0,1]^3; image row 0 is the top, so v flips.
+    RGB c = image_bilerp(scene.images[size_t(m->normal_map)], vec2(si.uv.x, 1.0f - si.uv.y), WrapMode::Repeat);
+    vec3 nt = 2.0f * c - vec3(1.0f);
+    float ulen = glm::length(dpdu), vlen = glm::length(dpdv);
+    vec3 x = dpdu - ns * glm::dot(ns, dpdu);
+    if (glm::dot(nt, nt) > 0.0f && glm::dot(x, x) > 0.0f && ulen > 0.0f) {
+      x = glm::normalize(x);
+      vec3 y = glm::cross(ns, x);
+      vec3 n = glm::normalize(glm::normalize(nt).x * x + glm::normalize(nt).y * y + glm::normalize(nt).z * ns);
+      vec3 u = dpdu - n * glm::dot(n, dpdu);
+      if (glm::dot(u, u) > 0.0f) {
+        dpdu = glm::normalize(u) * ulen;
+        dpdv = glm::normalize(glm::cross(n, dpdu)) * vlen;
+        mapped = true;
+      }
+    }
+  } else if (m && m->displacement >= 0) {
+    // No ray differentials: pbrt-v4's fallback offset.
+    constexpr float du = 0.0005f, dv = 0.0005f;
+    float d = eval_float_texture(scene, m->displacement, tc);
+    float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu});
+    float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv});
+    dpdu = si.dpdu + (d_u - d) / du * ns;
+    dpdv = si.dpdv + (d_v - d) / dv * ns;
+    mapped = true;
+  }
+  if (mapped) {
+    vec3 n = glm::cross(dpdu, dpdv);
+    if (glm::dot(n, n) > 0.0f && std::isfinite(n.x + n.y + n.z)) {
+      n = glm::normalize(n);
+      ns = glm::dot(n, si.ng) < 0.0f ? -n : n;  // on the geometric normal's side
+    }
+  }
+  vec3 s = dpdu - ns * glm::dot(ns, dpdu);
+  if (!(glm::dot(s, s) > 1e-12f) || !std::isfinite(s.x + s.y + s.z)) return Frame::from_z(ns);
+  s = glm::normalize(s);
+  return Frame{s, glm::cross(ns, s), ns};
+}
+
+void set_lobes(BSDF& b) {
+  const BxDF& x = b.bxdf;
+  uint8_t flags = bxdf_flags(x);
+  auto kind_bits = [](const TrowbridgeReitz& d) { return d.effectively_smooth() ? kLobeSpecular : kLobeGlossy; };
+  switch (x.kind) {
+    case BxDFKind::Diffuse:
+      b.lobe_count = 1;
+      b.lobes[0] = {uint8_t(kLobeReflection | kLobeDiffuse), 1.0f, x.diffuse.r};
+      break;
+    case BxDFKind::Conductor:
+      b.lobe_count = 1;
+      b.lobes[0] = {uint8_t(kLobeReflection | kind_bits(x.conductor.distrib)), x.conductor.distrib.roughness(),
+                    conductor_fresnel(1.0f, x.conductor)};
+      break;
+    case BxDFKind::Dielectric:
+    case BxDFKind::ThinDielectric: {
+      bool thin = x.kind == BxDFKind::ThinDielectric;
+      float eta = thin ? x.thin.eta : x.dielectric.eta;
+      uint8_t k = thin ? uint8_t(kLobeSpecular) : uint8_t(kind_bits(x.dielectric.distrib));
+      float rough = thin ? 0.0f : x.dielectric.distrib.roughness();
+      float r0 = fresnel_dielectric(1.0f, eta);
+      b.lobe_count = 2;
+      b.lobes[0] = {uint8_t(kLobeReflection | k), rough, RGB(r0)};
+      b.lobes[1] = {uint8_t(kLobeTransmission | k), rough, RGB(1.0f - r0)};
+      break;
+    }
+    case BxDFKind::DiffuseTransmission:
+      b.lobe_count = 2;
+      b.lobes[0] = {uint8_t(kLobeReflection | kLobeDiffuse), 1.0f, x.diffuse_transmission.r};
+      b.lobes[1] = {uint8_t(kLobeTransmission | kLobeDiffuse), 1.0f, x.diffuse_transmission.t};
+      break;
+    case BxDFKind::CoatedDiffuse:
+      b.lobe_count = 1;
+      b.lobes[0] = {flags, 1.0f, x.diffuse.r};
+      break;
+    case BxDFKind::CoatedConductor:
+      b.lobe_count = 1;
+      b.lobes[0] = {flags, std::max(x.dielectric.distrib.roughness(), x.conductor.distrib.roughness()),
+                    conductor_fresnel(1.0f, x.conductor)};
+      break;
+    case BxDFKind::None: b.lobe_count = 0; break;
+  }
+}
+
+}  // namespace
 
 BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si) {
   BSDF bsdf;
-  bsdf.shading = Frame::from_z(si.ns);
   bsdf.ng = si.ng;
-  const Material* m = si.material >= 0 ? &scene.materials[si.material] : nullptr;
+  const TextureEvalContext tc{si.uv, si.p};
+  const Material* m = si.material >= 0 ? &scene.materials[size_t(si.material)] : nullptr;
+  m = resolve_mix(scene, m, si, tc);
+  if (m && m->kind == MaterialKind::Interface) m = nullptr;
+  if (!m && si.material >= 0) {
+    bsdf.kind = MaterialKind::Interface;
+    bsdf.shading = Frame::from_z(si.ns);
+    return bsdf;  // no surface
+  }
   bsdf.kind = m ? m->kind : MaterialKind::Diffuse;
+  bsdf.shading = shading_frame(scene, m, si, tc);
+  BxDF& x = bsdf.bxdf;
+  auto reflectance = [&](RGB def) { return glm::clamp(tex_rgb(scene, m ? m->reflectance : -1, tc, def), RGB(0.0f), RGB(1.0f)); };
+  auto conductor = [&](int eta, int k, int refl) {
+    ConductorBxDF c;
+    if (refl >= 0) {
+      // pbrt-v4's reflectance form: eta = 1 and the k that gives r at normal incidence.
+      // The reflectance is a colour (working space); k lives in sRGB bands like a scene's k.
+      RGB r = glm::clamp(working_to_srgb(eval_texture(scene, refl, tc)), RGB(0.0f), RGB(0.9999f));
+      c.eta = RGB(1.0f);
+      c.k = 2.0f * glm::sqrt(r) / glm::sqrt(glm::max(RGB(1.0f) - r, RGB(0.0f)));
+    } else {
+      c.eta = tex_rgb(scene, eta, tc, RGB(1.0f));
+      c.k = glm::max(tex_rgb(scene, k, tc, RGB(0.0f)), RGB(0.0f));
+    }
+    return c;
+  };
   switch (bsdf.kind) {
-    case MaterialKind::Diffuse: {
-      RGB r = m && m->reflectance >= 0 ? eval_texture(scene, m->reflectance, TextureEvalContext{si.uv, si.p})
-                                       : RGB(0.5f);
-      r = glm::clamp(r, RGB(0.0f), RGB(1.0f));
-      bsdf.lobe_count = 1;
-      bsdf.lobes[0] = BxDFLobe{uint8_t(kLobeReflection | kLobeDiffuse), 1.0f, r};
+    case MaterialKind::Diffuse:
+      x.kind = BxDFKind::Diffuse;
+      x.diffuse.r = reflectance(RGB(0.5f));
+      break;
+    case MaterialKind::Conductor:
+      x.kind = BxDFKind::Conductor;
+      x.conductor = conductor(m->conductor_eta, m->conductor_k, m->reflectance);
+      x.conductor.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
+      break;
+    case MaterialKind::Dielectric:
+      x.kind = BxDFKind::Dielectric;
+      x.dielectric.eta = m->eta;
+      x.dielectric.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
+      break;
+    case MaterialKind::ThinDielectric:
+      x.kind = BxDFKind::ThinDielectric;
+      x.thin.eta = m->eta;
+      break;
+    case MaterialKind::DiffuseTransmission:
+      x.kind = BxDFKind::DiffuseTransmission;
+      x.diffuse_transmission.r = glm::clamp(m->scale * tex_rgb(scene, m->reflectance, tc, RGB(0.25f)), RGB(0.0f), RGB(1.0f));
+      x.diffuse_transmission.t = glm::clamp(m->scale * tex_rgb(scene, m->transmittance, tc, RGB(0.25f)), RGB(0.0f), RGB(1.0f));
+      break;
+    case MaterialKind::CoatedDiffuse:
+    case MaterialKind::CoatedConductor: {
+      bool diffuse = bsdf.kind == MaterialKind::CoatedDiffuse;
+      x.kind = diffuse ? BxDFKind::CoatedDiffuse : BxDFKind::CoatedConductor;
+      x.dielectric.eta = m->eta == 0.0f ? 1.0f : m->eta;
+      x.dielectric.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
+      if (diffuse) {
+        x.diffuse.r = reflectance(RGB(0.5f));
+      } else {
+        // The base sits in the coating's medium: its index is relative to the coat's (pbrt-v4).
+        x.conductor = conductor(m->conductor_eta, m->conductor_k, m->reflectance);
+        x.conductor.eta /= x.dielectric.eta;
+        x.conductor.k /= x.dielectric.eta;
+        x.conductor.distrib =
+            distribution(scene, m->conductor_uroughness, m->conductor_vroughness, m->remap_roughness, tc);
+      }
+      x.layer.thickness = std::max(tex_float(scene, m->thickness, tc, 0.01f), 0.0f);
+      x.layer.g = std::clamp(tex_float(scene, m->g, tc, 0.0f), -0.99f, 0.99f);
+      x.layer.albedo = glm::clamp(tex_rgb(scene, m->albedo, tc, RGB(0.0f)), RGB(0.0f), RGB(1.0f));
+      x.layer.max_depth = m->max_depth;
+      x.layer.n_samples = m->n_samples;
       break;
     }
+    case MaterialKind::Mix:
+    case MaterialKind::Interface: break;  // resolved above
   }
+  set_lobes(bsdf);
   return bsdf;
 }
 
-static RGB lobe_f(const BxDFLobe& lobe, const vec3& wo, const vec3& wi) {
-  if (lobe.flags & kLobeDiffuse) {
-    if (wo.z * wi.z <= 0.0f) return RGB(0.0f);
-    return lobe.albedo * kInvPi;
-  }
-  return RGB(0.0f);
-}
-
-static float lobe_pdf(const BxDFLobe& lobe, const vec3& wo, const vec3& wi) {
-  if (lobe.flags & kLobeDiffuse) {
-    if (wo.z * wi.z <= 0.0f) return 0.0f;
-    return cosine_hemisphere_pdf(std::abs(wi.z));
-  }
-  return 0.0f;
-}
-
-// Lobes are chosen in proportion to their albedo's luminance (uniformly when all are black).
-static float lobe_selection_pmf(const BSDF& bsdf, int lobe) {
-  if (bsdf.lobe_count == 1) return 1.0f;
-  float total = 0.0f;
-  for (int i = 0; i < bsdf.lobe_count; ++i) total += luminance(bsdf.lobes[i].albedo);
-  if (total <= 0.0f) return 1.0f / float(bsdf.lobe_count);
-  return luminance(bsdf.lobes[lobe].albedo) / total;
+// Which lobe (see BSDF) a pair of local directions belongs to.
+static int lobe_of(const BSDF& bsdf, const vec3& wo, const vec3& wi) {
+  return (bsdf.lobe_count == 2 && !same_hemisphere(wo, wi)) ? 1 : 0;
 }
 
 RGB bsdf_f(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
   vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
   if (wo.z == 0.0f) return RGB(0.0f);
-  RGB f(0.0f);
-  for (int i = 0; i < bsdf.lobe_count; ++i) f += lobe_f(bsdf.lobes[i], wo, wi);
-  return f;
+  return bxdf_f(bsdf.bxdf, wo, wi);
 }
 
 float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo_world, const vec3& wi_world) {
   vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
-  return lobe_pdf(bsdf.lobes[lobe], wo, wi);
+  if (wo.z == 0.0f || lobe != lobe_of(bsdf, wo, wi)) return 0.0f;
+  return bxdf_pdf(bsdf.bxdf, wo, wi);
 }
 
 float bsdf_pdf(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
   vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
   if (wo.z == 0.0f) return 0.0f;
-  float pdf = 0.0f;
-  for (int i = 0; i < bsdf.lobe_count; ++i) pdf += lobe_selection_pmf(bsdf, i) * lobe_pdf(bsdf.lobes[i], wo, wi);
-  return pdf;
+  return bxdf_pdf(bsdf.bxdf, wo, wi);
 }
 
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u) {
   vec3 wo = bsdf.shading.to_local(wo_world);
   if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
-  int lobe = 0;
-  for (float acc = 0.0f; lobe < bsdf.lobe_count - 1; ++lobe) {
-    acc += lobe_selection_pmf(bsdf, lobe);
-    if (u_lobe < acc) break;
-  }
-  const BxDFLobe& l = bsdf.lobes[lobe];
-  vec3 wi;
-  if (l.flags & kLobeDiffuse) {
-    wi = sample_cosine_hemisphere(u);
-    if (wo.z < 0.0f) wi.z = -wi.z;
-  } else {
-    return std::nullopt;
-  }
+  auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u);
+  if (!bs) return std::nullopt;
   BSDFSample s;
-  s.wi = bsdf.shading.from_local(wi);
-  s.f = bsdf_f(bsdf, wo_world, s.wi);
-  s.pdf = bsdf_pdf(bsdf, wo_world, s.wi);
-  s.lobe = lobe;
-  s.flags = l.flags;
-  s.roughness = l.roughness;
-  if (s.pdf == 0.0f || is_black(s.f)) return std::nullopt;
+  s.f = bs->f;
+  s.pdf = bs->pdf;
+  if (bs->pdf_is_proportional && !bs->is_specular()) {
+    float pdf = bxdf_pdf(bsdf.bxdf, wo, bs->wi);
+    if (!(pdf > 0.0f)) return std::nullopt;
+    s.f = bs->f * (pdf / bs->pdf);
+    s.pdf = pdf;
+  }
+  s.wi = bsdf.shading.from_local(bs->wi);
+  s.lobe = lobe_of(bsdf, wo, bs->wi);
+  s.flags = bs->flags;
+  s.roughness = bsdf.lobes[s.lobe].roughness;
+  s.eta = bs->eta;
+  if (!is_finite(s.f) || !(s.pdf > 0.0f) || is_black(s.f)) return std::nullopt;
   return s;
 }
 
@@ -104,9 +279,7 @@ RGB bsdf_albedo(const BSDF& bsdf) {
 }
 
 bool bsdf_is_specular(const BSDF& bsdf) {
-  for (int i = 0; i < bsdf.lobe_count; ++i)
-    if (!(bsdf.lobes[i].flags & kLobeSpecular)) return false;
-  return bsdf.lobe_count > 0;
+  return bsdf.lobe_count > 0 && !(bxdf_flags(bsdf.bxdf) & (kLobeDiffuse | kLobeGlossy));
 }
 
 }  // namespace theia

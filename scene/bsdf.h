@@ -8,6 +8,7 @@
 #pragma once
 
 #include "scene/accel.h"
+#include "scene/bxdfs.h"
 #include "scene/scene.h"
 #include "scene/shapes.h"
 
@@ -15,12 +16,13 @@
 
 namespace theia {
 
+// The same bits as BxDFFlags.
 enum LobeFlags : uint8_t {
-  kLobeReflection = 1 << 0,
-  kLobeTransmission = 1 << 1,
-  kLobeDiffuse = 1 << 2,
-  kLobeGlossy = 1 << 3,
-  kLobeSpecular = 1 << 4,
+  kLobeReflection = kBxDFReflection,
+  kLobeTransmission = kBxDFTransmission,
+  kLobeDiffuse = kBxDFDiffuse,
+  kLobeGlossy = kBxDFGlossy,
+  kLobeSpecular = kBxDFSpecular,
 };
 
 inline constexpr int kMaxLobes = 4;
@@ -31,10 +33,15 @@ struct BxDFLobe {
   RGB albedo{0.0f};        // reflectance/tint of the lobe (for AOVs and lobe selection)
 };
 
+// Lobes of each BxDF kind: diffuse, conductor and the coated kinds have one
+// (reflection); dielectric, thindielectric and diffusetransmission two
+// (0 reflection, 1 transmission).  lobe_count == 0 is the "interface"
+// material: no surface, the ray passes through.
 struct BSDF {
-  Frame shading;           // shading frame: n = shading normal
+  Frame shading;           // shading frame: n = shading normal (bump/normal mapped), s along dpdu
   vec3 ng{0.0f};           // geometric normal
-  MaterialKind kind = MaterialKind::Diffuse;
+  MaterialKind kind = MaterialKind::Diffuse;  // the material chosen (a mix resolves to one of its parts)
+  BxDF bxdf;
   int lobe_count = 0;
   BxDFLobe lobes[kMaxLobes];
 };
@@ -46,17 +53,27 @@ struct BSDFSample {
   int lobe = -1;
   uint8_t flags = 0;  // flags of the lobe that produced wi
   float roughness = 1.0f;
+  float eta = 1.0f;   // relative index crossed by a refraction (pbrt-v4's etaScale uses its square)
   bool is_specular() const { return (flags & kLobeSpecular) != 0; }
+  bool is_transmission() const { return (flags & kLobeTransmission) != 0; }
 };
 
+// Evaluates the material's textures at si, resolves mix materials (by a
+// hash of the hit, as pbrt-v4 does) and applies bump or normal mapping.
 BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si);
+// True for the "interface" material: the engine continues the ray unchanged.
+inline bool bsdf_is_passthrough(const BSDF& bsdf) { return bsdf.lobe_count == 0; }
 
 // f(wo, wi) summed over the non-specular lobes; wo and wi are world-space unit vectors.
 RGB bsdf_f(const BSDF& bsdf, const vec3& wo, const vec3& wi);
 // Solid-angle pdf that bsdf_sample() produces wi (non-specular lobes only).
 float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
+// For the stochastic layered BxDFs a non-specular sample reports bsdf_pdf()
+// as its pdf (what MIS needs) and f rescaled so that f / pdf is the random
+// walk's own weight, as pbrt-v4's pdfIsProportional handling amounts to.
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u);
-// Per-lobe pdf, for guiding's per-lobe decisions.
+// Joint pdf of choosing `lobe` and sampling wi (the lobes' pdfs sum to
+// bsdf_pdf), for guiding's per-lobe decisions.
 float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);
 // Directional albedo estimate for the albedo AOV (reflectance of the material).
 RGB bsdf_albedo(const BSDF& bsdf);

@@ -190,8 +190,10 @@ std::span<const double> ParamList::get_floats(std::string_view name) const {
 
 std::optional<RGB> ParamList::get_spectrum(std::string_view name, SpectrumUse use, RGB fallback) const {
   std::optional<RGB> c = get_spectrum_srgb(name, use, fallback);
-  if (c) return srgb_to_working(*c);
-  return std::nullopt;
+  // Unbounded spectra (a conductor's eta and k) are per-band constants, not
+  // colours: they stay in the sRGB bands (see conductor_fresnel).
+  if (c && use != SpectrumUse::Unbounded) return srgb_to_working(*c);
+  return c;
 }
 
 std::optional<RGB> ParamList::get_spectrum_srgb(std::string_view name, SpectrumUse use, RGB fallback) const {

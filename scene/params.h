@@ -50,7 +50,8 @@ class ParamList {
   // Named spectra not in the table warn and give `fallback`.
   enum class SpectrumUse { Reflectance, Unbounded, Illuminant };
   // A colour parameter (rgb, blackbody, spectrum or named spectrum) in the
-  // renderer's working colour space (core/color.h).
+  // renderer's working colour space (core/color.h); Unbounded ones (eta, k)
+  // are optical constants per band and stay in the sRGB bands.
   std::optional<RGB> get_spectrum(std::string_view name, SpectrumUse use, RGB fallback) const;
   // The same in linear sRGB, as the scene states it.
   std::optional<RGB> get_spectrum_srgb(std::string_view name, SpectrumUse use, RGB fallback) const;

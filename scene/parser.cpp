@@ -1,6 +1,7 @@
 #include "scene/parser.h"
 
 #include "core/log.h"
+#include "scene/material_params.h"
 #include "scene/params.h"
 #include "scene/ply.h"
 #include "scene/spectrum.h"
@@ -85,7 +86,8 @@ class SceneParser {
   void shape(const std::string& type, ParamList& params, const SourceLoc& loc, const std::string& base_dir);
   void light_source(const std::string& type, ParamList& params, const SourceLoc& loc, const std::string& base_dir);
   void area_light_source(const std::string& type, ParamList& params, const SourceLoc& loc);
-  int make_material(const std::string& type, const std::string& name, ParamList& params, const SourceLoc& loc);
+  int make_material(const std::string& type, const std::string& name, ParamList& params, const SourceLoc& loc,
+                    const std::string& base_dir);
   void texture(const std::string& name, const std::string& type, const std::string& cls, ParamList& params,
                const SourceLoc& loc, const std::string& base_dir);
 
@@ -255,14 +257,14 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
       if (named_materials_.count(name)) throw_at(loc, "named material \"{}\" redefined, expected a new name", name);
       const Param* type = params.find("type", ParamType::String);
       if (!type) throw_at(loc, "MakeNamedMaterial \"{}\" without \"string type\", expected the material type", name);
-      named_materials_[name] = make_material(type->strings[0], name, params, loc);
+      named_materials_[name] = make_material(type->strings[0], name, params, loc, base_dir);
       params.report_unused();
     } else if (d == "Material") {
       need_world(loc, d);
       std::string type = string_arg(tok, d);
       ParamList params = parse_params(tok);
       params.add_defaults(gs_.material_attrs);
-      gs_.material = make_material(type, "", params, loc);
+      gs_.material = make_material(type, "", params, loc, base_dir);
       params.report_unused();
     } else if (d == "Texture") {
       need_world(loc, d);
@@ -609,18 +611,22 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
 }
 
 int SceneParser::make_material(const std::string& type, const std::string& name, ParamList& params,
-                               const SourceLoc& loc) {
-  Material m;
+                               const SourceLoc& loc, const std::string& base_dir) {
+  MaterialLookups lookups;
+  lookups.texture = [this](const ParamList& p, std::string_view n, bool is_float, RGB def, SpectrumUse use) {
+    return texture_param(p, n, is_float, def, use);
+  };
+  lookups.image = [&](const std::string& file, const std::string& encoding, const SourceLoc& l) {
+    return image(resolve(base_dir, file), encoding, /*is_color=*/false, l);  // normal maps: data
+  };
+  lookups.named_material = [this](const std::string& n, const SourceLoc& l) {
+    auto it = named_materials_.find(n);
+    if (it == named_materials_.end())
+      throw_at(l, "unknown named material \"{}\", expected a name defined by MakeNamedMaterial", n);
+    return it->second;
+  };
+  Material m = parse_material(type, params, loc, lookups);
   m.name = name;
-  m.loc = loc;
-  m.kind = MaterialKind::Diffuse;
-  if (type == "diffuse") {
-    m.reflectance = texture_param(params, "reflectance", false, RGB(0.5f), SpectrumUse::Reflectance);
-  } else {
-    warn_at(loc, "material \"{}\" is not supported yet; substituting diffuse 0.5", type);
-    params.mark_all_used();
-    m.reflectance = constant_texture(RGB(0.5f), false);
-  }
   scene_.materials.push_back(std::move(m));
   return int(scene_.materials.size()) - 1;
 }

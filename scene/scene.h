@@ -61,12 +61,30 @@ struct Texture {
 
 // ---------------------------------------------------------------- materials
 
-enum class MaterialKind { Diffuse };
+// pbrt-v4's materials.  Texture-valued parameters are indices into
+// Scene::textures (float or spectrum as the slot says; constants are
+// constant textures); -1 where the material does not use the slot.
+enum class MaterialKind {
+  Diffuse, Conductor, Dielectric, ThinDielectric, DiffuseTransmission, CoatedDiffuse, CoatedConductor, Mix, Interface
+};
 
 struct Material {
   std::string name;
   MaterialKind kind = MaterialKind::Diffuse;
-  int reflectance = -1;        // texture index (spectrum)
+  int reflectance = -1;          // spectrum: diffuse, diffusetransmission, coateddiffuse; conductor's reflectance form
+  int transmittance = -1;        // spectrum: diffusetransmission
+  float scale = 1.0f;            // diffusetransmission "scale"
+  int uroughness = -1, vroughness = -1;  // float: conductor, dielectric, coated interface
+  bool remap_roughness = true;
+  float eta = 1.5f;              // dielectric, thindielectric, coated interface (at ~550 nm)
+  int conductor_eta = -1, conductor_k = -1;  // spectrum (RGB): conductor, coatedconductor base
+  int conductor_uroughness = -1, conductor_vroughness = -1;  // float: coatedconductor base
+  int thickness = -1, g = -1, albedo = -1;  // coated: float, float, spectrum
+  int max_depth = 10, n_samples = 1;        // coated
+  int mix[2] = {-1, -1};         // Mix: indices into Scene::materials (-1: interface)
+  int amount = -1;               // Mix: float texture, probability of mix[1]
+  int displacement = -1;         // float texture: bump map
+  int normal_map = -1;           // index into Scene::images (linear, tangent-space normals)
   SourceLoc loc;
 };
 

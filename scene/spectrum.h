@@ -45,6 +45,10 @@ struct NamedSpectrum {
 };
 const NamedSpectrum* find_named_spectrum(std::string_view name);
 
+// Value of a tabulated spectrum at one wavelength (0 outside the table): a
+// dielectric's index is taken at 550 nm.
+float spectrum_at(std::span<const float> lambda, std::span<const float> value, float lambda_nm);
+
 // RGB of a named spectrum, for the given use; nullptr-safe callers check
 // find_named_spectrum first.
 RGB named_spectrum_rgb(const NamedSpectrum& s, bool illuminant);

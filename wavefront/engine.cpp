@@ -200,6 +200,7 @@ struct WavefrontEngine::Impl {
         ps.depth = 0;
         ps.prev_specular = 1;
         ps.alpha_only = alpha_only ? 1 : 0;
+        ps.eta_scale = 1.0f;
         all.rays[i] = ray;
       }
     });
@@ -413,7 +414,14 @@ struct WavefrontEngine::Impl {
     ++out.vertices;
 
     BSDF bsdf = make_bsdf(scene, si);
-    if (depth == 0 && counts_for_alpha(sample)) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), si.ns, si.t);
+    // An "interface" surface: continue the ray as it was, without a bounce.
+    if (bsdf_is_passthrough(bsdf)) {
+      out.rays.rays.push_back(spawn_ray(si, -wo));
+      out.rays.paths.push_back(slot);
+      return;
+    }
+    const vec3 ns = bsdf.shading.n;  // bump- or normal-mapped
+    if (depth == 0 && counts_for_alpha(sample)) film.splat_first_hit(pixel, fw, true, bsdf_albedo(bsdf), ns, si.t);
 
     if (int(depth) >= opt.max_depth) {
       finish_path<kObserve>(slot, out);
@@ -425,12 +433,12 @@ struct WavefrontEngine::Impl {
 
     // Next-event estimation: queue a shadow ray carrying its unoccluded contribution.
     if (!bsdf_is_specular(bsdf) && int(depth) >= reset_depth) {
-      LightSampleContext ctx{si.p, si.p_error, si.ng, si.ns};
+      LightSampleContext ctx{si.p, si.p_error, si.ng, ns};
       if (auto sl = light_sampler.sample(ctx, sample1(pixel, sample, dim + kDimLightChoice))) {
         auto ls = sample_li(lights, sl->light, ctx, sample2(pixel, sample, dim + kDimLightPoint),
                             sample1(pixel, sample, dim + kDimLightPrim));
         if (ls && ls->pdf > 0.0f) {
-          RGB f = bsdf_f(bsdf, wo, ls->wi) * std::abs(glm::dot(ls->wi, si.ns));
+          RGB f = bsdf_f(bsdf, wo, ls->wi) * std::abs(glm::dot(ls->wi, ns));
           if (!is_black(f)) {
             float light_pdf = sl->pmf * ls->pdf;
             float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, bsdf_pdf(bsdf, wo, ls->wi));
@@ -447,7 +455,7 @@ struct WavefrontEngine::Impl {
                 sb.mis_weight.push_back(w);
                 PathVertexInfo info;
                 info.p = si.p;
-                info.n = si.ns;
+                info.n = ns;
                 info.wi = ls->wi;
                 info.prefix = fw * beta;
                 info.local = f / light_pdf;
@@ -474,12 +482,16 @@ struct WavefrontEngine::Impl {
       return;
     }
     [[maybe_unused]] const RGB beta_in = beta;
-    RGB local = bs->f * (std::abs(glm::dot(bs->wi, si.ns)) / bs->pdf);
+    RGB local = bs->f * (std::abs(glm::dot(bs->wi, ns)) / bs->pdf);
     beta *= local;
+    // Radiance refracted into a denser medium is scaled by 1/eta^2; roulette
+    // undoes that scale so that it does not kill paths inside glass.
+    float eta_scale = ps.eta_scale;
+    if (bs->is_transmission()) eta_scale *= sqr(bs->eta);
     uint32_t next_depth = depth + 1;
     // Russian roulette on the throughput, as pbrt-v4 does it.
     if (int(next_depth) > opt.rr_min_depth) {
-      float rr = max_component(beta);
+      float rr = max_component(beta * eta_scale);
       if (rr < 1.0f) {
         float q = std::max(0.0f, 1.0f - rr);
         if (sample1(pixel, sample, dim + kDimRoulette) < q) {
@@ -497,7 +509,7 @@ struct WavefrontEngine::Impl {
     if constexpr (kObserve) {
       PathVertexInfo info;
       info.p = si.p;
-      info.n = si.ns;
+      info.n = ns;
       info.wi = bs->wi;
       info.prefix = fw * beta_in;
       info.local = local;
@@ -515,6 +527,7 @@ struct WavefrontEngine::Impl {
     ps.beta = beta;
     ps.depth = uint16_t(next_depth);
     ps.prev_pdf = bs->pdf;
+    ps.eta_scale = eta_scale;
     ps.prev_specular = bs->is_specular() ? 1 : 0;
     ps.prev_p = si.p;
     ps.prev_ng = si.ng;

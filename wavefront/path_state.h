@@ -23,6 +23,7 @@ namespace theia {
   F(uint32_t, vertex)         /* the path observer's handle (kNoVertex without observer) */   \
   F(float, filter_weight)     /* filter-importance-sampling weight of the camera sample */    \
   F(float, prev_pdf)          /* solid-angle pdf of the BSDF sample that made the ray */      \
+  F(float, eta_scale)         /* product of eta^2 over refractions (pbrt-v4's etaScale, RR) */ \
   F(uint16_t, depth)          /* bounces so far: 0 for the camera ray */                      \
   F(uint8_t, prev_specular)   /* that sample came from a specular lobe */                     \
   F(uint8_t, alpha_only)      /* consistent alpha: the camera ray only measures coverage */

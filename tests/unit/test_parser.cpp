@@ -431,11 +431,14 @@ TEST(Parser, UnsupportedMaterialsWarnOnceAndSubstituteDiffuse) {
   int before = warning_count();
   Scene s = parse(R"(WorldBegin
 MakeNamedMaterial "metal" "string type" "conductor" "spectrum eta" "metal-Cu-eta" "float roughness" 0.1
-Material "coateddiffuse" "rgb reflectance" [0.9 0.9 0.9] "float roughness" 0
+Material "hair" "float eumelanin" 1.3
+Shape "sphere"
 NamedMaterial "metal"
 Shape "sphere")");
-  EXPECT_EQ(warning_count() - before, 2);
+  EXPECT_EQ(warning_count() - before, 1);
+  EXPECT_EQ(s.materials[size_t(s.shapes[0].material)].kind, MaterialKind::Diffuse);
   EXPECT_EQ(s.textures[size_t(s.materials[size_t(s.shapes[0].material)].reflectance)].value, RGB(0.5f));
+  EXPECT_EQ(s.materials[size_t(s.shapes[1].material)].kind, MaterialKind::Conductor);
   EXPECT_EQ(error_of("WorldBegin\nMakeNamedMaterial \"m\" \"float roughness\" 0"),
             "test.pbrt:2:1: error: MakeNamedMaterial \"m\" without \"string type\", expected the material type");
 }
@@ -642,7 +645,10 @@ TEST(Spectrum, IlluminantAndReflectanceNormalisation) {
   // The CMF fit peaks where the CIE tables do.
   EXPECT_NEAR(cie_xyz_cmf(555.0f).y, 1.0f, 0.02f);
   ASSERT_NE(find_named_spectrum("stdillum-A"), nullptr);
-  EXPECT_EQ(find_named_spectrum("glass-BK7"), nullptr);
+  const NamedSpectrum* bk7 = find_named_spectrum("glass-BK7");
+  ASSERT_NE(bk7, nullptr);
+  EXPECT_NEAR(spectrum_at(bk7->lambda, bk7->value, 550.0f), 1.5185f, 1e-3f);
+  EXPECT_EQ(find_named_spectrum("glass-unobtainium"), nullptr);
 }
 
 // ---------------------------------------------------------------- files

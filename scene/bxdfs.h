@@ -1,0 +1,113 @@
+// pbrt-v4's BxDFs in a local shading frame (z = shading normal, directions
+// pointing away from the surface), as plain data plus free functions that
+// switch on the kind: no virtual calls, nothing allocated.  scene/bsdf.h wraps
+// them with the shading frame and the lobe description guiding needs.
+//
+// Conventions (pbrt-v4's): f excludes the cosine; a specular sample has a
+// discrete probability as its pdf and f carries the 1/|cos| that cancels the
+// cosine; f and pdf never include specular lobes.  Refraction in Radiance
+// mode scales by 1/eta^2.  Layered BxDFs (coateddiffuse, coatedconductor) are
+// stochastic: f and pdf are unbiased estimates from a random walk seeded by a
+// hash of the directions, and a sample's pdf is only proportional to its
+// density (pdf_is_proportional), so MIS must use bxdf_pdf instead.
+#pragma once
+
+#include "scene/microfacet.h"
+
+#include <optional>
+
+namespace theia {
+
+enum class TransportMode : uint8_t { Radiance, Importance };
+inline TransportMode operator!(TransportMode m) {
+  return m == TransportMode::Radiance ? TransportMode::Importance : TransportMode::Radiance;
+}
+
+// Which halves a sampling routine may use (pbrt-v4's BxDFReflTransFlags).
+enum SampleFlags : uint8_t { kSampleReflection = 1, kSampleTransmission = 2, kSampleAll = 3 };
+
+enum BxDFFlags : uint8_t {
+  kBxDFReflection = 1 << 0,
+  kBxDFTransmission = 1 << 1,
+  kBxDFDiffuse = 1 << 2,
+  kBxDFGlossy = 1 << 3,
+  kBxDFSpecular = 1 << 4,
+};
+
+enum class BxDFKind : uint8_t {
+  None,  // no scattering (the "interface" material)
+  Diffuse,
+  Conductor,
+  Dielectric,
+  ThinDielectric,
+  DiffuseTransmission,
+  CoatedDiffuse,    // dielectric interface over a diffuse base
+  CoatedConductor,  // dielectric interface over a conductor base
+};
+
+struct DiffuseBxDF {
+  RGB r{0.0f};
+};
+struct ConductorBxDF {
+  TrowbridgeReitz distrib;
+  RGB eta{1.0f}, k{0.0f};
+};
+
+// A conductor's Fresnel reflectance, in the working colour space.  eta and k
+// are optical constants per band, not colours, so they stay in the linear-sRGB
+// bands the scene (or the named spectrum) gives them; the reflectance they
+// produce is a colour and joins the working space.  Converting eta and k
+// instead would saturate metals beyond what their spectra reflect.
+RGB conductor_fresnel(float cos_i, const ConductorBxDF& b);
+struct DielectricBxDF {
+  TrowbridgeReitz distrib;
+  float eta = 1.5f;
+};
+struct ThinDielectricBxDF {
+  float eta = 1.5f;
+};
+struct DiffuseTransmissionBxDF {
+  RGB r{0.0f}, t{0.0f};
+};
+// The medium between a layered BxDF's interfaces (pbrt-v4's LayeredBxDF).
+struct LayerParams {
+  float thickness = 0.01f;
+  float g = 0.0f;
+  RGB albedo{0.0f};
+  int max_depth = 10;
+  int n_samples = 1;
+};
+
+// One BxDF; only the members its kind names are meaningful.  Coated kinds
+// use `dielectric` as the top interface and `diffuse` / `conductor` below.
+struct BxDF {
+  BxDFKind kind = BxDFKind::None;
+  DiffuseBxDF diffuse;
+  ConductorBxDF conductor;
+  DielectricBxDF dielectric;
+  ThinDielectricBxDF thin;
+  DiffuseTransmissionBxDF diffuse_transmission;
+  LayerParams layer;
+};
+
+struct BxDFSample {
+  RGB f{0.0f};
+  vec3 wi{0.0f};
+  float pdf = 0.0f;
+  uint8_t flags = 0;   // BxDFFlags of the scattering event
+  float eta = 1.0f;    // relative index crossed (transmission), for Russian roulette's eta scale
+  bool pdf_is_proportional = false;
+  bool is_specular() const { return (flags & kBxDFSpecular) != 0; }
+  bool is_transmission() const { return (flags & kBxDFTransmission) != 0; }
+  bool is_reflection() const { return (flags & kBxDFReflection) != 0; }
+};
+
+uint8_t bxdf_flags(const BxDF& b);
+RGB bxdf_f(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode = TransportMode::Radiance);
+float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode = TransportMode::Radiance,
+               uint8_t sample_flags = kSampleAll);
+std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, vec2 u,
+                                      TransportMode mode = TransportMode::Radiance,
+                                      uint8_t sample_flags = kSampleAll);
+
+}  // namespace theia

@@ -215,7 +215,7 @@ def main():
     rp.add_argument("--out", default="out/report")
     mp = sub.add_parser("matrix", help="run scenes x configurations, then report")
     mp.add_argument("--theia", default=os.path.join(ROOT, "build", "theia"))
-    mp.add_argument("--spp", type=int, default=128)
+    mp.add_argument("--spp", type=int, default=256)
     mp.add_argument("--out", default="out/report")
     mp.add_argument("--scenes", default=",".join(s[0] for s in SCENES))
     mp.add_argument("--configurations", default=",".join(c[0] for c in CONFIGURATIONS))

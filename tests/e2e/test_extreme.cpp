@@ -323,9 +323,9 @@ TEST(ExtremeInput, InfOverflowAndNegativeParametersAreErrorsWithLine) {
   }
 }
 
-// NaN, Inf and negative texels: clamped to 0 with one warning (a documented
-// clamp, scene/README.md), and the render stays finite.
-TEST(ExtremeInput, NonFiniteAndNegativeTexelsAreClampedWithAWarning) {
+// NaN and Inf texels: clamped to 0 with one warning (a documented clamp,
+// scene/README.md); a negative one stays (linear float data); the render stays finite.
+TEST(ExtremeInput, NonFiniteTexelsAreClampedWithAWarning) {
   TempDir tmp("theia_extreme_texels");
   ImageBuffer tex;
   tex.width = 4;
@@ -345,7 +345,7 @@ TEST(ExtremeInput, NonFiniteAndNegativeTexelsAreClampedWithAWarning) {
   )",
                                                     tmp.file("bad.exr")),
                                         16));
-  EXPECT_EQ(warning_count(), warnings_before + 1);  // one warning for the image (2 non-finite, 1 negative)
+  EXPECT_EQ(warning_count(), warnings_before + 1);  // one warning for the image (2 non-finite texels)
   RenderResult r = render_scene(scene, extreme_config(16, 10));
   expect_sane(r);
 }

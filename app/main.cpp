@@ -52,6 +52,8 @@ int main(int argc, char** argv) {
   render->add_option("--throughput-reset-bounce", rc.throughput_reset_bounce,
                      "Render the 'throughput reset at bounce N' image as the beauty");
   render->add_option("--log", rc.log_path, "JSON log file (default: OUTPUT with .json)");
+  render->add_option("--reference", rc.reference_path,
+                     "Reference image (linear sRGB EXR): log time, spp and relMSE/RMSE/MAPE at every iteration");
   render->add_flag("-q,--quiet", quiet, "Print only warnings and errors");
   render->add_option("--schedule", rc.schedule, "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16)")
       ->check(CLI::IsMember({"regular", "guiding"}))

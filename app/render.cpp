@@ -3,6 +3,7 @@
 #include "app/progress.h"
 #include "cachepoints/light_sampler.h"
 #include "core/log.h"
+#include "core/metrics.h"
 #include "core/stats.h"
 #include "radiance_recorder/recorder.h"
 #include "scene/accel.h"
@@ -78,6 +79,19 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   const int max_depth = config.max_depth >= 0 ? config.max_depth : scene.settings.max_depth;
   if (spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, spp);
 
+  const auto wall_start = config.wall_start.value_or(std::chrono::steady_clock::now());
+  // Read before the render clock starts: the reference is not part of the render.
+  ImageBuffer reference;
+  if (!config.reference_path.empty()) {
+    reference = read_image_file(config.reference_path);
+    if (reference.width != scene.film.width || reference.height != scene.film.height)
+      throw_error("--reference {}: the image is {}x{}, the film is {}x{}", config.reference_path, reference.width,
+                  reference.height, scene.film.width, scene.film.height);
+    if (reference.channels.size() < 3)
+      throw_error("--reference {}: expected an RGB image, found {} channel(s)", config.reference_path,
+                  reference.channels.size());
+  }
+
   auto t0 = std::chrono::steady_clock::now();
   Accel accel(scene);
   double accel_seconds = seconds_since(t0);
@@ -148,6 +162,24 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     tasks.on_end([&](const IterationInfo&) { recorder->end_iteration(); });
     tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [&](const IterationInfo&) { recorder->update_skip_rate(); });
   }
+  // Error against run time: the render clock (accel build onwards, scene loading
+  // excluded) does not count the time spent here measuring the error.
+  double evaluation_seconds = 0.0;
+  if (!config.reference_path.empty())
+    ic.evaluate = [&](const IterationInfo& it, const ImageAccumulator& acc) {
+      auto te = std::chrono::steady_clock::now();
+      ImageBuffer image = acc.resolve(ic.combination);
+      nlohmann::json e = {{"spp_total", it.spp_end},
+                          {"wall_seconds", seconds_since(wall_start)},
+                          {"render_seconds", seconds_since(t0) - evaluation_seconds},
+                          {"rel_mse", rel_mse(image, reference)},
+                          {"rmse", rmse(image, reference)},
+                          {"mape", mape(image, reference)},
+                          {"dropped_samples", acc.total.dropped.load()}};
+      evaluation_seconds += seconds_since(te);
+      e["evaluation_seconds"] = evaluation_seconds;
+      return e;
+    };
   IterationResult iterations = render_iterations(engine, film, tasks, ic);
   bar.finish();
   RenderResult result;
@@ -217,6 +249,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     log["memory"]["recorder"] = recorder->peak_bytes();
   }
   if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;
+  if (!config.reference_path.empty()) log["reference"] = config.reference_path;
   log["dropped_samples"] = iterations.dropped_samples;
   log["warnings"] = warning_count();
   return result;
@@ -238,6 +271,7 @@ int run_render(const RenderConfig& in) {
   RenderConfig config = in;
   check_config(config);
   auto t0 = std::chrono::steady_clock::now();
+  if (!config.wall_start) config.wall_start = t0;
   Scene scene = load_scene(config.scene_path);
   load_images(scene);
   double load_seconds = seconds_since(t0);

@@ -9,7 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include <atomic>
+#include <chrono>
 #include <functional>
+#include <optional>
 #include <string>
 
 namespace theia {
@@ -26,6 +28,12 @@ struct RenderConfig {
   bool sort = true;
   std::string light_sampler = "power";
   std::string log_path;             // empty: OUTPUT with .json
+  // --reference: at every iteration boundary log wall and render time, cumulative spp and
+  // relMSE / RMSE / MAPE against this image (linear sRGB, the film's size).  Empty: none.
+  std::string reference_path;
+  // When the command started (scene loading included), for the log's wall time; unset: when
+  // render_scene was called.
+  std::optional<std::chrono::steady_clock::time_point> wall_start;
   bool progress = false;            // progress bar (the command line turns it on for a terminal)
   // Radiance recorder (radiance_recorder/): built only when something consumes it.
   bool recorder_debug = false;      // layer "recorder": primary-hit samples re-splatted (== beauty)

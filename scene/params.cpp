@@ -5,6 +5,7 @@
 #include "scene/spectrum.h"
 
 #include <cmath>
+#include <limits>
 
 namespace theia {
 
@@ -81,6 +82,10 @@ void add_value(Tokenizer& tok, Param& p, const Token& t) {
     throw_at(tok.loc(t), "value {} for {}, expected a number", Tokenizer::describe(t), p.label());
   double v;
   if (!parse_number(t.text, &v)) throw_at(tok.loc(t), "bad number \"{}\" for {}, expected a number", t.text, p.label());
+  // from_chars accepts "nan" and "inf", and a double may overflow the float it
+  // becomes: either would reach the render as NaN/Inf, so neither gets in.
+  if (!std::isfinite(v) || std::abs(v) > double(std::numeric_limits<float>::max()))
+    throw_at(tok.loc(t), "value {} for {}, expected a finite number (within float range)", t.text, p.label());
   if (p.type == ParamType::Integer && (v != std::floor(v) || std::abs(v) > 2147483647.0))
     throw_at(tok.loc(t), "value {} for {}, expected an integer", t.text, p.label());
   p.numbers.push_back(v);
@@ -202,6 +207,8 @@ std::optional<RGB> ParamList::get_spectrum_srgb(std::string_view name, SpectrumU
   bool illuminant = use == SpectrumUse::Illuminant;
   if (p->type == ParamType::RGB) {
     if (p->numbers.size() != 3) throw_at(p->loc, "{} has {} values, expected 3", p->label(), p->numbers.size());
+    for (double v : p->numbers)
+      if (v < 0.0) throw_at(p->loc, "{} has the negative value {}, expected values >= 0", p->label(), v);
     return RGB(float(p->numbers[0]), float(p->numbers[1]), float(p->numbers[2]));
   }
   if (p->type == ParamType::Blackbody) return blackbody_rgb(float(p->numbers[0]));
@@ -215,6 +222,9 @@ std::optional<RGB> ParamList::get_spectrum_srgb(std::string_view name, SpectrumU
   for (size_t i = 0; i + 1 < p->numbers.size(); i += 2) {
     if (!lambda.empty() && float(p->numbers[i]) <= lambda.back())
       throw_at(p->loc, "{} has wavelength {} after {}, expected ascending wavelengths", p->label(), p->numbers[i], lambda.back());
+    if (p->numbers[i + 1] < 0.0)
+      throw_at(p->loc, "{} has the negative value {} at {} nm, expected values >= 0", p->label(), p->numbers[i + 1],
+               p->numbers[i]);
     lambda.push_back(float(p->numbers[i]));
     value.push_back(float(p->numbers[i + 1]));
   }

@@ -109,6 +109,17 @@ void load_image(Image& image, const std::string& base_dir) {
       }
       image.pixels[i * size_t(nc) + size_t(c)] = v;
     }
+  // A texel that is NaN or infinite would put the same into every path that
+  // reads it: documented clamp to 0, with one warning per image.  Negative
+  // float texels stay (float images are linear data, tests/unit/test_texture.cpp).
+  size_t non_finite = 0;
+  for (float& v : image.pixels)
+    if (!std::isfinite(v)) {
+      ++non_finite;
+      v = 0.0f;
+    }
+  if (non_finite > 0) log_warning("{}: {} non-finite texel values clamped to 0", path, non_finite);
+  // (Clamped first: the conversion would spread one NaN channel over three.)
   // Colour images join the working colour space once, here, so lookups stay plain.
   if (image.is_color && nc >= 3)
     for (size_t i = 0; i < buf.pixel_count(); ++i) {

@@ -230,12 +230,15 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     film.clear();
     pos.iteration = i + 1;
     pos.camera_done = 0;
+    nlohmann::json evaluation;
+    if (cfg.evaluate) evaluation = cfg.evaluate(info, acc);
     double before = checkpoint_seconds;
     tasks.end_iteration(info);
     iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
                           {"seconds", seconds_since(ti)},
                           {"checkpoint", wrote_this_iteration},
                           {"checkpoint_seconds", checkpoint_seconds - before}});
+    if (evaluation.is_object()) iterations.back().update(evaluation);
     if (stop_requested() && !info.last()) {
       interrupted = true;
       break;

@@ -36,6 +36,11 @@ struct IterationConfig {
   const std::atomic<bool>* stop = nullptr;
   // (iteration index, fraction of its camera samples generated), from the driving thread.
   std::function<void(int, double)> progress;
+  // Called at every iteration boundary, after the iteration is folded in and
+  // before the between-iteration tasks; what it returns is merged into that
+  // iteration's log entry (the error against a reference image, --reference).
+  // Unset: nothing is resolved or logged, so it costs nothing.
+  std::function<nlohmann::json(const IterationInfo&, const ImageAccumulator&)> evaluate;
 };
 
 struct IterationResult {

@@ -437,10 +437,12 @@ struct WavefrontEngine::Impl {
       if (auto sl = light_sampler.sample(ctx, sample1(pixel, sample, dim + kDimLightChoice))) {
         auto ls = sample_li(lights, sl->light, ctx, sample2(pixel, sample, dim + kDimLightPoint),
                             sample1(pixel, sample, dim + kDimLightPrim));
-        if (ls && ls->pdf > 0.0f) {
+        // pdf guard: the product of selection and sampling pdfs can underflow
+        // to 0 (a light of 1e-3 beside one of 1e9); such a sample is dropped, never divided by.
+        const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
+        if (ls && light_pdf > 0.0f && std::isfinite(light_pdf)) {
           RGB f = bsdf_f(bsdf, wo, ls->wi) * std::abs(glm::dot(ls->wi, ns));
           if (!is_black(f)) {
-            float light_pdf = sl->pmf * ls->pdf;
             float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, bsdf_pdf(bsdf, wo, ls->wi));
             RGB radiance = ls->L * (w / light_pdf);
             RGB contribution = fw * beta * f * radiance;
@@ -477,7 +479,8 @@ struct WavefrontEngine::Impl {
     // Continue the path by sampling the BSDF.
     auto bs = bsdf_sample(bsdf, wo, sample1(pixel, sample, dim + kDimBsdfLobe),
                           sample2(pixel, sample, dim + kDimBsdfDir));
-    if (!bs) {
+    // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
+    if (!bs || !(bs->pdf > 0.0f)) {
       finish_path<kObserve>(slot, out);
       return;
     }

@@ -1,0 +1,252 @@
+#!/usr/bin/python3
+"""Error against run time: plots and a Markdown report from render logs.
+
+  error_report.py report LOG.json [LOG.json ...] [--baseline LABEL] [--out DIR]
+      Logs written by `theia render --reference REF.exr` (or by `matrix` for an
+      external renderer).  Per scene: relMSE against render time and against
+      spp (log-log), time to reach a relMSE (log-log interpolation) and the
+      efficiency of each configuration against the baseline
+      (baseline time / its time to the same error; > 1 is faster).
+
+  error_report.py matrix [--theia build/theia] [--spp N] [--out DIR]
+                         [--external 'CMD {spp} {out}' --external-name NAME
+                          --external-spp 4,16,64]
+      Runs the standard matrix (SCENES x CONFIGURATIONS below) with --reference,
+      optionally an external renderer at a series of spp, then `report`.
+
+Needs Debian's python3-numpy, python3-matplotlib, python3-openimageio
+(tools/install-deps.sh).  Run with /usr/bin/python3.
+"""
+import argparse
+import json
+import os
+import shlex
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# The standard matrix.  Later features add their configurations here (guiding,
+# cache points, ...); the first one is the default baseline.
+CONFIGURATIONS = [
+    ("default", []),
+    ("sort-off", ["--sort", "off"]),
+    ("light-uniform", ["--light-sampler", "uniform"]),
+    ("batch-4k", ["--batch-size", "4096"]),
+    ("batch-1m", ["--batch-size", "1048576"]),
+]
+SCENES = [
+    ("cornell-box", "scenes/cornell-box/scene.pbrt", "tests/data/cornell-box.exr"),
+    ("veach-mis", "scenes/veach-mis/scene.pbrt", "tests/data/veach-mis.exr"),
+]
+REL_EPS = 1e-2  # as core/metrics.h
+
+
+# ---------------------------------------------------------------- metrics
+
+
+def read_rgb(path):
+    import OpenImageIO as oiio
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        sys.exit(f"{path}: {buf.geterror()}")
+    px = buf.get_pixels(oiio.FLOAT)
+    if px is None or px.ndim != 3 or px.shape[2] < 3:
+        sys.exit(f"{path}: expected an RGB image")
+    return px[:, :, :3].astype(np.float64)
+
+
+def error_metrics(x, r):
+    if x.shape != r.shape:
+        raise ValueError(f"image sizes differ: {x.shape} vs reference {r.shape}")
+    d = x - r
+    return {"rel_mse": float(np.mean(d * d / (r * r + REL_EPS))),
+            "rmse": float(np.sqrt(np.mean(d * d))),
+            "mape": float(np.mean(np.abs(d) / (np.abs(r) + REL_EPS)))}
+
+
+# ---------------------------------------------------------------- logs
+
+
+def load_curve(path, label=None):
+    """(scene, label, arrays spp/seconds/rel_mse) from a theia or external log."""
+    with open(path) as f:
+        log = json.load(f)
+    its = [it for it in log.get("scheduler", {}).get("iterations", []) if "rel_mse" in it]
+    if not its:
+        sys.exit(f"{path}: no per-iteration error; render with --reference")
+    scene = log.get("scene_name") or os.path.basename(os.path.dirname(log.get("scene", ""))) or "scene"
+    label = label or log.get("label") or os.path.splitext(os.path.basename(path))[0]
+    return {"scene": scene, "label": label, "path": path,
+            "spp": np.array([it["spp_total"] for it in its], float),
+            "seconds": np.array([it["render_seconds"] for it in its], float),
+            "rel_mse": np.array([it["rel_mse"] for it in its], float)}
+
+
+def time_to_error(curve, target):
+    """Render time at which the curve reaches `target` relMSE, interpolated
+    linearly in log-log; None if it never gets there."""
+    e, t = curve["rel_mse"], curve["seconds"]
+    if e[0] <= target:
+        # Reached at the first boundary: extrapolate back along an 1/t slope.
+        return float(t[0] * e[0] / target) if e[0] > 0 else float(t[0])
+    for i in range(1, len(e)):
+        if e[i] <= target:
+            a = (np.log(target) - np.log(e[i - 1])) / (np.log(e[i]) - np.log(e[i - 1]))
+            return float(np.exp(np.log(t[i - 1]) + a * (np.log(t[i]) - np.log(t[i - 1]))))
+    return None
+
+
+def error_targets(curves):
+    """Three relMSE levels every curve of a scene passes through."""
+    hi = min(c["rel_mse"].max() for c in curves)
+    lo = max(c["rel_mse"].min() for c in curves)
+    if lo >= hi:
+        lo = hi
+    return sorted({float(v) for v in np.geomspace(hi, lo, 3)}, reverse=True)
+
+
+# ---------------------------------------------------------------- report
+
+
+def plot_scene(scene, curves, out_dir):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for c in curves:
+        axes[0].loglog(c["seconds"], c["rel_mse"], "o-", ms=3, label=c["label"])
+        axes[1].loglog(c["spp"], c["rel_mse"], "o-", ms=3, label=c["label"])
+    axes[0].set_xlabel("render time [s]")
+    axes[1].set_xlabel("samples per pixel")
+    for ax in axes:
+        ax.set_ylabel("relMSE")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"{scene}: error against time and spp")
+    fig.tight_layout()
+    path = os.path.join(out_dir, f"{scene}.png")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def report(curves, baseline, out_dir):
+    os.makedirs(out_dir, exist_ok=True)
+    scenes = {}
+    for c in curves:
+        scenes.setdefault(c["scene"], []).append(c)
+    lines = ["# Error against run time", "",
+             "relMSE = mean over pixels and RGB of (x - r)^2 / (r^2 + 0.01) against the reference; "
+             "time is render time (scene loading and error measurement excluded). "
+             f"Efficiency = time of `{baseline}` / time of the configuration to reach the same relMSE "
+             "(> 1: faster), interpolated log-log.", ""]
+    for scene, cs in scenes.items():
+        png = plot_scene(scene, cs, out_dir)
+        base = next((c for c in cs if c["label"] == baseline), cs[0])
+        targets = error_targets(cs)
+        lines += [f"## {scene}", "", f"![{scene}]({os.path.basename(png)})", "",
+                  "| configuration | final spp | final time [s] | final relMSE | "
+                  + " | ".join(f"time to {t:.3g} [s]" for t in targets) + " | "
+                  + " | ".join(f"efficiency at {t:.3g}" for t in targets) + " |",
+                  "|---" * (4 + 2 * len(targets)) + "|"]
+        base_times = [time_to_error(base, t) for t in targets]
+        for c in cs:
+            times = [time_to_error(c, t) for t in targets]
+            eff = [f"{b / t:.2f}" if (b and t) else "-" for b, t in zip(base_times, times)]
+            lines.append(f"| {c['label']} | {c['spp'][-1]:.0f} | {c['seconds'][-1]:.2f} | {c['rel_mse'][-1]:.4g} | "
+                         + " | ".join(f"{t:.3f}" if t else "-" for t in times) + " | " + " | ".join(eff) + " |")
+        lines.append("")
+    path = os.path.join(out_dir, "report.md")
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+    print(f"wrote {path}")
+    return path
+
+
+# ---------------------------------------------------------------- running
+
+
+def run_theia(theia, scene_name, scene, ref, label, args, spp, out_dir):
+    out = os.path.join(out_dir, f"{scene_name}-{label}.exr")
+    log = os.path.splitext(out)[0] + ".json"
+    cmd = [theia, "render", scene, "-o", out, "--spp", str(spp), "--reference", ref, "-q"] + args
+    print(" ".join(shlex.quote(a) for a in cmd), flush=True)
+    subprocess.run(cmd, check=True)
+    with open(log) as f:
+        data = json.load(f)
+    data["label"], data["scene_name"] = label, scene_name
+    with open(log, "w") as f:
+        json.dump(data, f, indent=1)
+    return log
+
+
+def run_external(template, name, scene_name, scene, ref, spps, out_dir):
+    """Runs `template` (with {spp}, {out}, {scene}) at each spp, times it and
+    writes a log in theia's format so `report` plots it on the same axes."""
+    reference = read_rgb(ref)
+    its = []
+    for spp in spps:
+        out = os.path.join(out_dir, f"{scene_name}-{name}-{spp}.exr")
+        cmd = template.format(spp=spp, out=shlex.quote(out), scene=shlex.quote(scene))
+        print(cmd, flush=True)
+        t0 = time.monotonic()
+        subprocess.run(cmd, shell=True, check=True)
+        seconds = time.monotonic() - t0
+        m = error_metrics(read_rgb(out), reference)
+        its.append({"spp_total": spp, "render_seconds": seconds, "wall_seconds": seconds, **m})
+    log = os.path.join(out_dir, f"{scene_name}-{name}.json")
+    with open(log, "w") as f:
+        json.dump({"scene": scene, "scene_name": scene_name, "label": name,
+                   "note": "external renderer: times include its scene loading",
+                   "scheduler": {"iterations": its}}, f, indent=1)
+    return log
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="command", required=True)
+    rp = sub.add_parser("report", help="plots and Markdown from logs")
+    rp.add_argument("logs", nargs="+")
+    rp.add_argument("--baseline", default=CONFIGURATIONS[0][0])
+    rp.add_argument("--out", default="out/report")
+    mp = sub.add_parser("matrix", help="run scenes x configurations, then report")
+    mp.add_argument("--theia", default=os.path.join(ROOT, "build", "theia"))
+    mp.add_argument("--spp", type=int, default=256)
+    mp.add_argument("--out", default="out/report")
+    mp.add_argument("--scenes", default=",".join(s[0] for s in SCENES))
+    mp.add_argument("--configurations", default=",".join(c[0] for c in CONFIGURATIONS))
+    mp.add_argument("--external", help="command template with {spp} and {out} (and optionally {scene})")
+    mp.add_argument("--external-name", default="external")
+    mp.add_argument("--external-spp", default="4,8,16,32,64,128")
+    a = ap.parse_args()
+
+    if a.command == "report":
+        report([load_curve(p) for p in a.logs], a.baseline, a.out)
+        return
+    os.makedirs(a.out, exist_ok=True)
+    scenes = {s[0]: s for s in SCENES}
+    configs = dict(CONFIGURATIONS)
+    logs = []
+    t0 = time.monotonic()
+    for name in a.scenes.split(","):
+        if name not in scenes:
+            sys.exit(f"--scenes: unknown scene {name}; known: {', '.join(scenes)}")
+        _, scene, ref = scenes[name]
+        scene, ref = os.path.join(ROOT, scene), os.path.join(ROOT, ref)
+        for label in a.configurations.split(","):
+            if label not in configs:
+                sys.exit(f"--configurations: unknown {label}; known: {', '.join(configs)}")
+            logs.append(run_theia(a.theia, name, scene, ref, label, configs[label], a.spp, a.out))
+        if a.external:
+            spps = [int(s) for s in a.external_spp.split(",")]
+            logs.append(run_external(a.external, a.external_name, name, scene, ref, spps, a.out))
+    print(f"matrix: {len(logs)} runs in {time.monotonic() - t0:.1f} s", flush=True)
+    report([load_curve(p) for p in logs], a.configurations.split(",")[0], a.out)
+
+
+if __name__ == "__main__":
+    main()

@@ -6,10 +6,6 @@
 #include "core/metrics.h"
 #include "core/stats.h"
 #include "radiance_recorder/recorder.h"
-#include "scene/accel.h"
-#include "scene/camera.h"
-#include "scene/filter.h"
-#include "scene/lights.h"
 #include "scene/parser.h"
 #include "scene/texture.h"
 #include "checkpoint/fingerprint.h"
@@ -93,12 +89,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   }
 
   auto t0 = std::chrono::steady_clock::now();
-  Accel accel(scene);
-  double accel_seconds = seconds_since(t0);
-  LightSet lights(scene, accel);
-  auto light_sampler = make_light_sampler(config.light_sampler, lights);
-  Camera camera = make_camera(scene.camera, scene.film);
-  Filter filter = make_filter(scene.filter);
+  RenderableScene rs(scene, config.light_sampler);
   Film film(scene.film.width, scene.film.height);
 
   EngineOptions opt;
@@ -127,7 +118,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   // Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
   opt.alpha_spp = config.adaptive ? uint32_t(spp) : 0;
   const ScheduleOptions schedule = schedule_options(config);
-  WavefrontEngine engine(scene, accel, lights, *light_sampler, camera, filter, film, opt, recorder.get());
+  WavefrontEngine engine(rs, film, opt, recorder.get());
 
   IterationConfig ic;
   ic.schedule = schedule;
@@ -204,13 +195,13 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                     {"batch_size", config.batch_size},
                     {"max_paths", config.max_paths},
                     {"sort", config.sort},
-                    {"light_sampler", light_sampler->name()},
+                    {"light_sampler", rs.light_sampler->name()},
                     {"schedule", config.schedule},
                     {"combine", config.combine},
                     {"adaptive", config.adaptive}};
   nlohmann::json phases;
   for (size_t p = 0; p < size_t(Phase::Count); ++p) phases[kPhaseNames[p]] = st.phases.seconds[p];
-  phases["accel_build"] = accel_seconds;
+  phases["accel_build"] = rs.accel_seconds;
   log["time"] = {{"render", st.render_seconds}, {"phases", phases}};
   log["rays"] = {{"camera", st.camera_rays},
                  {"continuation", st.continuation_rays},
@@ -227,7 +218,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                   {"average_length", st.paths ? double(st.path_vertices) / double(st.paths) : 0.0},
                   {"peak_live", st.peak_live_paths}};
   log["memory"] = {{"peak_rss", peak_rss_bytes()},
-                   {"accel", accel.memory_bytes()},
+                   {"accel", rs.accel.memory_bytes()},
                    {"film", film.memory_bytes()},
                    {"wavefront", engine.memory_bytes()},
                    {"peak_queued_rays", st.peak_queued_rays},

@@ -87,11 +87,8 @@ struct Measurement {
 };
 
 Measurement measure(const Scene& scene, int spp, bool sort) {
-  Accel accel(scene);
-  LightSet lights(scene, accel);
-  auto sampler = make_light_sampler("power", lights);
-  Camera camera = make_camera(scene.camera, scene.film);
-  Filter filter = make_filter(scene.filter);
+  RenderableScene rs(scene);
+  const Accel& accel = rs.accel;
   Film film(scene.film.width, scene.film.height);
   std::vector<Ray> rays, shadow_rays;
   EngineOptions opt;
@@ -99,7 +96,7 @@ Measurement measure(const Scene& scene, int spp, bool sort) {
   opt.sort = sort;
   opt.capture_rays = &rays;
   opt.capture_shadow_rays = &shadow_rays;
-  WavefrontEngine engine(scene, accel, lights, *sampler, camera, filter, film, opt);
+  WavefrontEngine engine(rs, film, opt);
   engine.render(0, uint32_t(spp));
   const EngineStats& st = engine.stats();
   Measurement m;

@@ -652,6 +652,14 @@ struct WavefrontEngine::Impl {
   }
 };
 
+RenderableScene::RenderableScene(const Scene& s, const std::string& sampler_name)
+    : scene(s),
+      accel(s),
+      lights(s, accel),
+      light_sampler(make_light_sampler(sampler_name, lights)),
+      camera(make_camera(s.camera, s.film)),
+      filter(make_filter(s.filter)) {}
+
 WavefrontEngine::WavefrontEngine(const Scene& scene, const Accel& accel, const LightSet& lights,
                                  const LightSampler& light_sampler, const Camera& camera, const Filter& filter,
                                  Film& film, const EngineOptions& options, PathObserver* observer)

@@ -21,7 +21,10 @@
 
 #include <atomic>
 #include <cstdint>
+#include <chrono>
 #include <functional>
+#include <memory>
+#include <string>
 
 namespace theia {
 
@@ -76,8 +79,33 @@ struct EngineStats {
   uint64_t total_rays() const { return camera_rays + continuation_rays + shadow_rays; }
 };
 
+// Everything the engine needs that is derived once from a Scene: the Embree
+// scene, light sampling, camera and filter.  The Scene must outlive it.
+struct RenderableScene {
+  const Scene& scene;
+
+ private:
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+
+ public:
+  // Members are built in this order, so accel_seconds times the Embree build alone.
+  Accel accel;
+  double accel_seconds = seconds_since(start_);
+  LightSet lights;
+  std::unique_ptr<LightSampler> light_sampler;
+  Camera camera;
+  Filter filter;
+
+  // light_sampler: "uniform" or "power" (throws theia::Error otherwise).
+  explicit RenderableScene(const Scene& scene, const std::string& light_sampler = "power");
+};
+
 class WavefrontEngine {
  public:
+  WavefrontEngine(const RenderableScene& rs, Film& film, const EngineOptions& options,
+                  PathObserver* observer = nullptr)
+      : WavefrontEngine(rs.scene, rs.accel, rs.lights, *rs.light_sampler, rs.camera, rs.filter, film, options,
+                        observer) {}
   WavefrontEngine(const Scene& scene, const Accel& accel, const LightSet& lights, const LightSampler& light_sampler,
                   const Camera& camera, const Filter& filter, Film& film, const EngineOptions& options,
                   PathObserver* observer = nullptr);

@@ -61,19 +61,15 @@ class CountingObserver final : public PathObserver {
 TEST(PathObserver, EveryVertexFinishesExactlyOnceAndImageIsUnchanged) {
   Scene scene = load_test_scene_file(std::string(THEIA_SCENES) + "/cornell-box/scene.pbrt");
   scene.film.width = scene.film.height = 24;
-  Accel accel(scene);
-  LightSet lights(scene, accel);
-  auto sampler = make_light_sampler("power", lights);
-  Camera camera = make_camera(scene.camera, scene.film);
-  Filter filter = make_filter(scene.filter);
+  RenderableScene rs(scene);
   EngineOptions opt;
   opt.max_depth = 16;
   opt.batch_size = 2048;
 
   Film plain(24, 24), observed(24, 24);
-  WavefrontEngine(scene, accel, lights, *sampler, camera, filter, plain, opt).render(0, 8);
+  WavefrontEngine(rs, plain, opt).render(0, 8);
   CountingObserver obs(24 * 24 * 8 * 64);
-  WavefrontEngine engine(scene, accel, lights, *sampler, camera, filter, observed, opt, &obs);
+  WavefrontEngine engine(rs, observed, opt, &obs);
   engine.render(0, 8);
 
   EXPECT_EQ(obs.started.load(), uint64_t(24 * 24 * 8));

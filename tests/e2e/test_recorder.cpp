@@ -28,17 +28,13 @@ struct RecordedRender {
 // between begin/end_iteration as the scheduler will drive it.
 RecordedRender render_recorded(const Scene& scene, const EngineOptions& opt, RecorderOptions ro, int iterations,
                                int spp, bool record = true) {
-  Accel accel(scene);
-  LightSet lights(scene, accel);
-  auto sampler = make_light_sampler("power", lights);
-  Camera camera = make_camera(scene.camera, scene.film);
-  Filter filter = make_filter(scene.filter);
+  RenderableScene rs(scene);
   Film film(scene.film.width, scene.film.height);
   ro.width = scene.film.width;
   ro.height = scene.film.height;
   std::unique_ptr<RadianceRecorder> rec;
   if (record) rec = std::make_unique<RadianceRecorder>(ro);
-  WavefrontEngine engine(scene, accel, lights, *sampler, camera, filter, film, opt, rec.get());
+  WavefrontEngine engine(rs, film, opt, rec.get());
   RecordedRender out;
   for (int it = 0; it < iterations; ++it) {
     if (rec) rec->begin_iteration();

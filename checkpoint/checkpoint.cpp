@@ -16,6 +16,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Checkpoints are written often and read rarely: uncompressed EXR writes in
+// 15 ms what zip writes in 42 ms (Cornell box, ~50 float channels, measured
+// with the log's scheduler.checkpoint), for 15% more disk.
+constexpr const char* kCheckpointCompression = "none";
 constexpr char kMagic[8] = {'T', 'H', 'E', 'I', 'A', 'C', 'K', 'P'};
 
 std::vector<uint8_t> read_file(const std::string& path) {
@@ -126,7 +130,7 @@ void write_checkpoint(const std::string& dir, const Checkpoint& c) {
   fs::create_directories(dir, ec);
   if (!fs::is_directory(dir)) throw_error("--checkpoint-dir {}: cannot create the directory", dir);
   std::string exr = checkpoint_exr_path(dir, c.generation);
-  write_exr(exr, c.image);
+  write_exr(exr, c.image, kCheckpointCompression);
   fsync_path(exr);
   std::vector<uint8_t> exr_bytes = read_file(exr);
 

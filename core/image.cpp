@@ -111,13 +111,13 @@ void check_buffer(const std::string& path, const ImageBuffer& img) {
 
 }  // namespace
 
-void write_exr(const std::string& path, const ImageBuffer& img) {
+void write_exr(const std::string& path, const ImageBuffer& img, const char* compression) {
   check_buffer(path, img);
   OIIO::ImageSpec spec(img.width, img.height, img.num_channels(), OIIO::TypeDesc::FLOAT);
   spec.channelnames = img.channels;
   spec.alpha_channel = img.channel_index("A");
   spec.z_channel = -1;
-  spec.attribute("compression", "zip");
+  spec.attribute("compression", compression);
   write_atomic(path, "openexr", spec, OIIO::TypeDesc::FLOAT, img.data.data());
 }
 

@@ -51,7 +51,9 @@ ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info = nullp
 
 // Multi-channel float32 OpenEXR (zip), channel names as given.  Written to
 // path + ".tmp" and renamed, so a crash never leaves a truncated file at path.
-void write_exr(const std::string& path, const ImageBuffer& img);
+// `compression` is an OpenEXR method ("zip" for outputs; checkpoints, written
+// often and read rarely, use a faster one).
+void write_exr(const std::string& path, const ImageBuffer& img, const char* compression = "zip");
 
 // 8-bit sRGB-encoded preview of channels r, g, b (indices into img.channels),
 // clamped to [0, 1]; NaN becomes 0.  Atomic like write_exr.

@@ -269,7 +269,6 @@ int run_render(const RenderConfig& in) {
   if (!config.wall_start) config.wall_start = t0;
   Scene scene = load_scene(config.scene_path);
   load_images(scene);
-  build_mipmaps(scene);
   double load_seconds = seconds_since(t0);
   log_info("loaded {} in {:.2f} s: {} shapes, {} lights, {}x{}", config.scene_path, load_seconds, scene.shapes.size(),
            scene.lights.size(), scene.film.width, scene.film.height);

@@ -110,7 +110,9 @@ RGB image_lookup_trilinear(const Image& image, vec2 st, vec2 dst0, vec2 dst1, Wr
   if (image.mip.empty() || image.pixels.empty()) return image_lookup_bilinear(image, st, wrap);
   const int n_levels = int(image.mip.size()) + 1;
   float width = 2.0f * std::max({std::abs(dst0.x), std::abs(dst0.y), std::abs(dst1.x), std::abs(dst1.y)});
-  float lvl = std::log2(std::max(width * float(std::max(image.width, image.height)), 1e-8f));
+  // pbrt-v4's level: its level 0 is resampled up to 2^(n_levels - 1) texels, so
+  // a footprint as wide as the image reaches the 1x1 mean whatever the size.
+  float lvl = float(n_levels - 1) + std::log2(std::max(width, 1e-8f));
   // (Also catches NaN: no footprint is level 0.)
   if (!(lvl > 0.0f)) return image_lookup_bilinear(image, st, wrap);
   if (lvl >= float(n_levels - 1)) return image_texel(level(image, n_levels - 1), {0, 0}, WrapMode::Clamp);

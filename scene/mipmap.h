@@ -26,7 +26,9 @@ size_t mip_memory_bytes(const Scene& scene);
 // pbrt-v4's MIPMap::Filter with trilinear interpolation.  st as in
 // image_lookup_bilinear (t = 0 the bottom row); dst0 = (ds/dx, dt/dx), dst1 =
 // (ds/dy, dt/dy).  The filter width 2 max|d| picks the continuous level
-// log2(width * max(w, h)); the lookup lerps bilinear lookups in the levels
+// n_levels - 1 + log2(width), as pbrt-v4 does (exactly log2 of the width in
+// level-0 texels for power-of-two images; a little coarser otherwise, as
+// pbrt-v4's upsampled level 0 is); the lookup lerps bilinear lookups in the levels
 // either side (level 0 below 0, the 1x1 mean at or past the last).  An image
 // without a pyramid gets level-0 bilinear.
 RGB image_lookup_trilinear(const Image& image, vec2 st, vec2 dst0, vec2 dst1, WrapMode wrap);

@@ -160,6 +160,7 @@ void load_images(Scene& scene) {
     }
   if (failed == 1) throw Error(*first);
   if (failed > 1) throw_error("{} (and {} more images failed to load)", *first, failed - 1);
+  build_mipmaps(scene);
 }
 
 // ---------------------------------------------------------------- lookups

@@ -22,7 +22,8 @@ namespace theia {
 // PFM, HDR) are linear whatever the encoding says, as in pbrt-v4.  Relative
 // filenames are looked up beside Scene::path first, then as given.  Images
 // with pixels already present and no filename are left alone.  Throws
-// theia::Error naming the file.
+// theia::Error naming the file.  Then builds the MIP pyramids trilinear
+// textures need (build_mipmaps, scene/mipmap.h).
 void load_images(Scene& scene);
 // One image; `base_dir` as above ("" = as given).
 void load_image(Image& image, const std::string& base_dir = "");

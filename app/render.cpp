@@ -7,6 +7,7 @@
 #include "core/stats.h"
 #include "radiance_recorder/recorder.h"
 #include "scene/parser.h"
+#include "scene/mipmap.h"
 #include "scene/texture.h"
 #include "checkpoint/fingerprint.h"
 #include "core/hash.h"
@@ -117,6 +118,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.stop = config.stop;
   // Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
   opt.alpha_spp = config.adaptive ? uint32_t(spp) : 0;
+  opt.footprint_spp = spp;
   const ScheduleOptions schedule = schedule_options(config);
   WavefrontEngine engine(rs, film, opt, recorder.get());
 
@@ -220,6 +222,8 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   log["memory"] = {{"peak_rss", peak_rss_bytes()},
                    {"accel", rs.accel.memory_bytes()},
                    {"film", film.memory_bytes()},
+                   {"textures", texture_memory_bytes(scene)},
+                   {"texture_mips", mip_memory_bytes(scene)},
                    {"wavefront", engine.memory_bytes()},
                    {"peak_queued_rays", st.peak_queued_rays},
                    {"peak_queued_shadow_rays", st.peak_queued_shadow_rays}};

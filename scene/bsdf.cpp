@@ -77,8 +77,8 @@ Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteract
     // No ray differentials: pbrt-v4's fallback offset.
     constexpr float du = 0.0005f, dv = 0.0005f;
     float d = eval_float_texture(scene, m->displacement, tc);
-    float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu});
-    float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv});
+    float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu, tc.fp});
+    float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv, tc.fp});
     dpdu = si.dpdu + (d_u - d) / du * ns;
     dpdv = si.dpdv + (d_v - d) / dv * ns;
     mapped = true;
@@ -142,10 +142,10 @@ void set_lobes(BSDF& b) {
 
 }  // namespace
 
-BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si) {
+BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootprint& fp) {
   BSDF bsdf;
   bsdf.ng = si.ng;
-  const TextureEvalContext tc{si.uv, si.p};
+  const TextureEvalContext tc{si.uv, si.p, fp};
   const Material* m = si.material >= 0 ? &scene.materials[size_t(si.material)] : nullptr;
   m = resolve_mix(scene, m, si, tc);
   if (m && m->kind == MaterialKind::Interface) m = nullptr;

@@ -11,6 +11,7 @@
 #include "scene/bxdfs.h"
 #include "scene/scene.h"
 #include "scene/shapes.h"
+#include "scene/texture.h"
 
 #include <optional>
 
@@ -60,7 +61,9 @@ struct BSDFSample {
 
 // Evaluates the material's textures at si, resolves mix materials (by a
 // hash of the hit, as pbrt-v4 does) and applies bump or normal mapping.
-BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si);
+// `fp` is the texture filter footprint (scene/camera.h texture_footprint);
+// zero filters nothing (level-0 lookups).
+BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootprint& fp = {});
 // True for the "interface" material: the engine continues the ray unchanged.
 inline bool bsdf_is_passthrough(const BSDF& bsdf) { return bsdf.lobe_count == 0; }
 

@@ -576,10 +576,11 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
     std::string filter = params.get_string("filter", "bilinear");
     params.find("maxanisotropy", ParamType::Float);
     if (filter == "point") {
-      t.point_filter = true;
+      t.filter = TextureFilter::Point;
     } else if (filter == "trilinear" || filter == "ewa") {
-      // MIP-mapping needs a filter footprint, i.e. ray differentials, which theia does not track yet.
-      warn_at(loc, "texture filter \"{}\" is not supported; using bilinear", filter);
+      // Deliberate, documented substitution (scene/README.md): EWA's anisotropic
+      // filter is not implemented; its isotropic trilinear MIP lookup stands in.
+      t.filter = TextureFilter::Trilinear;
     } else if (filter != "bilinear") {
       throw_at(loc, "texture filter \"{}\", expected point, bilinear, trilinear or ewa", filter);
     }

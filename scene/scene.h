@@ -26,6 +26,8 @@ struct SourceLoc {
 
 enum class TextureKind { Constant, ImageMap, Checkerboard, Scale, Mix };
 enum class WrapMode { Repeat, Black, Clamp, OctahedralSphere };
+// pbrt-v4's imagemap "filter".  "ewa" is parsed as Trilinear (scene/README.md).
+enum class TextureFilter { Point, Bilinear, Trilinear };
 
 // pbrt-v4 "uv" mapping: st = (su * u + du, sv * v + dv).
 struct UVMapping {
@@ -39,6 +41,9 @@ struct Image {
   bool is_color = false;      // RGB colour (converted to the working space at load), not data (normals, floats)
   int width = 0, height = 0, channels = 0;
   std::vector<float> pixels;  // width * height * channels, linear
+  // MIP levels 1, 2, ... (each about half the previous, the last 1x1), built
+  // by build_mipmaps (scene/mipmap.h) for images a trilinear texture reads.
+  std::vector<Image> mip;
 };
 
 // One texture node.  Float textures use only the first component of the RGB
@@ -53,7 +58,7 @@ struct Texture {
   WrapMode wrap = WrapMode::Repeat;
   float scale = 1.0f;          // ImageMap "scale"
   bool invert = false;         // ImageMap "invert"
-  bool point_filter = false;   // ImageMap "filter" "point" (nearest texel); otherwise bilinear
+  TextureFilter filter = TextureFilter::Bilinear;  // ImageMap "filter"
   int tex1 = -1, tex2 = -1;    // Checkerboard (tex1, tex2), Scale (tex, scale), Mix (tex1, tex2)
   int amount = -1;             // Mix amount (float texture)
   SourceLoc loc;

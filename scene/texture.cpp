@@ -3,6 +3,7 @@
 #include "core/color.h"
 #include "core/image.h"
 #include "core/log.h"
+#include "scene/mipmap.h"
 
 #include <tbb/parallel_for.h>
 
@@ -159,6 +160,7 @@ void load_images(Scene& scene) {
     }
   if (failed == 1) throw Error(*first);
   if (failed > 1) throw_error("{} (and {} more images failed to load)", *first, failed - 1);
+  build_mipmaps(scene);
 }
 
 // ---------------------------------------------------------------- lookups
@@ -279,8 +281,12 @@ T eval(const Scene& scene, int index, const TextureEvalContext& ctx) {
       if (tex.image < 0) return T(0.0f);
       vec2 st = map_uv(tex.mapping, ctx.uv);
       const Image& img = scene.images[size_t(tex.image)];
-      T v = tex.scale * first<T>(tex.point_filter ? image_lookup_nearest(img, st, tex.wrap)
-                                                  : image_lookup_bilinear(img, st, tex.wrap));
+      const UVMapping& m = tex.mapping;
+      RGB c = tex.filter == TextureFilter::Point    ? image_lookup_nearest(img, st, tex.wrap)
+              : tex.filter == TextureFilter::Bilinear ? image_lookup_bilinear(img, st, tex.wrap)
+                                                      : image_lookup_trilinear(img, st, {m.su * ctx.fp.dudx, m.sv * ctx.fp.dvdx},
+                                                                               {m.su * ctx.fp.dudy, m.sv * ctx.fp.dvdy}, tex.wrap);
+      T v = tex.scale * first<T>(c);
       if constexpr (std::is_same_v<T, float>) {
         return tex.invert ? std::max(0.0f, 1.0f - v) : v;
       } else {

@@ -104,6 +104,9 @@ struct WavefrontEngine::Impl {
 
   vec3 bounds_min{0.0f}, bounds_inv_extent{1.0f};
   EngineStats stats;
+  // Texture footprints cost a transform per hit: only when a texture filters.
+  bool filtered_textures = false;
+  float footprint_scale = 1.0f;
 
   uint64_t next_camera = 0, camera_end = 0;
   uint32_t sample_begin = 0, sample_count = 0;
@@ -120,6 +123,13 @@ struct WavefrontEngine::Impl {
       bounds_inv_extent = 1.0f / ext;
     }
     opt.batch_size = std::max<size_t>(opt.batch_size, 1);
+    for (const Texture& t : scene.textures)
+      filtered_textures |= t.kind == TextureKind::ImageMap && t.filter == TextureFilter::Trilinear;
+    footprint_scale = footprint_spp_scale(opt.footprint_spp);
+  }
+
+  UVFootprint footprint(const SurfaceInteraction& si) const {
+    return filtered_textures ? texture_footprint(camera, si, footprint_scale) : UVFootprint{};
   }
 
   bool counts_for_alpha(uint32_t sample) const { return opt.alpha_spp == 0 || sample < opt.alpha_spp; }
@@ -379,7 +389,7 @@ struct WavefrontEngine::Impl {
       return;
     }
     if (ps.alpha_only) {
-      film.splat_first_hit(pixel, fw, true, bsdf_albedo(make_bsdf(scene, si)), si.ns, si.t);
+      film.splat_first_hit(pixel, fw, true, bsdf_albedo(make_bsdf(scene, si, footprint(si))), si.ns, si.t);
       finish_path<kObserve>(slot, out);
       return;
     }
@@ -413,7 +423,7 @@ struct WavefrontEngine::Impl {
     }
     ++out.vertices;
 
-    BSDF bsdf = make_bsdf(scene, si);
+    BSDF bsdf = make_bsdf(scene, si, footprint(si));
     // An "interface" surface: continue the ray as it was, without a bounce.
     if (bsdf_is_passthrough(bsdf)) {
       out.rays.rays.push_back(spawn_ray(si, -wo));

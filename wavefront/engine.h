@@ -47,6 +47,9 @@ struct EngineOptions {
   // (and the first-hit AOVs), so alpha has the same samples in every render
   // pass whatever adaptive sampling does with colour.  0: every sample counts.
   uint32_t alpha_spp = 0;
+  // Samples per pixel of the whole render: sets pbrt-v4's texture-footprint
+  // scale max(1/8, 1/sqrt(spp)) for trilinear imagemaps (scene/camera.h).
+  int footprint_spp = 1;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;

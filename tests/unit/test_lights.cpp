@@ -344,8 +344,8 @@ TEST(TextureFilter, PointPicksTheNearestTexel) {
 Texture "p" "float" "imagemap" "string filename" "cornell-box.exr" "string filter" "point"
 Texture "t" "float" "imagemap" "string filename" "cornell-box.exr" "string filter" "trilinear"
 )", "t.pbrt", THEIA_TEST_DATA);
-  EXPECT_TRUE(s.textures[0].point_filter);
-  EXPECT_FALSE(s.textures[1].point_filter);  // MIP-mapping needs ray differentials: bilinear
+  EXPECT_EQ(s.textures[0].filter, TextureFilter::Point);
+  EXPECT_EQ(s.textures[1].filter, TextureFilter::Trilinear);
   EXPECT_THROW(parse_scene_string("WorldBegin\nTexture \"b\" \"float\" \"imagemap\" \"string filename\" "
                                   "\"cornell-box.exr\" \"string filter\" \"cubic\"", "t.pbrt", THEIA_TEST_DATA),
                Error);

@@ -578,8 +578,9 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
     if (filter == "point") {
       t.filter = TextureFilter::Point;
     } else if (filter == "trilinear" || filter == "ewa") {
-      // Deliberate, documented substitution (scene/README.md): EWA's anisotropic
-      // filter is not implemented; its isotropic trilinear MIP lookup stands in.
+      // EWA's anisotropic filter is not implemented: the isotropic trilinear
+      // MIP lookup over the same footprint stands in, and the user is told.
+      if (filter == "ewa") warn_at(loc, "texture filter \"ewa\" is not supported yet; using \"trilinear\"");
       t.filter = TextureFilter::Trilinear;
     } else if (filter != "bilinear") {
       throw_at(loc, "texture filter \"{}\", expected point, bilinear, trilinear or ewa", filter);

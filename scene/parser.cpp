@@ -3,6 +3,7 @@
 #include "core/log.h"
 #include "scene/material_params.h"
 #include "scene/params.h"
+#include "scene/shapes.h"
 #include "scene/ply.h"
 #include "scene/spectrum.h"
 #include "scene/tokenizer.h"
@@ -744,36 +745,14 @@ void SceneParser::bake(TriangleMesh& m) const {
     for (vec3& n : m.n) n = -n;
 }
 
-// The area pbrt-v4's DiffuseAreaLight divides "power" by.  pbrt-v4 makes one
-// light per triangle, so each triangle emits the whole "power" and its
-// radiance depends on its own area; theia keeps one radiance per shape and
-// uses the mean triangle area, which is exact for meshes of equal-area
-// triangles (quads, tessellated panels) and keeps the total power pbrt-v4
-// gives (triangles x power) for the others, with a warning.  Quadrics use
-// their object-space area, as pbrt-v4's Sphere::Area() and Disk::Area() do.
+// pbrt_emitter_area (scene/shapes.h), warning where theia departs from pbrt-v4.
 static float pbrt_shape_area(const Scene& scene, const Shape& s) {
-  if (s.kind == ShapeKind::Sphere) {
-    double r = s.sphere.radius;
-    double zmin = std::clamp(double(std::min(s.sphere.zmin, s.sphere.zmax)), -r, r);
-    double zmax = std::clamp(double(std::max(s.sphere.zmin, s.sphere.zmax)), -r, r);
-    return float(radians(std::clamp(s.sphere.phimax, 0.0f, 360.0f)) * r * (zmax - zmin));
-  }
-  if (s.kind == ShapeKind::Disk)
-    return float(0.5 * radians(std::clamp(s.disk.phimax, 0.0f, 360.0f)) *
-                 (double(s.disk.radius) * s.disk.radius - double(s.disk.innerradius) * s.disk.innerradius));
-  const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
-  double total = 0.0, lo = kInfinity, hi = 0.0;
-  for (size_t t = 0; t < m.triangle_count(); ++t) {
-    vec3 p0 = m.p[m.indices[3 * t]], p1 = m.p[m.indices[3 * t + 1]], p2 = m.p[m.indices[3 * t + 2]];
-    double a = 0.5 * double(glm::length(glm::cross(p1 - p0, p2 - p0)));
-    total += a;
-    lo = std::min(lo, a);
-    hi = std::max(hi, a);
-  }
-  if (hi > 1.01 * lo)
+  bool unequal = false;
+  float area = pbrt_emitter_area(scene, s, &unequal);
+  if (unequal)
     warn_at(s.loc, "area light \"power\" on a mesh of unequal triangles: pbrt-v4 gives each triangle the power "
                    "(radiance varying with its area); theia uses the mean triangle area");
-  return float(total / double(std::max<size_t>(m.triangle_count(), 1)));
+  return area;
 }
 
 void SceneParser::add_shape(Shape s, const ParamList& params) {

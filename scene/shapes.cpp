@@ -517,4 +517,28 @@ float ShapeSampling::pdf(int shape, const ShapeSampleContext& ref, const vec3& w
   return std::isfinite(pdf) ? pdf : 0.0f;
 }
 
+float pbrt_emitter_area(const Scene& scene, const Shape& s, bool* unequal_triangles) {
+  if (s.kind == ShapeKind::Sphere) {
+    double r = s.sphere.radius;
+    double zmin = std::clamp(double(std::min(s.sphere.zmin, s.sphere.zmax)), -r, r);
+    double zmax = std::clamp(double(std::max(s.sphere.zmin, s.sphere.zmax)), -r, r);
+    return float(radians(std::clamp(s.sphere.phimax, 0.0f, 360.0f)) * r * (zmax - zmin));
+  }
+  if (s.kind == ShapeKind::Disk)
+    return float(0.5 * radians(std::clamp(s.disk.phimax, 0.0f, 360.0f)) *
+                 (double(s.disk.radius) * s.disk.radius - double(s.disk.innerradius) * s.disk.innerradius));
+  const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
+  double total = 0.0, lo = kInfinity, hi = 0.0;
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    vec3 p0 = m.p[m.indices[3 * t]], p1 = m.p[m.indices[3 * t + 1]], p2 = m.p[m.indices[3 * t + 2]];
+    double a = 0.5 * double(glm::length(glm::cross(p1 - p0, p2 - p0)));
+    total += a;
+    lo = std::min(lo, a);
+    hi = std::max(hi, a);
+  }
+  if (unequal_triangles) *unequal_triangles = hi > 1.01 * lo;
+  return float(total / double(std::max<size_t>(m.triangle_count(), 1)));
+}
+
+
 }  // namespace theia

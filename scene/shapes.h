@@ -117,4 +117,14 @@ class ShapeSampling {
   std::vector<int> entry_of_shape_;
 };
 
+// The area pbrt-v4's DiffuseAreaLight divides "power" by.  pbrt-v4 makes one
+// light per triangle, so each triangle emits the whole "power" and its
+// radiance depends on its own area; theia keeps one radiance per shape and
+// uses the mean triangle area, which is exact for meshes of equal-area
+// triangles (quads, tessellated panels) and keeps the total power pbrt-v4
+// gives (triangles x power) for the others, with a warning.  Quadrics use
+// their object-space area, as pbrt-v4's Sphere::Area() and Disk::Area() do.
+// `unequal_triangles` reports a mesh whose triangle areas differ by more than 1%.
+float pbrt_emitter_area(const Scene& scene, const Shape& shape, bool* unequal_triangles = nullptr);
+
 }  // namespace theia

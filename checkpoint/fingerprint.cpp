@@ -45,12 +45,20 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(sh.disk);
     h.pod(sh.render_from_object);
     h.pod(sh.reverse_orientation);
+    h.pod(sh.transform_swaps_handedness);
     h.pod(sh.material);
     h.pod(sh.area_light);
+    h.pod(sh.alpha);
+    h.pod(sh.holdout);
   }
+  // Every field that changes the image (names and source locations do not).
   for (const Material& m : s.materials) {
-    h.pod(m.kind);
-    h.pod(m.reflectance);
+    for (int v : {int(m.kind), m.reflectance, m.transmittance, m.uroughness, m.vroughness, int(m.remap_roughness),
+                  m.conductor_eta, m.conductor_k, m.conductor_uroughness, m.conductor_vroughness, m.thickness, m.g,
+                  m.albedo, m.max_depth, m.n_samples, m.mix[0], m.mix[1], m.amount, m.displacement, m.normal_map})
+      h.pod(v);
+    h.pod(m.scale);
+    h.pod(m.eta);
   }
   for (const Texture& t : s.textures) {
     h.pod(t.kind);
@@ -58,6 +66,10 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(t.mapping);
     h.pod(t.image);
     h.pod(t.scale);
+    h.pod(t.is_float);
+    h.pod(t.wrap);
+    h.pod(t.invert);
+    h.pod(t.filter);
     h.pod(t.tex1);
     h.pod(t.tex2);
     h.pod(t.amount);
@@ -67,9 +79,15 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(l.kind);
     h.pod(l.L);
     h.pod(l.two_sided);
+    h.pod(l.is_virtual);
     h.pod(l.shape);
     h.pod(l.position);
+    h.pod(l.direction);
+    h.pod(l.cos_falloff_start);
+    h.pod(l.cos_falloff_end);
     h.pod(l.image);
+    h.pod(l.illuminance);
+    h.pod(l.render_from_light);
   }
   for (const Instance& i : s.instances) {
     h.pod(i.prototype);

@@ -1,6 +1,8 @@
 // Checkpoint files: round trip, generations kept, corruption detected.
 #include "checkpoint/checkpoint.h"
+#include "checkpoint/fingerprint.h"
 #include "core/log.h"
+#include "scene/parser.h"
 
 #include <gtest/gtest.h>
 
@@ -128,4 +130,29 @@ TEST(Checkpoint, AnEmptyOrMissingDirectoryHoldsNone) {
   std::ofstream(d / "checkpoint-000007.exr") << "orphan without its .bin";
   EXPECT_FALSE(read_latest_checkpoint(d.string()));
   fs::remove_all(d);
+}
+
+// Resume is refused when the scene changed: the fingerprint must see every
+// parsed parameter that changes the image, including ones that live in an
+// Include'd file (the main file's text alone would miss those).
+TEST(SceneFingerprint, ChangesWithEveryImageAffectingParameter) {
+  auto fp = [](const std::string& world) {
+    return scene_fingerprint(parse_scene_string("WorldBegin\n" + world, "<fp>"));
+  };
+  const std::string base = R"(
+    LightSource "spot" "point3 from" [0 2 0] "point3 to" [0 0 0]
+    Material "dielectric" "float eta" 1.5 "float roughness" 0.1
+    Shape "sphere"
+  )";
+  const uint64_t a = fp(base);
+  EXPECT_EQ(a, fp(base));
+  EXPECT_NE(a, fp(R"(LightSource "spot" "point3 from" [0 2 0] "point3 to" [1 0 0]
+    Material "dielectric" "float eta" 1.5 "float roughness" 0.1
+    Shape "sphere")"));
+  EXPECT_NE(a, fp(R"(LightSource "spot" "point3 from" [0 2 0] "point3 to" [0 0 0]
+    Material "dielectric" "float eta" 1.33 "float roughness" 0.1
+    Shape "sphere")"));
+  EXPECT_NE(a, fp(R"(LightSource "spot" "point3 from" [0 2 0] "point3 to" [0 0 0]
+    Material "dielectric" "float eta" 1.5 "float roughness" 0.1
+    Shape "sphere" "bool holdout" true)"));
 }

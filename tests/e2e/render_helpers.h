@@ -3,6 +3,7 @@
 
 #include "app/render.h"
 #include "core/image.h"
+#include "scene/camera.h"
 #include "scene/parser.h"
 #include "scene/texture.h"
 
@@ -29,6 +30,13 @@ inline RenderConfig quick_config(int spp) {
   RenderConfig c;
   c.spp = spp;
   return c;
+}
+
+// Where the central camera ray of pixel (x, y) meets the horizontal plane at
+// height `plane_y` (the analytic tests' ground planes).
+inline vec3 pixel_on_plane(const Camera& camera, int x, int y, float plane_y = 0.0f) {
+  Ray ray = generate_camera_ray(camera, vec2(float(x) + 0.5f, float(y) + 0.5f), vec2(0.5f));
+  return ray.o + ((plane_y - ray.o.y) / ray.d.y) * ray.d;
 }
 
 inline RGB pixel_rgb(const ImageBuffer& img, int x, int y) {

@@ -71,9 +71,7 @@ TEST(Analytic, DiffusePlaneUnderPointLight) {
   double worst = 0.0;
   for (int y = 4; y < 60; y += 5)
     for (int x = 4; x < 60; x += 5) {
-      auto ray = generate_camera_ray(cam, vec2(x + 0.5f, y + 0.5f), vec2(0.5f));
-      float t = -ray.o.y / ray.d.y;
-      vec3 p = ray.o + t * ray.d;
+      vec3 p = pixel_on_plane(cam, x, y);
       vec3 to_light = vec3(0.5f, h, 0.25f) - p;
       float d2 = glm::dot(to_light, to_light);
       float cos_theta = to_light.y / std::sqrt(d2);

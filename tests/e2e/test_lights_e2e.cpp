@@ -80,8 +80,7 @@ TEST(Analytic, DiffusePlaneUnderSpotLight) {
   double worst = 0.0;
   for (int y = 2; y < 32; y += 3)
     for (int x = 2; x < 32; x += 3) {
-      auto ray = generate_camera_ray(cam, vec2(x + 0.5f, y + 0.5f), vec2(0.5f));
-      vec3 p = ray.o + (-ray.o.y / ray.d.y) * ray.d;
+      vec3 p = pixel_on_plane(cam, x, y);
       vec3 to_light = vec3(0.0f, h, 0.0f) - p;
       float d2 = glm::dot(to_light, to_light);
       float expected = rho / kPi * I * (h / std::sqrt(d2)) / d2;
@@ -134,10 +133,8 @@ TEST(AlphaCutout, ShadowRaysPassWhereAlphaIsZero) {
   int n_lit = 0, n_dark = 0;
   for (int y = 1; y < 32; y += 2)
     for (int x = 1; x < 32; x += 2) {
-      auto ray = generate_camera_ray(cam, vec2(x + 0.5f, y + 0.5f), vec2(0.5f));
       // Where the central camera ray crosses the cut-out (y = 0.5) and the plane (y = 0).
-      vec3 q = ray.o + ((0.5f - ray.o.y) / ray.d.y) * ray.d;
-      vec3 p = ray.o + (-ray.o.y / ray.d.y) * ray.d;
+      vec3 q = pixel_on_plane(cam, x, y, 0.5f), p = pixel_on_plane(cam, x, y);
       auto cell = [](vec3 v) {
         vec2 uv((v.x + 2.0f) / 4.0f, (v.z + 2.0f) / 4.0f);
         vec2 f = glm::fract(uv * 4.0f);

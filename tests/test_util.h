@@ -1,6 +1,8 @@
 // Helpers every test file may use: scratch directories that clean up after themselves.
 #pragma once
 
+#include "scene/scene.h"
+
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -53,5 +55,21 @@ class TempDirTest : public ::testing::Test {
  protected:
   std::filesystem::path dir;
 };
+
+// A w x h image of `channels` (1 or 3) linear values, texel(x, y) with row 0
+// at the top; a one-channel image takes the texel's first component.
+template <typename TexelFn>
+Image make_image(int w, int h, int channels, TexelFn texel) {
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.channels = channels;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      RGB c = texel(x, y);
+      for (int k = 0; k < channels; ++k) img.pixels.push_back(c[k]);
+    }
+  return img;
+}
 
 }  // namespace theia::test

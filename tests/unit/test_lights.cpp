@@ -12,6 +12,8 @@
 #include "tests/unit/chi2.h"
 
 #include <glm/gtc/matrix_transform.hpp>
+#include "tests/test_util.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
@@ -29,15 +31,7 @@ struct EnvScene {
   std::unique_ptr<LightSet> lights;
 
   EnvScene(int w, int h, const std::function<RGB(int, int)>& texel, const Transform& render_from_light = {}) {
-    Image img;
-    img.width = w;
-    img.height = h;
-    img.channels = 3;
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        RGB c = texel(x, y);
-        img.pixels.insert(img.pixels.end(), {c.x, c.y, c.z});
-      }
+    Image img = test::make_image(w, h, 3, texel);
     scene.images.push_back(std::move(img));
     Light l;
     l.kind = LightKind::Infinite;

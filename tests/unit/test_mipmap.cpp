@@ -2,6 +2,8 @@
 #include "scene/mipmap.h"
 #include "scene/texture.h"
 
+#include "tests/test_util.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,13 +14,7 @@ namespace {
 
 // w x h grey checkerboard of 1-texel checks: 0 and 1.
 Image checker(int w, int h) {
-  Image img;
-  img.width = w;
-  img.height = h;
-  img.channels = 1;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) img.pixels.push_back(float((x + y) % 2));
-  return img;
+  return test::make_image(w, h, 1, [](int x, int y) { return RGB(float((x + y) % 2)); });
 }
 
 // RGB texels with no structure a box filter could preserve by accident.

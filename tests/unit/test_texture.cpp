@@ -26,17 +26,7 @@ void expect_rgb_near(const RGB& a, const RGB& b, float tol, const std::string& w
 
 // A w x h RGB image whose texel (x, y) (row 0 at the top) is (x, y, 10 + x + w * y).
 Image ramp_image(int w, int h) {
-  Image img;
-  img.width = w;
-  img.height = h;
-  img.channels = 3;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      img.pixels.push_back(float(x));
-      img.pixels.push_back(float(y));
-      img.pixels.push_back(float(10 + x + w * y));
-    }
-  return img;
+  return test::make_image(w, h, 3, [w](int x, int y) { return RGB(float(x), float(y), float(10 + x + w * y)); });
 }
 RGB ramp(int w, int x, int y) { return RGB(float(x), float(y), float(10 + x + w * y)); }
 

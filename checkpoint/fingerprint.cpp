@@ -70,6 +70,7 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(t.wrap);
     h.pod(t.invert);
     h.pod(t.filter);
+    h.pod(t.max_anisotropy);
     h.pod(t.tex1);
     h.pod(t.tex2);
     h.pod(t.amount);

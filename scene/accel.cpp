@@ -31,6 +31,8 @@ struct QuadricGeom {
   glm::dmat4 object_from_parent;  // parent = render space, or the prototype's space
   Bounds3 bounds;                 // in parent space
   bool is_virtual = false;        // a virtual light: never occludes
+  const Scene* scene = nullptr;
+  int alpha = -1;                 // float texture index: cut-outs, or -1
 };
 
 // Virtual lights emit but do not block: shadow rays ignore every hit on them.
@@ -40,12 +42,44 @@ void reject_occlusion(const RTCFilterFunctionNArguments* args) {
   for (unsigned i = 0; i < args->N; ++i) args->valid[i] = 0;
 }
 
+uint32_t float_bits(float f) {
+  uint32_t b;
+  std::memcpy(&b, &f, sizeof b);
+  return b;
+}
+
+// pbrt-v4's stochastic alpha test: a hit where alpha < 1 is kept with
+// probability alpha, decided by a hash of the ray and `salt` (what tells hits
+// along one ray apart) so that the answer is a pure function of the query
+// (deterministic, and the same for the closest-hit and the shadow query along
+// one ray).  alpha <= 0 never keeps a hit.  o, d and t in the space the hit
+// was found in; uv is the hit's texture coordinates.
+bool alpha_keeps_hit(const Scene& scene, int alpha, vec2 uv, const vec3& o, const vec3& d, float t, uint32_t salt) {
+  float a = eval_float_texture(scene, alpha, TextureEvalContext{uv, o + t * d});
+  if (a >= 1.0f) return true;
+  float u = a <= 0.0f ? 1.0f
+                      : to_unit_float(uint32_t(hash(float_bits(o.x), float_bits(o.y), float_bits(o.z), float_bits(d.x),
+                                                    float_bits(d.y), float_bits(d.z), salt) >> 32));
+  return !(u >= a);  // (a NaN alpha keeps the hit)
+}
+
+// The closest hit in (tmin, tmax) that survives the alpha test: where the
+// first root is cut out the ray goes on to the second.  The hit distance
+// salts the test, so the two roots (and two quadrics) decide independently.
 bool quadric_hit(const QuadricGeom& g, const glm::dvec3& o_parent, const glm::dvec3& d_parent, double tmin,
                  double tmax, QuadricHit* hit) {
   glm::dvec3 o = glm::dvec3(g.object_from_parent * glm::dvec4(o_parent, 1.0));
   glm::dvec3 d = glm::dmat3(g.object_from_parent) * d_parent;
-  return g.kind == ShapeKind::Sphere ? intersect_sphere(g.sphere, o, d, tmin, tmax, hit)
-                                     : intersect_disk(g.disk, o, d, tmin, tmax, hit);
+  const bool sphere = g.kind == ShapeKind::Sphere;
+  // Each pass finds a root strictly past the last one: at most two passes.
+  while (sphere ? intersect_sphere(g.sphere, o, d, tmin, tmax, hit) : intersect_disk(g.disk, o, d, tmin, tmax, hit)) {
+    if (g.alpha < 0) return true;
+    vec2 uv = sphere ? sphere_uv(g.sphere, hit->u, hit->v) : disk_uv(g.disk, hit->u, hit->v);
+    float t = float(hit->t);
+    if (alpha_keeps_hit(*g.scene, g.alpha, uv, vec3(o_parent), vec3(d_parent), t, float_bits(t))) return true;
+    tmin = hit->t;
+  }
+  return false;
 }
 
 void quadric_bounds(const RTCBoundsFunctionArguments* args) {
@@ -101,17 +135,7 @@ struct AlphaGeom {
   int alpha;  // float texture index
 };
 
-uint32_t float_bits(float f) {
-  uint32_t b;
-  std::memcpy(&b, &f, sizeof b);
-  return b;
-}
-
-// pbrt-v4's stochastic alpha test: a hit where alpha < 1 is kept with
-// probability alpha, decided by a hash of the ray and the primitive so that
-// the answer is a pure function of the query (deterministic, and the same
-// for the closest-hit and the shadow query along one ray).  alpha <= 0 never
-// keeps a hit.
+// Triangles tell their hits apart by primitive.
 void alpha_filter(const RTCFilterFunctionNArguments* args) {
   const auto* g = static_cast<const AlphaGeom*>(args->geometryUserPtr);
   const unsigned n = args->N;
@@ -123,13 +147,8 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
     triangle_uvs(*g->mesh, prim, uv);
     vec3 o(RTCRayN_org_x(args->ray, n, i), RTCRayN_org_y(args->ray, n, i), RTCRayN_org_z(args->ray, n, i));
     vec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
-    TextureEvalContext ctx{(1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2], o + RTCRayN_tfar(args->ray, n, i) * d};
-    float a = eval_float_texture(*g->scene, g->alpha, ctx);
-    if (a >= 1.0f) continue;
-    float u = a <= 0.0f ? 1.0f
-                        : to_unit_float(uint32_t(hash(float_bits(o.x), float_bits(o.y), float_bits(o.z), float_bits(d.x),
-                                                      float_bits(d.y), float_bits(d.z), prim) >> 32));
-    if (u >= a) args->valid[i] = 0;
+    vec2 hit_uv = (1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
+    if (!alpha_keeps_hit(*g->scene, g->alpha, hit_uv, o, d, RTCRayN_tfar(args->ray, n, i), prim)) args->valid[i] = 0;
   }
 }
 
@@ -258,6 +277,11 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     q.object_from_parent = glm::inverse(parent_from_object);
     q.bounds = transform_bounds(parent_from_object, quadric_object_bounds(s));
     q.is_virtual = is_virtual;
+    // Cut-outs are tested inside the intersect and occluded functions (user
+    // geometry gets no filter calls of its own), so a cut-out first root can
+    // pass the ray on to the second.
+    q.scene = &sc;
+    q.alpha = s.alpha;
     geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(geom, 1);
     rtcSetGeometryUserData(geom, &q);

@@ -74,8 +74,13 @@ Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteract
       }
     }
   } else if (m && m->displacement >= 0) {
-    // No ray differentials: pbrt-v4's fallback offset.
-    constexpr float du = 0.0005f, dv = 0.0005f;
+    // pbrt-v4's BumpMap: offsets of half the footprint, so the finite
+    // difference sees the bumps the filtered texture still shows; its
+    // fixed fallback without one.
+    const UVFootprint& fp = tc.fp;
+    float du = 0.5f * (std::abs(fp.dudx) + std::abs(fp.dudy)), dv = 0.5f * (std::abs(fp.dvdx) + std::abs(fp.dvdy));
+    if (!(du > 0.0f) || !std::isfinite(du)) du = 0.0005f;
+    if (!(dv > 0.0f) || !std::isfinite(dv)) dv = 0.0005f;
     float d = eval_float_texture(scene, m->displacement, tc);
     float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu, tc.fp});
     float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv, tc.fp});

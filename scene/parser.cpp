@@ -106,7 +106,7 @@ class SceneParser {
   std::vector<Pushed> stack_;
   bool in_world_ = false;
   int object_ = -1;  // prototype being defined
-  bool warned_motion_ = false, warned_alpha_ = false, warned_transform_begin_ = false;
+  bool warned_motion_ = false, warned_transform_begin_ = false;
   std::unordered_map<std::string, Transform> named_coords_;
   std::unordered_map<std::string, int> named_materials_, float_textures_, spectrum_textures_, objects_;
   std::map<std::tuple<float, float, float, bool>, int> constants_;
@@ -575,14 +575,11 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
     t.scale = params.get_float("scale", 1.0f);
     t.invert = params.get_bool("invert", false);
     std::string filter = params.get_string("filter", "bilinear");
-    params.find("maxanisotropy", ParamType::Float);
+    t.max_anisotropy = params.get_float("maxanisotropy", 8.0f);
     if (filter == "point") {
       t.filter = TextureFilter::Point;
     } else if (filter == "trilinear" || filter == "ewa") {
-      // EWA's anisotropic filter is not implemented: the isotropic trilinear
-      // MIP lookup over the same footprint stands in, and the user is told.
-      if (filter == "ewa") warn_at(loc, "texture filter \"ewa\" is not supported yet; using \"trilinear\"");
-      t.filter = TextureFilter::Trilinear;
+      t.filter = filter == "ewa" ? TextureFilter::EWA : TextureFilter::Trilinear;
     } else if (filter != "bilinear") {
       throw_at(loc, "texture filter \"{}\", expected point, bilinear, trilinear or ewa", filter);
     }
@@ -760,16 +757,10 @@ void SceneParser::add_shape(Shape s, const ParamList& params) {
   s.transform_swaps_handedness = gs_.ctm.swaps_handedness();
   s.material = gs_.material >= 0 ? gs_.material : default_material();
   s.holdout = params.get_bool("holdout", false);
-  if (const Param* a = params.find_any("alpha", {ParamType::Float, ParamType::Texture})) {
+  if (params.find_any("alpha", {ParamType::Float, ParamType::Texture})) {
     s.alpha = texture_param(params, "alpha", true, RGB(1.0f), SpectrumUse::Unbounded);
     const Texture& t = scene_.textures[size_t(s.alpha)];
-    if (t.kind == TextureKind::Constant && t.value.x >= 1.0f) {
-      s.alpha = -1;  // opaque: no filter to pay for
-    } else if (s.kind != ShapeKind::TriangleMesh && !warned_alpha_) {
-      warned_alpha_ = true;
-      warn_at(a->loc, "alpha cut-outs are supported on triangle meshes only; \"alpha\" ignored on this {}",
-              s.kind == ShapeKind::Sphere ? "sphere" : "disk");
-    }
+    if (t.kind == TextureKind::Constant && t.value.x >= 1.0f) s.alpha = -1;  // opaque: no test to pay for
   }
   int index = int(scene_.shapes.size());
   if (gs_.area_light) {

@@ -26,8 +26,8 @@ struct SourceLoc {
 
 enum class TextureKind { Constant, ImageMap, Checkerboard, Scale, Mix };
 enum class WrapMode { Repeat, Black, Clamp, OctahedralSphere };
-// pbrt-v4's imagemap "filter".  "ewa" is parsed as Trilinear (scene/README.md).
-enum class TextureFilter { Point, Bilinear, Trilinear };
+// pbrt-v4's imagemap "filter" (scene/mipmap.h for Trilinear and EWA).
+enum class TextureFilter { Point, Bilinear, Trilinear, EWA };
 
 // pbrt-v4 "uv" mapping: st = (su * u + du, sv * v + dv).
 struct UVMapping {
@@ -42,7 +42,7 @@ struct Image {
   int width = 0, height = 0, channels = 0;
   std::vector<float> pixels;  // width * height * channels, linear
   // MIP levels 1, 2, ... (each about half the previous, the last 1x1), built
-  // by build_mipmaps (scene/mipmap.h) for images a trilinear texture reads.
+  // by build_mipmaps (scene/mipmap.h) for images a trilinear or EWA texture reads.
   std::vector<Image> mip;
 };
 
@@ -59,6 +59,7 @@ struct Texture {
   float scale = 1.0f;          // ImageMap "scale"
   bool invert = false;         // ImageMap "invert"
   TextureFilter filter = TextureFilter::Bilinear;  // ImageMap "filter"
+  float max_anisotropy = 8.0f;                     // ImageMap "maxanisotropy" (EWA only)
   int tex1 = -1, tex2 = -1;    // Checkerboard (tex1, tex2), Scale (tex, scale), Mix (tex1, tex2)
   int amount = -1;             // Mix amount (float texture)
   SourceLoc loc;

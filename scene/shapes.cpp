@@ -80,6 +80,17 @@ bool intersect_disk(const DiskShape& s, const dvec3& o, const dvec3& d, double t
   return true;
 }
 
+vec2 sphere_uv(const SphereShape& s, double phi, double theta) {
+  double dtheta = s.theta_zmax - s.theta_zmin;
+  return vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dtheta != 0.0 ? (theta - s.theta_zmin) / dtheta : 0.0));
+}
+
+vec2 disk_uv(const DiskShape& s, double x, double y) {
+  double dr = s.radius - s.inner_radius;
+  return vec2(float(s.phimax > 0.0 ? phi_of(x, y) / s.phimax : 0.0),
+              float(dr != 0.0 ? (s.radius - std::sqrt(x * x + y * y)) / dr : 0.0));
+}
+
 // ---------------------------------------------------------------- local geometry
 
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
@@ -107,7 +118,7 @@ LocalGeom sphere_local(const SphereShape& s, double phi, double theta) {
   g.p_error = double(gamma_bound(5)) * glm::abs(g.p);
   g.n = g.p / r;
   double dtheta = s.theta_zmax - s.theta_zmin;
-  g.uv = vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dtheta != 0.0 ? (theta - s.theta_zmin) / dtheta : 0.0));
+  g.uv = sphere_uv(s, phi, theta);
   g.dpdu = dvec3(-s.phimax * g.p.y, s.phimax * g.p.x, 0.0);
   g.dpdv = dtheta * dvec3(g.p.z * std::cos(phi), g.p.z * std::sin(phi), -r * st);
   return g;
@@ -119,9 +130,8 @@ LocalGeom disk_local(const DiskShape& s, double x, double y) {
   g.p_error = dvec3(0.0);
   g.n = dvec3(0.0, 0.0, 1.0);
   double r_hit = std::sqrt(x * x + y * y);
-  double phi = phi_of(x, y);
   double dr = s.radius - s.inner_radius;
-  g.uv = vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dr != 0.0 ? (s.radius - r_hit) / dr : 0.0));
+  g.uv = disk_uv(s, x, y);
   g.dpdu = dvec3(-s.phimax * y, s.phimax * x, 0.0);
   g.dpdv = r_hit > 0.0 ? dvec3(x, y, 0.0) * (-dr / r_hit) : dvec3(0.0);
   return g;

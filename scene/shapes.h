@@ -42,6 +42,11 @@ bool intersect_sphere(const SphereShape& s, const glm::dvec3& o, const glm::dvec
                       QuadricHit* hit);
 bool intersect_disk(const DiskShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
                     QuadricHit* hit);
+// pbrt-v4's (u, v) of a hit from QuadricHit's u, v: (phi / phimax, the
+// fraction of the theta range) on spheres, (phi / phimax, (radius - r) /
+// (radius - inner radius)) on disks.
+vec2 sphere_uv(const SphereShape& s, double phi, double theta);
+vec2 disk_uv(const DiskShape& s, double x, double y);
 
 // ---------------------------------------------------------------- interactions
 

@@ -282,10 +282,14 @@ T eval(const Scene& scene, int index, const TextureEvalContext& ctx) {
       vec2 st = map_uv(tex.mapping, ctx.uv);
       const Image& img = scene.images[size_t(tex.image)];
       const UVMapping& m = tex.mapping;
-      RGB c = tex.filter == TextureFilter::Point    ? image_lookup_nearest(img, st, tex.wrap)
-              : tex.filter == TextureFilter::Bilinear ? image_lookup_bilinear(img, st, tex.wrap)
-                                                      : image_lookup_trilinear(img, st, {m.su * ctx.fp.dudx, m.sv * ctx.fp.dvdx},
-                                                                               {m.su * ctx.fp.dudy, m.sv * ctx.fp.dvdy}, tex.wrap);
+      const vec2 dst0(m.su * ctx.fp.dudx, m.sv * ctx.fp.dvdx), dst1(m.su * ctx.fp.dudy, m.sv * ctx.fp.dvdy);
+      RGB c;
+      switch (tex.filter) {
+        case TextureFilter::Point: c = image_lookup_nearest(img, st, tex.wrap); break;
+        case TextureFilter::Bilinear: c = image_lookup_bilinear(img, st, tex.wrap); break;
+        case TextureFilter::Trilinear: c = image_lookup_trilinear(img, st, dst0, dst1, tex.wrap); break;
+        case TextureFilter::EWA: c = image_lookup_ewa(img, st, dst0, dst1, tex.wrap, tex.max_anisotropy); break;
+      }
       T v = tex.scale * first<T>(c);
       if constexpr (std::is_same_v<T, float>) {
         return tex.invert ? std::max(0.0f, 1.0f - v) : v;

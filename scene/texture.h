@@ -2,7 +2,7 @@
 //
 // Conventions are pbrt-v4's: texture (s, t) has t = 0 at the bottom of the
 // image, pixel centres sit at half-integers, lookups are bilinear (nearest
-// for the "point" filter, MIP-mapped for "trilinear", scene/mipmap.h), and an
+// for the "point" filter, MIP-mapped for "trilinear" and "ewa", scene/mipmap.h), and an
 // imagemap is scale * lookup, inverted (1 - that, clamped at 0) if asked.
 // Evaluation runs on the hot shading path: it allocates nothing, takes no
 // locks and makes no virtual calls (a switch on TextureKind).
@@ -22,13 +22,13 @@ namespace theia {
 // PFM, HDR) are linear whatever the encoding says, as in pbrt-v4.  Relative
 // filenames are looked up beside Scene::path first, then as given.  Images
 // with pixels already present and no filename are left alone.  Throws
-// theia::Error naming the file.  Then builds the MIP pyramids trilinear
+// theia::Error naming the file.  Then builds the MIP pyramids trilinear and EWA
 // textures need (build_mipmaps, scene/mipmap.h).
 void load_images(Scene& scene);
 // One image; `base_dir` as above ("" = as given).
 void load_image(Image& image, const std::string& base_dir = "");
 
-// uv's screen-space derivatives: the filter footprint of trilinear imagemaps
+// uv's screen-space derivatives: the filter footprint of trilinear and EWA imagemaps
 // (all zero = no footprint: level 0).  theia has no ray differentials; the
 // engine approximates them from the camera (texture_footprint, scene/camera.h).
 struct UVFootprint {

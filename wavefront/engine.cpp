@@ -2,6 +2,7 @@
 
 #include "core/sampler.h"
 #include "scene/bsdf.h"
+#include "scene/mipmap.h"
 #include "wavefront/path_state.h"
 #include "wavefront/radix_sort.h"
 
@@ -104,8 +105,9 @@ struct WavefrontEngine::Impl {
 
   vec3 bounds_min{0.0f}, bounds_inv_extent{1.0f};
   EngineStats stats;
-  // Texture footprints cost a transform per hit: only when a texture filters.
-  bool filtered_textures = false;
+  // Texture footprints cost a transform per hit: only when a texture filters
+  // or a material is bump mapped.
+  bool uses_footprint = false;
   float footprint_scale = 1.0f;
 
   uint64_t next_camera = 0, camera_end = 0;
@@ -124,12 +126,14 @@ struct WavefrontEngine::Impl {
     }
     opt.batch_size = std::max<size_t>(opt.batch_size, 1);
     for (const Texture& t : scene.textures)
-      filtered_textures |= t.kind == TextureKind::ImageMap && t.filter == TextureFilter::Trilinear;
+      uses_footprint |= t.kind == TextureKind::ImageMap && filter_uses_mipmap(t.filter);
+    // Bump mapping takes its finite-difference offsets from the footprint too.
+    for (const Material& m : scene.materials) uses_footprint |= m.displacement >= 0;
     footprint_scale = footprint_spp_scale(opt.footprint_spp);
   }
 
   UVFootprint footprint(const SurfaceInteraction& si) const {
-    return filtered_textures ? texture_footprint(camera, si, footprint_scale) : UVFootprint{};
+    return uses_footprint ? texture_footprint(camera, si, footprint_scale) : UVFootprint{};
   }
 
   bool counts_for_alpha(uint32_t sample) const { return opt.alpha_spp == 0 || sample < opt.alpha_spp; }

@@ -3,6 +3,7 @@
 // the camera-approximated footprint (scene/camera.h) lets the trilinear
 // filter average the far checks, so the 4-spp image is closer to a 1024-spp
 // bilinear reference (the checks box-filtered by the pixels themselves).
+// EWA (pbrt-v4's anisotropic filter) likewise.
 #include "render_helpers.h"
 
 #include "core/metrics.h"
@@ -50,11 +51,15 @@ TEST(TextureFilter, TrilinearAliasesLessThanBilinearAtGrazingAngles) {
   ImageBuffer reference = render_scene(grazing_checker(dir.string(), "bilinear"), quick_config(1024)).image;
   RenderResult bilinear = render_scene(grazing_checker(dir.string(), "bilinear"), quick_config(4));
   RenderResult trilinear = render_scene(grazing_checker(dir.string(), "trilinear"), quick_config(4));
+  RenderResult ewa = render_scene(grazing_checker(dir.string(), "ewa"), quick_config(4));
   double e_bilinear = rel_mse(bilinear.image, reference), e_trilinear = rel_mse(trilinear.image, reference);
-  std::printf("grazing checker relMSE at 4 spp vs 1024-spp bilinear: bilinear %.5f, trilinear %.5f\n", e_bilinear,
-              e_trilinear);
+  double e_ewa = rel_mse(ewa.image, reference);
+  std::printf("grazing checker relMSE at 4 spp vs 1024-spp bilinear: bilinear %.5f, trilinear %.5f, ewa %.5f\n",
+              e_bilinear, e_trilinear, e_ewa);
   EXPECT_LT(e_trilinear, 0.6 * e_bilinear);  // measured 0.0052 vs 0.0105
+  EXPECT_LT(e_ewa, 0.6 * e_bilinear);        // measured 0.0061
   EXPECT_GT(trilinear.log["memory"]["texture_mips"].get<size_t>(), 0u);
+  EXPECT_EQ(ewa.log["memory"]["texture_mips"].get<size_t>(), trilinear.log["memory"]["texture_mips"].get<size_t>());
   EXPECT_EQ(bilinear.log["memory"]["texture_mips"].get<size_t>(), 0u);
   fs::remove_all(dir);
 }

@@ -3,53 +3,17 @@
 #include "core/log.h"
 #include "scene/accel.h"
 #include "scene/shapes.h"
+#include "tests/unit/scene_builders.h"
 
-#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <random>
 
 using namespace theia;
+using namespace theia::test;
 
 namespace {
 
-Transform translate(vec3 t) { return Transform(glm::translate(mat4(1.0f), t)); }
-Transform scale(vec3 s) { return Transform(glm::scale(mat4(1.0f), s)); }
-Transform rotate(float deg, vec3 axis) { return Transform(glm::rotate(mat4(1.0f), radians(deg), axis)); }
-
-int add_shape(Scene& sc, Shape s, bool top) {
-  int index = int(sc.shapes.size());
-  sc.shapes.push_back(std::move(s));
-  if (top) sc.top_level_shapes.push_back(index);
-  return index;
-}
-int add_sphere(Scene& sc, SphereParams p, Transform t = {}, bool reverse = false, bool top = true) {
-  Shape s;
-  s.kind = ShapeKind::Sphere;
-  s.sphere = p;
-  s.transform_swaps_handedness = t.swaps_handedness();
-  s.render_from_object = t;
-  s.reverse_orientation = reverse;
-  return add_shape(sc, s, top);
-}
-int add_disk(Scene& sc, DiskParams p, Transform t = {}, bool reverse = false) {
-  Shape s;
-  s.kind = ShapeKind::Disk;
-  s.disk = p;
-  s.transform_swaps_handedness = t.swaps_handedness();
-  s.render_from_object = t;
-  s.reverse_orientation = reverse;
-  return add_shape(sc, s, true);
-}
-int add_mesh(Scene& sc, TriangleMesh m, bool reverse = false, bool swaps = false, bool top = true) {
-  Shape s;
-  s.kind = ShapeKind::TriangleMesh;
-  s.mesh = int(sc.meshes.size());
-  sc.meshes.push_back(std::move(m));
-  s.reverse_orientation = reverse;
-  s.transform_swaps_handedness = swaps;
-  return add_shape(sc, s, top);
-}
 TriangleMesh one_triangle() {
   TriangleMesh m;
   m.p = {vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0)};
@@ -439,6 +403,149 @@ TEST(AccelInstances, TwoInstancesOfOneMeshAndASphere) {
   EXPECT_LE(b.min.x, -11.0f);
   EXPECT_GE(b.max.x, 10.5f);
   EXPECT_GE(b.max.y, 21.0f);
+}
+
+// ---------------------------------------------------------------- alpha cut-outs
+
+// A float checkerboard of two cells along u: alpha 1 for u < 0.5 and 0 (cut
+// out) above.  On a full sphere or disk u = phi / 2 pi, so the half with y < 0
+// is cut away.
+int half_cut_alpha(Scene& sc) {
+  Texture t;
+  t.kind = TextureKind::Checkerboard;
+  t.is_float = true;
+  t.mapping = {2.0f, 1.0f, 0.0f, 0.0f};
+  sc.textures.push_back(t);
+  return int(sc.textures.size()) - 1;
+}
+int constant_alpha(Scene& sc, float a) {
+  Texture t;
+  t.is_float = true;
+  t.value = RGB(a);
+  sc.textures.push_back(t);
+  return int(sc.textures.size()) - 1;
+}
+// The plane x = x0, |y|, |z| <= 10.
+TriangleMesh wall_at_x(float x0) {
+  TriangleMesh m;
+  m.p = {vec3(x0, -10, -10), vec3(x0, 10, -10), vec3(x0, 10, 10), vec3(x0, -10, 10)};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  return m;
+}
+Ray ray_to(vec3 o, vec3 d, float tmax) { return Ray{o, 0.0f, d, tmax}; }
+
+// The sphere's front half (y < 0, seen from -y) is cut away, its back is not.
+TEST(AccelAlpha, CutOutSphereShowsItsFarSideAndWhatLiesBehind) {
+  for (bool is_virtual : {false, true}) {
+    Scene sc;
+    int sphere = add_sphere(sc, {});
+    sc.shapes[size_t(sphere)].alpha = half_cut_alpha(sc);
+    if (is_virtual) {
+      make_emissive(sc, sphere);
+      sc.lights.back().is_virtual = true;
+    }
+    int wall = add_mesh(sc, wall_at_x(3.0f));
+    Accel a(sc);
+    SCOPED_TRACE(is_virtual ? "virtual light" : "plain sphere");
+
+    // Along +y: the first root (y < 0) is cut out, the second (y > 0) is kept.
+    const float chord = std::sqrt(1.0f - 0.09f - 0.01f);
+    const vec3 o_up(0.3f, -5.0f, 0.1f);
+    Traced t = trace(sc, a, make_ray(o_up, vec3(0, 1, 0)));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_EQ(a.shape_index(t.hit), sphere);
+    EXPECT_NEAR(t.hit.t, 5.0f + chord, 1e-4f);
+    EXPECT_VEC_NEAR(t.si.p, vec3(0.3f, chord, 0.1f), 1e-4f);
+    EXPECT_LT(t.si.uv.x, 0.5f);
+    // Along -y the first root is on the kept half.
+    t = trace(sc, a, make_ray(vec3(0.3f, 5.0f, 0.1f), vec3(0, -1, 0)));
+    EXPECT_NEAR(t.hit.t, 5.0f - chord, 1e-4f);
+    // Through the cut half only: on to the wall.
+    t = trace(sc, a, make_ray(vec3(-5.0f, -0.5f, 0.1f), vec3(1, 0, 0)));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_EQ(a.shape_index(t.hit), wall);
+    EXPECT_NEAR(t.hit.t, 8.0f, 1e-4f);
+    // Through the kept half: the sphere.
+    t = trace(sc, a, make_ray(vec3(-5.0f, 0.5f, 0.1f), vec3(1, 0, 0)));
+    EXPECT_EQ(a.shape_index(t.hit), sphere);
+
+    // Shadow rays see the same surface, except that a virtual light never blocks.
+    const bool blocks = !is_virtual;
+    EXPECT_EQ(a.occluded1(ray_to(o_up, vec3(0, 1, 0), 5.5f)), false);  // past the cut root only
+    EXPECT_EQ(a.occluded1(ray_to(o_up, vec3(0, 1, 0), 6.5f)), blocks);  // reaches the kept one
+    EXPECT_EQ(a.occluded1(ray_to(vec3(0.3f, 5.0f, 0.1f), vec3(0, -1, 0), 4.5f)), blocks);
+    EXPECT_EQ(a.occluded1(ray_to(vec3(-5.0f, -0.5f, 0.1f), vec3(1, 0, 0), 7.5f)), false);
+    EXPECT_EQ(a.occluded1(ray_to(vec3(-5.0f, -0.5f, 0.1f), vec3(1, 0, 0), 8.5f)), true);  // the wall
+  }
+}
+
+TEST(AccelAlpha, CutOutDiskAndInstancedSphere) {
+  Scene sc;
+  int alpha = half_cut_alpha(sc);
+  int disk = add_disk(sc, {0.0f, 1.0f, 0.0f, 360.0f});
+  sc.shapes[size_t(disk)].alpha = alpha;
+  TriangleMesh floor = wall_at_x(0.0f);
+  for (vec3& p : floor.p) p = vec3(p.y, p.z, -1.0f);  // z = -1
+  int below = add_mesh(sc, floor);
+  // The same cut-out sphere in a prototype, instanced at x = 20.
+  sc.prototypes.push_back({});
+  int proto_sphere = add_sphere(sc, {}, {}, false, false);
+  sc.shapes[size_t(proto_sphere)].alpha = alpha;
+  sc.prototypes[0].shapes.push_back(proto_sphere);
+  sc.instances.push_back(Instance{0, translate(vec3(20, 0, 0))});
+  Accel a(sc);
+
+  Hit h = a.intersect1(make_ray(vec3(0.2f, -0.5f, 5.0f), vec3(0, 0, -1)));  // cut half
+  EXPECT_EQ(a.shape_index(h), below);
+  EXPECT_NEAR(h.t, 6.0f, 1e-4f);
+  h = a.intersect1(make_ray(vec3(0.2f, 0.5f, 5.0f), vec3(0, 0, -1)));  // kept half
+  EXPECT_EQ(a.shape_index(h), disk);
+  EXPECT_NEAR(h.t, 5.0f, 1e-4f);
+  EXPECT_FALSE(a.occluded1(ray_to(vec3(0.2f, -0.5f, 5.0f), vec3(0, 0, -1), 5.5f)));
+  EXPECT_TRUE(a.occluded1(ray_to(vec3(0.2f, 0.5f, 5.0f), vec3(0, 0, -1), 5.5f)));
+
+  const float chord = std::sqrt(1.0f - 0.09f - 0.01f);
+  h = a.intersect1(make_ray(vec3(20.3f, -5.0f, 0.1f), vec3(0, 1, 0)));
+  EXPECT_EQ(a.shape_index(h), proto_sphere);
+  EXPECT_NEAR(h.t, 5.0f + chord, 1e-4f);
+  EXPECT_FALSE(a.occluded1(ray_to(vec3(20.3f, -5.0f, 0.1f), vec3(0, 1, 0), 5.5f)));
+  EXPECT_TRUE(a.occluded1(ray_to(vec3(20.3f, -5.0f, 0.1f), vec3(0, 1, 0), 6.5f)));
+}
+
+// Alpha 0.5: each surface crossing is kept with probability 1/2, the two
+// roots of a sphere independently; shadow rays agree with closest hits ray
+// by ray.
+TEST(AccelAlpha, HalfAlphaKeepsHalfTheHitsAtEachRoot) {
+  Scene sc;
+  int alpha = constant_alpha(sc, 0.5f);
+  int sphere = add_sphere(sc, {});
+  sc.shapes[size_t(sphere)].alpha = alpha;
+  int disk = add_disk(sc, {0.0f, 1.0f, 0.0f, 360.0f}, translate(vec3(10, 0, 0)));
+  sc.shapes[size_t(disk)].alpha = alpha;
+  Accel a(sc);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-0.7f, 0.7f);
+  const int n = 20000;
+  int first = 0, second = 0, none = 0, disk_hits = 0, disagreements = 0;
+  for (int i = 0; i < n; ++i) {
+    const vec3 o(u(rng), u(rng), -5.0f);
+    const float near_t = 5.0f - std::sqrt(1.0f - o.x * o.x - o.y * o.y);
+    Hit h = a.intersect1(make_ray(o, vec3(0, 0, 1)));
+    if (!h.hit()) ++none;
+    else if (h.t < 5.0f) ++first;
+    else ++second;
+    disagreements += a.occluded1(make_ray(o, vec3(0, 0, 1))) != h.hit();
+    disagreements += a.occluded1(ray_to(o, vec3(0, 0, 1), 5.0f)) != (h.hit() && h.t < 5.0f);
+    EXPECT_TRUE(!h.hit() || h.t >= near_t - 1e-4f);
+    const vec3 od = o + vec3(10, 0, 0);
+    disk_hits += a.intersect1(make_ray(od, vec3(0, 0, 1))).hit();
+  }
+  // 5 standard deviations of a binomial fraction at n = 20000 are <= 0.018.
+  EXPECT_NEAR(double(first) / n, 0.5, 0.02);
+  EXPECT_NEAR(double(second) / n, 0.25, 0.02);
+  EXPECT_NEAR(double(none) / n, 0.25, 0.02);
+  EXPECT_NEAR(double(disk_hits) / n, 0.5, 0.02);
+  EXPECT_EQ(disagreements, 0);
 }
 
 // ---------------------------------------------------------------- robust spawning

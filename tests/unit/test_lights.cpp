@@ -340,12 +340,14 @@ Texture "t" "float" "imagemap" "string filename" "cornell-box.exr" "string filte
 )", "t.pbrt", THEIA_TEST_DATA);
   EXPECT_EQ(s.textures[0].filter, TextureFilter::Point);
   EXPECT_EQ(s.textures[1].filter, TextureFilter::Trilinear);
-  // EWA is not implemented: trilinear stands in, and the user is told once.
+  EXPECT_EQ(s.textures[1].max_anisotropy, 8.0f);  // pbrt-v4's default
   int before = warning_count();
   Scene e = parse_scene_string("WorldBegin\nTexture \"e\" \"float\" \"imagemap\" \"string filename\" "
-                               "\"cornell-box.exr\" \"string filter\" \"ewa\"", "t.pbrt", THEIA_TEST_DATA);
-  EXPECT_EQ(e.textures[0].filter, TextureFilter::Trilinear);
-  EXPECT_EQ(warning_count() - before, 1);
+                               "\"cornell-box.exr\" \"string filter\" \"ewa\" \"float maxanisotropy\" 16",
+                               "t.pbrt", THEIA_TEST_DATA);
+  EXPECT_EQ(e.textures[0].filter, TextureFilter::EWA);
+  EXPECT_EQ(e.textures[0].max_anisotropy, 16.0f);
+  EXPECT_EQ(warning_count() - before, 0);
   EXPECT_THROW(parse_scene_string("WorldBegin\nTexture \"b\" \"float\" \"imagemap\" \"string filename\" "
                                   "\"cornell-box.exr\" \"string filter\" \"cubic\"", "t.pbrt", THEIA_TEST_DATA),
                Error);

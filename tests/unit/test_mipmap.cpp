@@ -125,6 +125,188 @@ TEST(MipMap, BuiltOnlyForTrilinearTexturesAndCounted) {
   EXPECT_EQ(texture_memory_bytes(s), mip_memory_bytes(s) + 2u * 256u * sizeof(float));
 }
 
+// ---------------------------------------------------------------- EWA
+
+// Largest minus smallest lookup over `n` points along a line through the
+// image: how much of a pattern's contrast a filter lets through.
+template <typename Lookup>
+float contrast_along(vec2 from, vec2 to, int n, Lookup lookup) {
+  float lo = kInfinity, hi = -kInfinity;
+  for (int i = 0; i < n; ++i) {
+    float v = lookup(from + (to - from) * (float(i) + 0.5f) / float(n)).x;
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  return hi - lo;
+}
+
+// Grey stripes 4 texels wide, alternating 0 and 1 down the image: constant
+// along s, varying along t.
+Image stripes_along_t(int w, int h) {
+  return test::make_image(w, h, 1, [](int, int y) { return RGB(float((y / 4) % 2)); });
+}
+
+TEST(MipMapEWA, ConstantImageGivesExactlyTheConstant) {
+  // Powers of two: every weighted sum and lerp of them is exact.
+  for (float c : {1.0f, 0.25f}) {
+    Image img = test::make_image(16, 16, 1, [c](int, int) { return RGB(c); });
+    build_mip_pyramid(img);
+    for (WrapMode wrap : {WrapMode::Repeat, WrapMode::Clamp})
+      for (vec2 st : {vec2(0.3f, 0.7f), vec2(0.0f, 1.0f), vec2(0.97f, 0.02f)})
+        // (Not r = 0: that is bilinear, whose weights round.)
+        for (float r : {0.01f, 0.07f, 0.3f, 2.0f}) {
+          EXPECT_EQ(image_lookup_ewa(img, st, {r, 0.3f * r}, {-0.1f * r, 0.2f * r}, wrap, 8.0f), RGB(c));
+          EXPECT_EQ(image_lookup_ewa(img, st, {r, 0.0f}, {0.0f, 0.01f * r}, wrap, 8.0f), RGB(c));
+        }
+  }
+  // Any other constant, odd size: exact up to float rounding.
+  Image img = test::make_image(13, 7, 3, [](int, int) { return RGB(0.37f, 0.8f, 0.01f); });
+  build_mip_pyramid(img);
+  for (float r : {0.02f, 0.1f, 0.5f}) {
+    RGB v = image_lookup_ewa(img, vec2(0.41f, 0.66f), {r, r}, {0.5f * r, -0.3f * r}, WrapMode::Repeat, 8.0f);
+    EXPECT_FLOAT_EQ(v.x, 0.37f);
+    EXPECT_FLOAT_EQ(v.y, 0.8f);
+    EXPECT_FLOAT_EQ(v.z, 0.01f);
+  }
+}
+
+TEST(MipMapEWA, ZeroFootprintIsBilinearLevelZero) {
+  Image img = noise_image(16, 12);
+  build_mip_pyramid(img);
+  for (vec2 st : {vec2(0.3f, 0.7f), vec2(0.01f, 0.99f), vec2(0.51f, 0.24f)})
+    for (WrapMode wrap : {WrapMode::Repeat, WrapMode::Black}) {
+      RGB b = image_lookup_bilinear(img, st, wrap);
+      EXPECT_EQ(image_lookup_ewa(img, st, {0, 0}, {0, 0}, wrap, 8.0f), b);
+      // A degenerate ellipse (one axis zero) too, as in pbrt-v4.
+      EXPECT_EQ(image_lookup_ewa(img, st, {0.2f, 0.1f}, {0, 0}, wrap, 8.0f), b);
+      EXPECT_EQ(image_lookup_ewa(img, st, {NAN, 0.1f}, {0, 0.1f}, wrap, 8.0f), b);
+    }
+}
+
+// The isotropic footprint radius, in texels, at which a lookup has lost half
+// of the contrast of stripes `period` texels apart (64 if it never does).
+template <typename Lookup>
+float half_contrast_footprint(int period, Lookup lookup) {
+  Image img = test::make_image(64, 64, 1, [period](int, int y) { return RGB(float((y / (period / 2)) % 2)); });
+  build_mip_pyramid(img);
+  const float texel = 1.0f / 64.0f;
+  for (int k = -16; k <= 48; ++k) {
+    const float r = std::exp2(float(k) / 8.0f);
+    const vec2 d0(r * texel, 0.0f), d1(0.0f, r * texel);
+    float c = contrast_along({0.3f, 0.2f}, {0.3f, 0.2f + 2.0f * float(period) * texel}, 128,
+                             [&](vec2 st) { return lookup(img, st, d0, d1); });
+    if (c < 0.5f) return r;
+  }
+  return 64.0f;
+}
+
+TEST(MipMapEWA, IsotropicFootprintBlursAboutAsMuchAsTrilinear) {
+  for (int period : {8, 16}) {
+    float ewa = half_contrast_footprint(period, [](const Image& img, vec2 st, vec2 d0, vec2 d1) {
+      return image_lookup_ewa(img, st, d0, d1, WrapMode::Repeat, 8.0f);
+    });
+    float tri = half_contrast_footprint(period, [](const Image& img, vec2 st, vec2 d0, vec2 d1) {
+      return image_lookup_trilinear(img, st, d0, d1, WrapMode::Repeat);
+    });
+    // A footprint comparable to the stripes blurs them (unfiltered bilinear
+    // never would: 64 here), and the two filters agree within a factor 1.5 on
+    // where.  (pbrt-v4's EWA picks its level from the radius, trilinear from
+    // the diameter, so EWA is the sharper of the two.)
+    EXPECT_GT(ewa, 0.2f * float(period)) << period;
+    EXPECT_LT(ewa, 1.0f * float(period)) << period;
+    EXPECT_GE(ewa / tri, 1.0f / 1.5f) << period;
+    EXPECT_LE(ewa / tri, 1.5f) << period;
+  }
+}
+
+TEST(MipMapEWA, AnisotropicFootprintKeepsStripesAlongItsLongAxisSharp) {
+  Image img = stripes_along_t(64, 64);
+  build_mip_pyramid(img);
+  const float texel = 1.0f / 64.0f;
+  // Long along s (8 texels, the anisotropy limit), short along t (1 texel),
+  // as a floor seen at a grazing angle.
+  const vec2 d0(8.0f * texel, 0.0f), d1(0.0f, texel);
+  const vec2 from(0.3f, 0.2f), to(0.3f, 0.2f + 16 * texel);
+  float ewa = contrast_along(from, to, 64, [&](vec2 st) { return image_lookup_ewa(img, st, d0, d1, WrapMode::Repeat, 8.0f); });
+  float tri = contrast_along(from, to, 64, [&](vec2 st) { return image_lookup_trilinear(img, st, d0, d1, WrapMode::Repeat); });
+  EXPECT_GT(ewa, 0.8f);  // the stripes survive...
+  EXPECT_LT(tri, 0.1f);  // ... where trilinear's isotropic filter averages them away
+  // Past the anisotropy limit the minor axis grows: 64:1 clamped to 8:1 is
+  // the 8 x 8 texel footprint, which blurs the stripes like an isotropic one.
+  const vec2 e0(64.0f * texel, 0.0f);
+  float clamped = contrast_along(from, to, 64, [&](vec2 st) { return image_lookup_ewa(img, st, e0, d1, WrapMode::Repeat, 8.0f); });
+  float iso = contrast_along(from, to, 64, [&](vec2 st) {
+    return image_lookup_ewa(img, st, e0, {0.0f, 8.0f * texel}, WrapMode::Repeat, 8.0f);
+  });
+  EXPECT_NEAR(clamped, iso, 1e-5f);
+  EXPECT_LT(clamped, 0.5f * ewa);
+  // A higher limit keeps them again.
+  float loose = contrast_along(from, to, 64, [&](vec2 st) { return image_lookup_ewa(img, st, e0, d1, WrapMode::Repeat, 64.0f); });
+  EXPECT_GT(loose, 0.8f);
+}
+
+// The ellipse lies along the footprint's long axis in texture space, with t
+// pointing up the image: a sheared footprint along st (1, 1) runs along
+// stripes that are constant along it, and across stripes along (1, -1).
+TEST(MipMapEWA, ShearedFootprintFollowsTheDiagonal) {
+  // Stripes constant along raster (1, -1), i.e. along st (1, 1).
+  Image img = test::make_image(64, 64, 1, [](int x, int y) { return RGB(float(((x + y) / 4) % 2)); });
+  build_mip_pyramid(img);
+  const float texel = 1.0f / 64.0f;
+  const vec2 along(5.0f * texel, 5.0f * texel), across(0.7f * texel, -0.7f * texel);
+  const vec2 from(0.3f, 0.3f), to(0.3f + 16 * texel, 0.3f - 16 * texel);  // across the stripes
+  float sharp = contrast_along(from, to, 64, [&](vec2 st) { return image_lookup_ewa(img, st, along, across, WrapMode::Repeat, 8.0f); });
+  float blurred = contrast_along(from, to, 64, [&](vec2 st) {
+    return image_lookup_ewa(img, st, vec2(along.x, -along.y), vec2(across.x, -across.y), WrapMode::Repeat, 8.0f);
+  });
+  EXPECT_GT(sharp, 0.7f);
+  EXPECT_LT(blurred, 0.5f * sharp);
+}
+
+TEST(MipMapEWA, LargeFootprintIsTheImageMean) {
+  Image img = noise_image(12, 9);
+  build_mip_pyramid(img);
+  std::vector<double> mean = channel_means(img);
+  for (WrapMode wrap : {WrapMode::Repeat, WrapMode::Black, WrapMode::Clamp})
+    for (vec2 d1 : {vec2(0.0f, 1.0f), vec2(0.9f, 0.9f), vec2(0.0f, INFINITY)}) {
+      RGB v = image_lookup_ewa(img, vec2(0.2f, 0.6f), {2.0f, 0.0f}, d1, wrap, 8.0f);
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(v[c], mean[size_t(c)], 1e-5);
+    }
+}
+
+TEST(MipMapEWA, WrapModesDecideWhatLiesPastTheBorder) {
+  // Column 0 bright, the last column half as bright, the rest dark: at the
+  // left edge, clamp repeats column 0, repeat brings the last column round
+  // and black brings nothing.
+  Image img = test::make_image(16, 16, 1, [](int x, int) { return RGB(x == 0 ? 1.0f : x == 15 ? 0.5f : 0.0f); });
+  build_mip_pyramid(img);
+  const vec2 d0(1.5f / 16.0f, 0.0f), d1(0.0f, 1.5f / 16.0f);
+  auto at = [&](vec2 st, WrapMode wrap) { return image_lookup_ewa(img, st, d0, d1, wrap, 8.0f).x; };
+  const vec2 edge(0.0f, 0.5f);
+  float clamp = at(edge, WrapMode::Clamp), repeat = at(edge, WrapMode::Repeat), black = at(edge, WrapMode::Black);
+  EXPECT_GT(clamp, repeat + 0.05f);
+  EXPECT_GT(repeat, black + 0.05f);
+  EXPECT_GT(black, 0.0f);
+  // Repeat is periodic; away from the border the modes agree.
+  EXPECT_NEAR(at(edge + vec2(1.0f, 0.0f), WrapMode::Repeat), repeat, 1e-5f);
+  EXPECT_NEAR(at(edge + vec2(-3.0f, 2.0f), WrapMode::Repeat), repeat, 1e-5f);
+  const vec2 inside(0.5f, 0.5f);
+  EXPECT_EQ(at(inside, WrapMode::Clamp), at(inside, WrapMode::Black));
+  EXPECT_EQ(at(inside, WrapMode::Repeat), at(inside, WrapMode::Black));
+}
+
+TEST(MipMapEWA, PyramidsAreBuiltForEWATextures) {
+  Scene s;
+  s.images = {checker(16, 16)};
+  Texture t;
+  t.kind = TextureKind::ImageMap;
+  t.image = 0, t.filter = TextureFilter::EWA;
+  s.textures = {t};
+  build_mipmaps(s);
+  EXPECT_EQ(s.images[0].mip.size(), 4u);
+  EXPECT_EQ(mip_memory_bytes(s), (64u + 16u + 4u + 1u) * sizeof(float));
+}
+
 TEST(TextureFootprint, SppScaleIsPbrts) {
   EXPECT_FLOAT_EQ(footprint_spp_scale(1), 1.0f);
   EXPECT_FLOAT_EQ(footprint_spp_scale(16), 0.25f);

@@ -4,58 +4,17 @@
 // sampled distributions live in the statistical suite.)
 #include "scene/accel.h"
 #include "scene/shapes.h"
+#include "tests/unit/scene_builders.h"
 
-#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include <random>
 
 using namespace theia;
+using namespace theia::test;
 
 namespace {
 
-Transform translate(vec3 t) { return Transform(glm::translate(mat4(1.0f), t)); }
-Transform scale(vec3 s) { return Transform(glm::scale(mat4(1.0f), s)); }
-Transform rotate(float deg, vec3 axis) { return Transform(glm::rotate(mat4(1.0f), radians(deg), axis)); }
-
-int add_light_shape(Scene& sc, Shape s) {
-  int index = int(sc.shapes.size());
-  s.area_light = int(sc.lights.size());
-  Light l;
-  l.shape = index;
-  l.L = RGB(1.0f);
-  sc.lights.push_back(l);
-  sc.shapes.push_back(std::move(s));
-  sc.top_level_shapes.push_back(index);
-  return index;
-}
-int add_sphere(Scene& sc, SphereParams p, Transform t, bool reverse = false) {
-  Shape s;
-  s.kind = ShapeKind::Sphere;
-  s.sphere = p;
-  s.render_from_object = t;
-  s.transform_swaps_handedness = t.swaps_handedness();
-  s.reverse_orientation = reverse;
-  return add_light_shape(sc, s);
-}
-int add_disk(Scene& sc, DiskParams p, Transform t, bool reverse = false) {
-  Shape s;
-  s.kind = ShapeKind::Disk;
-  s.disk = p;
-  s.render_from_object = t;
-  s.transform_swaps_handedness = t.swaps_handedness();
-  s.reverse_orientation = reverse;
-  return add_light_shape(sc, s);
-}
-int add_mesh(Scene& sc, TriangleMesh m, bool reverse = false, bool swaps = false) {
-  Shape s;
-  s.kind = ShapeKind::TriangleMesh;
-  s.mesh = int(sc.meshes.size());
-  sc.meshes.push_back(std::move(m));
-  s.reverse_orientation = reverse;
-  s.transform_swaps_handedness = swaps;
-  return add_light_shape(sc, s);
-}
 // Two triangles: [x0, x1] x [y0, y1] at height z.
 TriangleMesh quad(float x0, float x1, float y0, float y1, float z) {
   TriangleMesh m;
@@ -150,7 +109,7 @@ TEST(ShapeSampling, SphereConeFromOutside) {
     Scene sc;
     vec3 c(1, 2, 3);
     float radius = 2.0f;
-    int s = add_sphere(sc, {}, translate(c) * rotate(30, vec3(1, 1, 0)) * scale(vec3(radius)), reverse);
+    int s = make_emissive(sc, add_sphere(sc, {}, translate(c) * rotate(30, vec3(1, 1, 0)) * scale(vec3(radius)), reverse));
     Accel a(sc);
     ShapeSampling ss(sc);
     EXPECT_NEAR(ss.area(s), 4.0f * kPi * radius * radius, 1e-3f);
@@ -182,7 +141,7 @@ TEST(ShapeSampling, SphereConeFromOutside) {
 TEST(ShapeSampling, SphereConeAtSmallAngles) {
   Scene sc;
   vec3 c(5, 0, 0);
-  int s = add_sphere(sc, {}, translate(c));
+  int s = make_emissive(sc, add_sphere(sc, {}, translate(c)));
   Accel a(sc);
   ShapeSampling ss(sc);
   ShapeSampleContext ref{c + vec3(0, 0, 1000), vec3(0, 0, -1)};
@@ -194,7 +153,7 @@ TEST(ShapeSampling, SphereConeAtSmallAngles) {
 
 TEST(ShapeSampling, SphereFromInsideCoversEveryDirection) {
   Scene sc;
-  int s = add_sphere(sc, {}, translate(vec3(-1, 0, 2)) * scale(vec3(3)));
+  int s = make_emissive(sc, add_sphere(sc, {}, translate(vec3(-1, 0, 2)) * scale(vec3(3))));
   Accel a(sc);
   ShapeSampling ss(sc);
   ShapeSampleContext ref{vec3(0, 1, 2.5f), vec3(0)};
@@ -208,7 +167,7 @@ TEST(ShapeSampling, PartialSphereAndEllipsoidAreas) {
   {
     Scene sc;
     SphereParams p{1.0f, -0.5f, 0.8f, 200.0f};
-    int s = add_sphere(sc, p, translate(vec3(0, 0, 10)) * scale(vec3(3)), true);
+    int s = make_emissive(sc, add_sphere(sc, p, translate(vec3(0, 0, 10)) * scale(vec3(3)), true));
     Accel a(sc);
     ShapeSampling ss(sc);
     double area = 9.0 * radians(200.0f) * 1.0 * 1.3;
@@ -221,7 +180,7 @@ TEST(ShapeSampling, PartialSphereAndEllipsoidAreas) {
   {
     // Oblate spheroid, semi-axes (2, 2, 1): S = 2 pi a^2 (1 + (1 - e^2) / e atanh e).
     Scene sc;
-    int s = add_sphere(sc, {}, translate(vec3(0, 0, 5)) * rotate(40, vec3(0, 1, 0)) * scale(vec3(2, 2, 1)));
+    int s = make_emissive(sc, add_sphere(sc, {}, translate(vec3(0, 0, 5)) * rotate(40, vec3(0, 1, 0)) * scale(vec3(2, 2, 1))));
     Accel a(sc);
     ShapeSampling ss(sc);
     double e = std::sqrt(1.0 - 1.0 / 4.0);
@@ -241,7 +200,7 @@ TEST(ShapeSampling, PartialSphereAndEllipsoidAreas) {
 
 TEST(ShapeSampling, QuadSubtendsItsSolidAngle) {
   Scene sc;
-  int s = add_mesh(sc, quad(-1, 1, -0.5f, 1.5f, 0));
+  int s = make_emissive(sc, add_mesh(sc, quad(-1, 1, -0.5f, 1.5f, 0)));
   Accel a(sc);
   ShapeSampling ss(sc);
   EXPECT_NEAR(ss.area(s), 4.0f, 1e-5f);
@@ -273,7 +232,7 @@ TEST(ShapeSampling, MeshNormalsFollowOrientationRules) {
     TriangleMesh m = quad(0, 1, 0, 2, 0);
     if (c.with_n) m.n.assign(4, glm::normalize(vec3(0.1f, 0.2f, -1)));
     m.uv = {vec2(0, 0), vec2(1, 0), vec2(1, 1), vec2(0, 1)};
-    int s = add_mesh(sc, m, c.reverse, c.swaps);
+    int s = make_emissive(sc, add_mesh(sc, m, c.reverse, c.swaps));
     Accel a(sc);
     ShapeSampling ss(sc);
     for (float side : {1.0f, -1.0f}) {
@@ -296,7 +255,7 @@ TEST(ShapeSampling, PartialDiskUnderNonUniformScale) {
     p.innerradius = 0.7f;
     p.phimax = 250;
     Transform t = translate(vec3(1, 1, 1)) * rotate(20, vec3(0, 1, 0)) * scale(vec3(1.5f, 0.5f, -2));
-    int s = add_disk(sc, p, t, reverse);
+    int s = make_emissive(sc, add_disk(sc, p, t, reverse));
     Accel a(sc);
     ShapeSampling ss(sc);
     double area = 0.5 * radians(250.0f) * (4.0 - 0.49) * 1.5 * 0.5;
@@ -324,8 +283,8 @@ TEST(ShapeSampling, PartialDiskUnderNonUniformScale) {
 
 TEST(ShapeSampling, FullDiskAndMirroredSphere) {
   Scene sc;
-  int d = add_disk(sc, {0.0f, 1.5f, 0.0f, 360.0f}, translate(vec3(0, 0, -2)));
-  int s = add_sphere(sc, {}, translate(vec3(4, 0, 0)) * scale(vec3(-1, 1, 1)));  // mirror: inward normal
+  int d = make_emissive(sc, add_disk(sc, {0.0f, 1.5f, 0.0f, 360.0f}, translate(vec3(0, 0, -2))));
+  int s = make_emissive(sc, add_sphere(sc, {}, translate(vec3(4, 0, 0)) * scale(vec3(-1, 1, 1))));  // mirror: inward normal
   Accel a(sc);
   ShapeSampling ss(sc);
   EXPECT_NEAR(ss.area(d), kPi * 2.25f, 1e-5f);
@@ -341,10 +300,7 @@ TEST(ShapeSampling, FullDiskAndMirroredSphere) {
 
 TEST(ShapeSampling, NonEmissiveShapesAreNotSampled) {
   Scene sc;
-  Shape plain;
-  plain.kind = ShapeKind::Sphere;
-  sc.shapes.push_back(plain);
-  sc.top_level_shapes.push_back(0);
+  add_sphere(sc, {});
   ShapeSampling ss(sc);
   EXPECT_FALSE(ss.sample(0, {vec3(0, 0, 5), vec3(0)}, vec2(0.5f), 0.5f));
   EXPECT_EQ(ss.area(0), 0.0f);

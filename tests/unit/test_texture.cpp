@@ -1,4 +1,5 @@
 #include "core/color.h"
+#include "scene/bsdf.h"
 #include "scene/texture.h"
 
 #include "core/image.h"
@@ -225,6 +226,86 @@ TEST(TextureEval, ImageMapFlipsTAppliesScaleThenInvert) {
   EXPECT_EQ(eval_float_texture(s, tex, {bl, vec3(0.0f)}), 0.0f);  // 1 - 2, clamped
   s.textures[size_t(tex)].invert = false;
   EXPECT_NEAR(eval_float_texture(s, tex, {bl, vec3(0.0f)}), 2.0f, 1e-6f);
+}
+
+// ---------------------------------------------------------------- bump mapping
+
+// A flat diffuse surface at the origin, uv = (x, y), bump mapped by `height`
+// (a float texture index in s).
+struct BumpPlane {
+  Scene scene;
+  SurfaceInteraction si;
+  explicit BumpPlane(Scene s, int height, vec2 uv) : scene(std::move(s)) {
+    Material m;
+    m.kind = MaterialKind::Diffuse;
+    m.displacement = height;
+    scene.materials.push_back(m);
+    si.p = vec3(uv, 0.0f);
+    si.ng = si.ns = vec3(0, 0, 1);
+    si.dpdu = vec3(1, 0, 0);
+    si.dpdv = vec3(0, 1, 0);
+    si.uv = uv;
+    si.wo = vec3(0, 0, 1);
+    si.material = 0;
+  }
+  vec3 normal(const UVFootprint& fp) const { return make_bsdf(scene, si, fp).shading.n; }
+};
+
+// With dpdu = x, dpdv = y and n = z, bumps of slope (hu, hv) tilt the normal
+// to normalize(-hu, -hv, 1).
+vec3 bumped(float hu, float hv) { return glm::normalize(vec3(-hu, -hv, 1.0f)); }
+
+TEST(TextureBumpMap, LinearRampTiltsTheNormalByItsSlopeWithAnyOffset) {
+  // Height 1/64 per texel along x and 2/64 per texel up the image: slopes 1
+  // and 2 in (u, v).  Bilinear lookups of it are exactly linear between the
+  // outermost texel centres, so every finite difference there is the slope.
+  Scene s;
+  s.images.push_back(test::make_image(64, 64, 1, [](int x, int y) { return RGB((float(x) + 2.0f * float(63 - y)) / 64.0f); }));
+  Texture t;
+  t.kind = TextureKind::ImageMap;
+  t.is_float = true;
+  t.image = 0;
+  t.wrap = WrapMode::Clamp;
+  int height = add(s, t);
+  BumpPlane plane(s, height, {0.3f, 0.4f});
+  const vec3 expected = bumped(1.0f, 2.0f);
+  for (UVFootprint fp : {UVFootprint{}, UVFootprint{0.02f, 0.01f, 0.005f, 0.03f}, UVFootprint{-0.1f, 0.0f, 0.0f, -0.2f}}) {
+    vec3 n = plane.normal(fp);
+    EXPECT_NEAR(n.x, expected.x, 2e-4f) << fp.dudx;
+    EXPECT_NEAR(n.y, expected.y, 2e-4f) << fp.dudx;
+    EXPECT_NEAR(n.z, expected.z, 2e-4f) << fp.dudx;
+  }
+}
+
+TEST(TextureBumpMap, OffsetIsHalfTheFootprintOrTheFixedFallback) {
+  // A unit step (checkerboard: 1 below u = 1, 0 above) seen from just left of
+  // it: the finite difference is -1 / offset when the offset reaches past the
+  // step and 0 when it does not, which reveals the offset.
+  Scene s;
+  Texture c;
+  c.kind = TextureKind::Checkerboard;
+  c.is_float = true;
+  int step = add(s, c);
+  auto expect_normal = [](vec3 n, vec3 e, const char* what) {
+    EXPECT_NEAR(n.x, e.x, 1e-4f) << what;
+    EXPECT_NEAR(n.y, e.y, 1e-4f) << what;
+    EXPECT_NEAR(n.z, e.z, 1e-4f) << what;
+  };
+  // du = (|dudx| + |dudy|) / 2 = 0.15 reaches the step from u = 0.9; 0.0005 does not.
+  BumpPlane far(s, step, {0.9f, 0.5f});
+  expect_normal(far.normal({0.2f, -0.1f, 0.0f, 0.0f}), bumped(-1.0f / 0.15f, 0.0f), "du from the footprint");
+  expect_normal(far.normal({}), vec3(0, 0, 1), "no footprint: 0.0005 stays short of the step");
+  // From u = 0.9997 both reach it: the fallback 0.0005 gives the steep slope.
+  BumpPlane near(s, step, {0.9997f, 0.5f});
+  vec3 fallback = near.normal({});
+  expect_normal(fallback, bumped(-1.0f / 0.0005f, 0.0f), "zero footprint falls back to 0.0005");
+  expect_normal(near.normal({0.2f, -0.1f, 0.0f, 0.0f}), bumped(-1.0f / 0.15f, 0.0f), "footprint");
+  // A footprint along v only leaves du at the fallback.
+  expect_normal(near.normal({0.0f, 0.0f, 0.01f, 0.0f}), fallback, "v footprint, u fallback");
+  // And dv likewise, from the v derivatives' magnitudes: 0.2 reaches v = 1 from 0.9.
+  BumpPlane below(s, step, {0.5f, 0.9f});
+  expect_normal(below.normal({0.0f, 0.0f, -0.1f, 0.3f}), bumped(0.0f, -1.0f / 0.2f), "dv from the footprint");
+  expect_normal(below.normal({}), vec3(0, 0, 1), "dv fallback stays short");
 }
 
 // ---------------------------------------------------------------- loading

@@ -576,6 +576,7 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
     t.invert = params.get_bool("invert", false);
     std::string filter = params.get_string("filter", "bilinear");
     t.max_anisotropy = params.get_float("maxanisotropy", 8.0f);
+    if (!(t.max_anisotropy > 0.0f)) throw_at(loc, "maxanisotropy {}, expected a positive ratio", t.max_anisotropy);
     if (filter == "point") {
       t.filter = TextureFilter::Point;
     } else if (filter == "trilinear" || filter == "ewa") {

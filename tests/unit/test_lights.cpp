@@ -348,6 +348,14 @@ Texture "t" "float" "imagemap" "string filename" "cornell-box.exr" "string filte
   EXPECT_EQ(e.textures[0].filter, TextureFilter::EWA);
   EXPECT_EQ(e.textures[0].max_anisotropy, 16.0f);
   EXPECT_EQ(warning_count() - before, 0);
+  try {
+    parse_scene_string("WorldBegin\nTexture \"e\" \"float\" \"imagemap\" \"string filename\" "
+                       "\"cornell-box.exr\" \"string filter\" \"ewa\" \"float maxanisotropy\" 0", "t.pbrt", THEIA_TEST_DATA);
+    ADD_FAILURE() << "maxanisotropy 0 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("t.pbrt:2:1: error: maxanisotropy 0, expected a positive ratio"), std::string::npos)
+        << e.what();
+  }
   EXPECT_THROW(parse_scene_string("WorldBegin\nTexture \"b\" \"float\" \"imagemap\" \"string filename\" "
                                   "\"cornell-box.exr\" \"string filter\" \"cubic\"", "t.pbrt", THEIA_TEST_DATA),
                Error);

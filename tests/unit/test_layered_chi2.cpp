@@ -173,15 +173,32 @@ WeightedChi2Result run(const Case& c, const WeightedChi2Settings& st, SpecularTa
 TEST(Chi2LayeredBxDF, SamplingAgreesWithEvaluationAcrossRoughnessIorAngleAndMedium) {
   auto cases = sweep();
   EXPECT_GE(cases.size(), 40u);
+  const WeightedChi2Settings st = settings(int(cases.size()));
   for (const Case& c : cases) {
     SpecularTally spec;
-    auto r = run(c, settings(int(cases.size())), &spec);
+    auto r = run(c, st, &spec);
     EXPECT_TRUE(r.passed) << r.report;
-    std::printf("%-70s stat %7.1f dof %3d p %.3g A %.4f B %.4f spec %.4f\n", c.name.c_str(), r.statistic, r.dof, r.p_value,
-                r.sampled_total, r.integrated_total, spec.weight / 80000.0);
+    // The specular samples f leaves out: under a smooth coat over a base that
+    // is not a mirror, only the coat's own reflection, each of weight 1 with
+    // probability F (so a binomial count).
+    const BxDF& b = c.bxdf;
+    bool mirror_base = b.kind == BxDFKind::CoatedConductor && b.conductor.distrib.effectively_smooth();
+    if (b.dielectric.distrib.effectively_smooth() && !mirror_base) {
+      double fresnel = fresnel_dielectric(std::abs(c.wo.z), b.dielectric.eta), n = st.n_samples;
+      double z = (spec.weight / n - fresnel) / std::sqrt(fresnel * (1.0 - fresnel) / n);
+      EXPECT_GE(chi2_p_value(z * z, 1), sidak_level(kSignificance, 2 * st.n_tests))
+          << c.name << ": specular weight " << spec.weight / n << " (" << spec.count << " samples), Fresnel " << fresnel;
+    } else if (!mirror_base) {
+      EXPECT_EQ(spec.count, 0) << c.name;  // a rough coat: no path is all specular
+    }
   }
 }
 
+// Not run by default (~80 s): the sweep under 8 other seeds, to check after
+// retuning that the statistic follows its null distribution (the variances
+// are estimated, the weights skewed) and the sweep does not fail by chance.
+// Measured with the settings above: 736 p-values (both tests, 46 cases),
+// 90 below 0.1 (73.6 expected), 10 below 0.01 (7.4), none below 0.001.
 TEST(Chi2LayeredBxDF, DISABLED_NullCalibration) {
   auto cases = sweep();
   std::vector<double> ps;
@@ -192,21 +209,23 @@ TEST(Chi2LayeredBxDF, DISABLED_NullCalibration) {
       auto r = run(c, st);
       ps.push_back(r.p_value);
       ps.push_back(r.total_p_value);
-      if (std::min(r.p_value, r.total_p_value) < 0.01) std::printf("seed %d p %.3g %s\n%s", int(seed), r.p_value, c.name.c_str(), r.report.c_str());
+      if (std::min(r.p_value, r.total_p_value) < 0.001) std::printf("seed %d: %s", int(seed), r.report.c_str());
     }
-  for (double t : {0.1, 0.01, 0.001, 1e-4, sidak_level(kSignificance, 2 * int(cases.size()))}) {
-    long k = std::count_if(ps.begin(), ps.end(), [&](double p) { return p < t; });
-    std::printf("p < %g: %ld of %zu (expected %.1f)\n", t, k, ps.size(), t * double(ps.size()));
-  }
+  auto below = [&](double t) { return double(std::count_if(ps.begin(), ps.end(), [&](double p) { return p < t; })); };
+  for (double t : {0.1, 0.01, 0.001})
+    std::printf("p < %g: %.0f of %zu (expected %.1f)\n", t, below(t), ps.size(), t * double(ps.size()));
+  EXPECT_LE(below(0.01), 2.0 * 0.01 * double(ps.size()));
+  EXPECT_EQ(below(sidak_level(kSignificance, 2 * int(cases.size()))), 0.0);
 }
 
 // The sweep's settings can fail: with the same sample counts, grid and Sidak
 // correction, a sampler whose weights are 5% high (all of them: an overall
 // energy error), 10% high over half the hemisphere (wi.y > 0), or whose
 // directions lean ~1.5 degrees towards the normal is rejected, on a rough and
-// a narrow coat and on a smooth coat at grazing incidence.  (5% over half the
-// hemisphere is rejected on the first only: p ~ 4e-7 there, 3e-3 and 4e-3 on
-// the other two, against a threshold of 1.1e-4.)
+// a narrow coat and on a smooth coat at grazing incidence (largest p-values
+// 3e-10, 8e-7 and 4e-15 against the sweep's threshold of 1.1e-4).  5% over
+// half the hemisphere is beyond these settings: rejected on the first case
+// only (p 3e-5; 0.06 and 0.005 on the others).
 TEST(Chi2LayeredBxDF, SweepSettingsRejectASlightlyWrongSampler) {
   const int n_tests = int(sweep().size());
   const Case cases[] = {{"coateddiffuse a=0.3", coated_diffuse_case(0.3f, 1.5f), dir_at(45.0f * kDeg)},
@@ -223,6 +242,5 @@ TEST(Chi2LayeredBxDF, SweepSettingsRejectASlightlyWrongSampler) {
       d.wi = glm::normalize(d.wi + vec3(0.0f, 0.0f, 0.03f * (d.wi.z > 0.0f ? 1.0f : -1.0f)));
     });
     EXPECT_FALSE(tilted.passed) << "directions tilted: " << tilted.report;
-    std::printf("%s: energy %.3g/%.3g half %.3g/%.3g tilt %.3g/%.3g\n", c.name.c_str(), energy.p_value, energy.total_p_value, half.p_value, half.total_p_value, tilted.p_value, tilted.total_p_value);
   }
 }

@@ -19,6 +19,11 @@ using namespace theia::test;
 namespace {
 
 constexpr double kSignificance = 0.01;
+// 80k samples and 80k evaluations a case in 8 x 16 equal-solid-angle cells
+// (64 over the lit hemisphere, ~1000 samples in a diffuse cell): the sweep of
+// 46 cases takes ~7.5 s on one core, sampling and evaluation about equally.
+// A tenth of the evaluations is uniform over the sphere, the rest follows the
+// lobes below.
 WeightedChi2Settings settings(int n_tests) {
   WeightedChi2Settings s;
   s.n_samples = 80'000;

@@ -52,6 +52,28 @@ struct Layers {
 
 bool usable(const std::optional<BxDFSample>& s) { return s && !is_black(s->f) && s->pdf > 0.0f && s->wi.z != 0.0f; }
 
+// Between two specular interfaces, light scattered in the medium reaches the
+// exit direction `up` not only straight up (`direct`, the NEE value without
+// its wis factor) but also down to the base and back up along `up` by mirror
+// bounces, any number of times around (top reflection, base reflection).
+// Neither interface can be evaluated, so pbrt-v4's walk never adds those
+// paths while sample() takes them: f fell short of its own sampling by ~45%
+// (a forward-scattering medium over a smooth conductor under a smooth coat;
+// tests/unit/test_layered_chi2.cpp).  They are added here in closed form.
+RGB add_mirror_chains(const Layers& L, const LayerParams& lp, const vec3& w_in, float z, float thickness,
+                      const vec3& up, const RGB& direct, TransportMode mode) {
+  vec3 down(up.x, up.y, -up.z);
+  // The specular sample weights (f |cos| / pdf) of each bounce; u is unused.
+  auto base = bxdf_sample(L.bottom, -down, 0.5f, vec2(0.5f), mode, kSampleReflection);
+  auto top = bxdf_sample(L.top, -up, 0.5f, vec2(0.5f), mode, kSampleReflection);
+  if (!base) return direct;
+  RGB base_r = base->f * std::abs(base->wi.z) / base->pdf;
+  RGB top_r = top ? top->f * std::abs(top->wi.z) / top->pdf : RGB(0.0f);
+  float tr = transmittance(thickness, up);
+  RGB via_base = henyey_greenstein(glm::dot(w_in, down), lp.g) * transmittance(z, up) * base_r * tr;
+  return (direct + via_base) / (RGB(1.0f) - top_r * base_r * tr * tr);
+}
+
 }  // namespace
 
 // Both bases are opaque, so light leaves on the side it arrived: wo and wi in
@@ -82,7 +104,12 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
     RGB beta = wos->f * std::abs(wos->wi.z) / wos->pdf;
     float z = thickness;
     vec3 w = wos->wi;
-    for (int depth = 0; depth < lp.max_depth; ++depth) {
+    // Every contribution made at step `depth` leaves through the exit at the
+    // next step, which sample() would take as its step depth + 1: stopping
+    // one step before max_depth keeps both to the same paths (pbrt-v4 runs
+    // this loop to max_depth too, so its f has paths its sampling has not:
+    // 3.4% more energy in a thick medium of albedo 0.9, 32% at max_depth 3).
+    for (int depth = 0; depth + 1 < lp.max_depth; ++depth) {
       if (depth > 3 && max_component(beta) < 0.25f) {
         float q = std::max(0.0f, 1.0f - max_component(beta));
         if (r() < q) break;
@@ -98,8 +125,9 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
           // Scattering in the medium: NEE through the exit along wis, then a phase sample.
           float wt = 1.0f;
           if (!L.top_specular) wt = power_heuristic(1, wis->pdf, 1, henyey_greenstein(glm::dot(-w, -wis->wi), lp.g));
-          result += beta * lp.albedo * henyey_greenstein(glm::dot(-w, -wis->wi), lp.g) * wt *
-                    transmittance(zp - exit_z, wis->wi) * wis->f / wis->pdf;
+          RGB nee(henyey_greenstein(glm::dot(-w, -wis->wi), lp.g) * wt * transmittance(zp - exit_z, wis->wi));
+          if (L.top_specular && L.bottom_specular) nee = add_mirror_chains(L, lp, -w, zp, thickness, -wis->wi, nee, mode);
+          result += beta * lp.albedo * nee * wis->f / wis->pdf;
           float phase_pdf;
           vec3 wn = sample_henyey_greenstein(-w, lp.g, vec2(r(), r()), &phase_pdf);
           if (phase_pdf == 0.0f || wn.z == 0.0f) continue;

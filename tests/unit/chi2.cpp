@@ -1,5 +1,7 @@
 #include "tests/unit/chi2.h"
 
+#include "core/sampling.h"
+
 #include <boost/math/special_functions/gamma.hpp>
 #include <fmt/format.h>
 
@@ -73,7 +75,29 @@ std::string histogram_text(const std::vector<double>& h, int res_x, int res_y) {
   return s;
 }
 
+// Cell coordinates ((cos theta + 1) / 2, phi / 2 pi) of a unit direction and
+// back: d omega = d cos theta d phi = 4 pi dx dy, so equal cells have equal
+// solid angle.
+vec2 sphere_to_cell(const vec3& w) {
+  float phi = std::atan2(w.y, w.x);
+  if (phi < 0.0f) phi += 2.0f * kPi;
+  return vec2(0.5f * (std::clamp(w.z, -1.0f, 1.0f) + 1.0f), std::min(phi * kInv2Pi, 1.0f));
+}
+vec3 cell_to_sphere(vec2 c) {
+  float cos_theta = 2.0f * c.x - 1.0f, sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
+  float phi = 2.0f * kPi * c.y;
+  return {sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta};
+}
+
 }  // namespace
+
+double chi2_p_value(double statistic, int dof) {
+  return (dof >= 1 && std::isfinite(statistic)) ? boost::math::gamma_q(0.5 * dof, 0.5 * statistic) : 0.0;
+}
+
+double sidak_level(double significance, int n_tests) {
+  return 1.0 - std::pow(1.0 - significance, 1.0 / double(std::max(n_tests, 1)));
+}
 
 Chi2Result chi2_test(const std::string& name, const std::function<std::optional<vec2>(vec2 u, float u1)>& sample,
                      const std::function<double(vec2)>& pdf, int n_samples, int res_x, int res_y,
@@ -150,8 +174,8 @@ Chi2Result chi2_test(const std::string& name, const std::function<std::optional<
 
   r.statistic = stat;
   r.dof = dof;
-  r.p_value = (dof >= 1 && std::isfinite(stat)) ? boost::math::gamma_q(0.5 * dof, 0.5 * stat) : 0.0;
-  double alpha = 1.0 - std::pow(1.0 - significance, 1.0 / double(std::max(n_tests, 1)));
+  r.p_value = chi2_p_value(stat, dof);
+  double alpha = sidak_level(significance, n_tests);
   r.passed = failure.empty() && r.p_value >= alpha;
   r.report += fmt::format("statistic {:.2f}, dof {}, p-value {:.4g}, threshold {:.4g} ({} pooled cells): {}\n", stat,
                           dof, r.p_value, alpha, pooled_cells, r.passed ? "passed" : "FAILED");
@@ -179,23 +203,15 @@ Chi2Result chi2_test(const std::string& name, const std::function<std::optional<
 Chi2Result chi2_test_sphere(const std::function<std::optional<vec3>(vec2 u, float u1)>& sample,
                             const std::function<float(vec3)>& pdf, int n_samples, int theta_res, int phi_res,
                             double significance, int n_tests, const std::string& name) {
-  // Cell coordinates ((cos theta + 1) / 2, phi / 2 pi): d omega = d cos theta
-  // d phi = 4 pi dx dy, so the density over the cells is 4 pi pdf.
+  // The density over the cells is 4 pi pdf (sphere_to_cell).
   auto to_cell = [&](vec2 u, float u1) -> std::optional<vec2> {
     std::optional<vec3> w = sample(u, u1);
     if (!w) return std::nullopt;
     float len = glm::length(*w);
     if (!(std::abs(len - 1.0f) <= 1e-3f)) return vec2(kInfinity);
-    float phi = std::atan2(w->y, w->x);
-    if (phi < 0.0f) phi += 2.0f * kPi;
-    return vec2(0.5f * (std::clamp(w->z, -1.0f, 1.0f) + 1.0f), std::min(phi * kInv2Pi, 1.0f));
+    return sphere_to_cell(*w);
   };
-  auto cell_pdf = [&](vec2 c) {
-    float cos_theta = 2.0f * c.x - 1.0f, sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
-    float phi = 2.0f * kPi * c.y;
-    vec3 w(sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta);
-    return 4.0 * double(kPi) * double(pdf(w));
-  };
+  auto cell_pdf = [&](vec2 c) { return 4.0 * double(kPi) * double(pdf(cell_to_sphere(c))); };
   return chi2_test(name, to_cell, cell_pdf, n_samples, theta_res, phi_res, significance, n_tests);
 }
 
@@ -210,6 +226,186 @@ Chi2Result chi2_test_square(const std::function<std::optional<vec2>(vec2 u)>& sa
   };
   auto cell_pdf = [&](vec2 c) { return double(pdf(lo + c * extent)) * double(extent.x) * double(extent.y); };
   return chi2_test(name, to_cell, cell_pdf, n_samples, res, res, significance, n_tests);
+}
+
+namespace {
+
+// One side of the weighted test: per-cell sums of weights and squared weights
+// over n independent draws.
+struct WeightedHistogram {
+  std::vector<double> sum, sum2;
+  std::vector<int> count;
+  int bad = 0;
+  std::string first_bad;
+  explicit WeightedHistogram(size_t n_cells) : sum(n_cells, 0.0), sum2(n_cells, 0.0), count(n_cells, 0) {}
+  void add(size_t k, double w) {
+    sum[k] += w;
+    sum2[k] += w * w;
+    ++count[k];
+  }
+};
+
+// The variance of (1/n) sum_i w_i [x_i in the cell] from its sums.
+double histogram_variance(double sum, double sum2, double n) {
+  return std::max(sum2 / (n * n) - sqr(sum / n) / n, 0.0);
+}
+
+}  // namespace
+
+WeightedChi2Result chi2_test_sphere_weighted(
+    const std::string& name, const std::function<std::optional<WeightedDirection>(vec2 u, float u1)>& sample,
+    const std::function<double(vec3)>& integrand, const std::vector<DirectionLobe>& lobes,
+    const WeightedChi2Settings& st) {
+  // A cell's weighted sum is close to normal only with a few dozen draws in it.
+  constexpr int kMinCount = 32;
+  WeightedChi2Result r;
+  const size_t n_cells = size_t(st.theta_res) * size_t(st.phi_res);
+  const double n_a = double(st.n_samples), n_b = double(st.n_evals);
+  std::mt19937_64 rng(0x3e16c7edu ^ st.seed);
+  auto uniform = [&] { return float(rng() >> 40) * 0x1p-24f; };
+  auto cell_of = [&](const vec3& w) {
+    vec2 c = sphere_to_cell(w);
+    int cx = std::min(int(c.x * float(st.theta_res)), st.theta_res - 1);
+    int cy = std::min(int(c.y * float(st.phi_res)), st.phi_res - 1);
+    return size_t(cy) * size_t(st.theta_res) + size_t(cx);
+  };
+  auto unit = [](const vec3& w) { return std::abs(glm::length(w) - 1.0f) <= 1e-3f; };
+
+  WeightedHistogram a(n_cells), b(n_cells);
+  int declined = 0;
+  for (int i = 0; i < st.n_samples; ++i) {
+    vec2 u(uniform(), uniform());
+    float u1 = uniform();
+    std::optional<WeightedDirection> s = sample(u, u1);
+    if (!s) {
+      ++declined;
+      continue;
+    }
+    if (!unit(s->wi) || !std::isfinite(s->weight) || s->weight < 0.0) {
+      if (a.bad++ == 0)
+        a.first_bad = fmt::format("u = ({}, {}), u1 = {} gave ({}, {}, {}) weight {}", u.x, u.y, u1, s->wi.x,
+                                  s->wi.y, s->wi.z, s->weight);
+      continue;
+    }
+    a.add(cell_of(s->wi), s->weight);
+  }
+
+  // The mixture density at v, for the integral side's weights.
+  const double uniform_share = lobes.empty() ? 1.0 : std::clamp(st.uniform_share, 0.0, 1.0);
+  const double lobe_share = lobes.empty() ? 0.0 : (1.0 - uniform_share) / double(lobes.size());
+  auto mixture_pdf = [&](const vec3& v) {
+    double q = uniform_share * double(kInv4Pi);
+    for (const DirectionLobe& l : lobes) q += lobe_share * l.pdf(v);
+    return q;
+  };
+  for (int j = 0; j < st.n_evals; ++j) {
+    double pick = double(uniform());
+    vec2 u(uniform(), uniform());
+    float u1 = uniform();
+    std::optional<vec3> v;
+    if (pick < uniform_share)
+      v = sample_uniform_sphere(u);
+    else
+      v = lobes[std::min(size_t((pick - uniform_share) / lobe_share), lobes.size() - 1)].sample(u, u1);
+    if (!v) continue;
+    double g = unit(*v) ? integrand(*v) : std::numeric_limits<double>::quiet_NaN();
+    double q = unit(*v) ? mixture_pdf(*v) : 0.0;
+    if (!std::isfinite(g) || g < 0.0 || !(q > 0.0)) {
+      if (b.bad++ == 0) b.first_bad = fmt::format("({}, {}, {}): integrand {}, mixture pdf {}", v->x, v->y, v->z, g, q);
+      continue;
+    }
+    b.add(cell_of(*v), g / q);
+  }
+
+  // Pool the cells with few draws on either side, fewest first; the pooled
+  // cell's variances are recomputed from its pooled sums (its indicator is the union's).
+  std::vector<size_t> order(n_cells);
+  std::iota(order.begin(), order.end(), size_t(0));
+  auto fewest = [&](size_t k) { return std::min(a.count[k], b.count[k]); };
+  std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return fewest(x) < fewest(y); });
+  struct Term {
+    double a = 0.0, b = 0.0, var = 0.0;
+    int count_a = 0, count_b = 0;
+    size_t cell = 0;  // n_cells for the pooled cell
+  };
+  std::vector<Term> terms;
+  double pooled[4] = {0.0, 0.0, 0.0, 0.0};  // sums and squared sums of both sides
+  Term pool{0.0, 0.0, 0.0, 0, 0, n_cells};
+  int pooled_cells = 0;
+  for (size_t k : order) {
+    r.sampled_total += a.sum[k] / n_a;
+    r.integrated_total += b.sum[k] / n_b;
+    if (fewest(k) < kMinCount || (pooled_cells > 0 && std::min(pool.count_a, pool.count_b) < kMinCount)) {
+      pooled[0] += a.sum[k];
+      pooled[1] += a.sum2[k];
+      pooled[2] += b.sum[k];
+      pooled[3] += b.sum2[k];
+      pool.count_a += a.count[k];
+      pool.count_b += b.count[k];
+      ++pooled_cells;
+    } else {
+      terms.push_back({a.sum[k] / n_a, b.sum[k] / n_b,
+                       histogram_variance(a.sum[k], a.sum2[k], n_a) + histogram_variance(b.sum[k], b.sum2[k], n_b),
+                       a.count[k], b.count[k], k});
+    }
+  }
+  auto total = [](const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0); };
+  r.sampled_sd = std::sqrt(histogram_variance(total(a.sum), total(a.sum2), n_a));
+  r.integrated_sd = std::sqrt(histogram_variance(total(b.sum), total(b.sum2), n_b));
+  if (pooled_cells > 0) {
+    pool.a = pooled[0] / n_a;
+    pool.b = pooled[2] / n_b;
+    pool.var = histogram_variance(pooled[0], pooled[1], n_a) + histogram_variance(pooled[2], pooled[3], n_b);
+    terms.push_back(pool);
+  }
+  double stat = 0.0;
+  int dof = 0;
+  for (const Term& t : terms) {
+    if (t.var > 0.0) {
+      stat += sqr(t.a - t.b) / t.var;
+      ++dof;
+    } else if (t.a != t.b) {
+      stat = kInfinity;  // mass where the other side has exactly none
+    }
+  }
+
+  r.report = fmt::format(
+      "weighted chi2 test '{}': {} samples ({} declined), {} evaluations, {}x{} cells; "
+      "sampled total {:.5f} +- {:.5f}, integrated total {:.5f} +- {:.5f}\n",
+      name, st.n_samples, declined, st.n_evals, st.theta_res, st.phi_res, r.sampled_total, r.sampled_sd,
+      r.integrated_total, r.integrated_sd);
+  std::string failure;
+  if (a.bad > 0) failure += fmt::format("{} samples not unit or with a bad weight, first: {}\n", a.bad, a.first_bad);
+  if (b.bad > 0) failure += fmt::format("{} bad evaluations, first: {}\n", b.bad, b.first_bad);
+  if (dof < 1) failure += "no cell with a variance: the test says nothing\n";
+  r.statistic = stat;
+  r.dof = dof;
+  r.p_value = chi2_p_value(stat, dof);
+  // The totals as a second test: one degree of freedom, so an error spread
+  // thinly over all cells (an overall energy error) stands out more there.
+  double total_var = sqr(r.sampled_sd) + sqr(r.integrated_sd);
+  r.total_p_value = total_var > 0.0 ? chi2_p_value(sqr(r.sampled_total - r.integrated_total) / total_var, 1)
+                                    : (r.sampled_total == r.integrated_total ? 1.0 : 0.0);
+  double alpha = sidak_level(st.significance, 2 * st.n_tests);
+  r.passed = failure.empty() && r.p_value >= alpha && r.total_p_value >= alpha;
+  r.report += fmt::format(
+      "statistic {:.2f}, dof {}, p-value {:.4g}; totals' p-value {:.4g}; threshold {:.4g} ({} pooled cells): {}\n",
+      stat, dof, r.p_value, r.total_p_value, alpha, pooled_cells, r.passed ? "passed" : "FAILED");
+  if (!r.passed) {
+    r.report += failure;
+    auto residual = [](const Term& t) { return sqr(t.a - t.b) / std::max(t.var, 1e-300); };
+    std::sort(terms.begin(), terms.end(), [&](const Term& x, const Term& y) { return residual(x) > residual(y); });
+    r.report += "largest deviations (cell cos-theta, phi index: sampled / integrated +- sd, draws on each side):\n";
+    for (size_t i = 0; i < std::min<size_t>(8, terms.size()); ++i) {
+      const Term& t = terms[i];
+      std::string cell = t.cell == n_cells ? std::string("pooled")
+                                           : fmt::format("{}, {}", t.cell % size_t(st.theta_res),
+                                                         t.cell / size_t(st.theta_res));
+      r.report += fmt::format("  {}: {:.5g} / {:.5g} +- {:.2g}, {} / {}\n", cell, t.a, t.b, std::sqrt(t.var),
+                              t.count_a, t.count_b);
+    }
+  }
+  return r;
 }
 
 }  // namespace theia

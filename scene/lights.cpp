@@ -113,15 +113,15 @@ RGB area_radiance(const LightSet& lights, int light_index, int prim, vec2 uv) {
 }
 
 // Mean luminance of an area light's image over mesh triangle t: a stratified
-// grid of points on the triangle, about one per texel it covers (4 x 4 to
-// 64 x 64).  Only the triangle choice and light_power use it, and the pdf
+// grid of points on the triangle, 16 or more per texel it covers (16 x 16
+// to 64 x 64).  Only the triangle choice and light_power use it, and the pdf
 // is whatever the choice does, so an estimate costs variance, not bias.
 double triangle_image_luminance(const Image& img, const TriangleMesh& m, size_t t) {
   vec2 uv[3];
   triangle_uvs(m, t, uv);
   vec2 e1 = uv[1] - uv[0], e2 = uv[2] - uv[0];
   double texels = 0.5 * std::abs(double(e1.x) * e2.y - double(e1.y) * e2.x) * img.width * img.height;
-  int n = std::clamp(int(std::ceil(std::sqrt(texels))), 4, 64);
+  int n = std::clamp(int(std::ceil(4.0 * std::sqrt(texels))), 16, 64);
   double sum = 0.0;
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {

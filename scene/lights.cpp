@@ -1,5 +1,6 @@
 #include "scene/lights.h"
 
+#include "core/hash.h"
 #include "core/log.h"
 #include "core/sampling.h"
 #include "scene/texture.h"
@@ -95,6 +96,54 @@ vec3 to_light(const Light& light, const vec3& w) {
   return glm::normalize(mat3(light.render_from_light.m_inv) * w);
 }
 
+// An area light's image at the surface's uv, as pbrt-v4 looks it up: v
+// flipped, Image::Bilerp with clamping, negative values clamped to zero.
+RGB area_texel(const Image& img, vec2 uv) {
+  return glm::max(image_bilerp(img, vec2(uv.x, 1.0f - uv.y), WrapMode::Clamp), RGB(0.0f));
+}
+
+// Radiance of area light `light_index` at triangle `prim` (-1 for quadrics), uv, before the side test.
+RGB area_radiance(const LightSet& lights, int light_index, int prim, vec2 uv) {
+  const Light& light = lights.scene->lights[size_t(light_index)];
+  RGB L = light.L * lights.area_image_scale[size_t(light_index)];
+  if (!light.triangle_scale.empty())
+    L *= prim >= 0 && size_t(prim) < light.triangle_scale.size() ? light.triangle_scale[size_t(prim)] : 0.0f;
+  if (light.image >= 0) L *= area_texel(lights.scene->images[size_t(light.image)], uv);
+  return L;
+}
+
+// Mean luminance of an area light's image over mesh triangle t: a stratified
+// grid of points on the triangle, 16 or more per texel it covers (16 x 16
+// to 64 x 64).  Only the triangle choice and light_power use it, and the pdf
+// is whatever the choice does, so an estimate costs variance, not bias.
+double triangle_image_luminance(const Image& img, const TriangleMesh& m, size_t t) {
+  vec2 uv[3];
+  triangle_uvs(m, t, uv);
+  vec2 e1 = uv[1] - uv[0], e2 = uv[2] - uv[0];
+  double texels = 0.5 * std::abs(double(e1.x) * e2.y - double(e1.y) * e2.x) * img.width * img.height;
+  int n = std::clamp(int(std::ceil(4.0 * std::sqrt(texels))), 16, 64);
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      vec2 b = sample_uniform_triangle(vec2((float(i) + 0.5f) / float(n), (float(j) + 0.5f) / float(n)));
+      sum += double(luminance(area_texel(img, b.x * uv[0] + b.y * uv[1] + (1.0f - b.x - b.y) * uv[2])));
+    }
+  return sum / double(n * n);
+}
+
+// pbrt-v4's k_e for an area light image: the mean over pixels of their luminance.
+double image_mean_luminance(const Light& light, const Image& img) {
+  if (img.pixels.empty() || img.width <= 0 || img.height <= 0)
+    throw_error("{}:{}: area light image \"{}\" was not loaded", light.loc.file, light.loc.line, img.filename);
+  if (img.channels < 3)
+    throw_error("{}:{}: area light image \"{}\" has {} channel(s), expected an RGB image (as pbrt-v4)",
+                light.loc.file, light.loc.line, img.filename, img.channels);
+  double sum = 0.0;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) sum += double(luminance(image_texel(img, {x, y}, WrapMode::Clamp)));
+  return sum / (double(img.width) * double(img.height));
+}
+
 }  // namespace
 
 vec3 environment_direction(const EnvironmentMap& env, vec2 uv) {
@@ -113,7 +162,48 @@ float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compe
   return sin_theta > 0.0f ? pdf_uv / (2.0f * kPi * kPi * sin_theta) : 0.0f;
 }
 
-LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s), shapes(s) {
+LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
+  // Area lights: the image normalisation, the triangles' emission per unit
+  // area (their choice by power) and the integral of it over the shape.
+  area_image_scale.assign(s.lights.size(), 1.0f);
+  area_luminance.assign(s.lights.size(), 0.0);
+  std::vector<std::vector<float>> triangle_weight(s.shapes.size());
+  std::vector<double> pixel_mean(s.lights.size(), 1.0), weighted_area(s.lights.size(), -1.0);
+  for (size_t i = 0; i < s.lights.size(); ++i) {
+    const Light& l = s.lights[i];
+    if (l.kind != LightKind::Area || l.shape < 0) continue;
+    const Image* img = l.image >= 0 ? &s.images.at(size_t(l.image)) : nullptr;
+    if (img) {
+      pixel_mean[i] = image_mean_luminance(l, *img);
+      if (l.power > 0.0f) {
+        if (!(pixel_mean[i] > 0.0))
+          throw_error("{}:{}: \"power\" given for an area light whose image \"{}\" is black", l.loc.file,
+                      l.loc.line, img->filename);
+        area_image_scale[i] = float(1.0 / pixel_mean[i]);
+      }
+    }
+    const Shape& shape = s.shapes[size_t(l.shape)];
+    if (shape.kind != ShapeKind::TriangleMesh || (l.triangle_scale.empty() && !img)) continue;
+    const TriangleMesh& m = s.meshes[size_t(shape.mesh)];
+    std::vector<float>& w = triangle_weight[size_t(l.shape)];
+    w.assign(m.triangle_count(), 1.0f);
+    double sum = 0.0;
+    for (size_t t = 0; t < w.size(); ++t) {
+      if (!l.triangle_scale.empty()) w[t] = l.triangle_scale[t];
+      if (img) w[t] *= float(triangle_image_luminance(*img, m, t));
+      sum += double(float(triangle_area(m, t))) * double(w[t]);
+    }
+    weighted_area[i] = sum;
+  }
+  shapes = ShapeSampling(s, triangle_weight);
+  for (size_t i = 0; i < s.lights.size(); ++i) {
+    const Light& l = s.lights[i];
+    if (l.kind != LightKind::Area) continue;
+    double integral = weighted_area[i] >= 0.0 ? weighted_area[i] : double(shapes.area(l.shape)) * pixel_mean[i];
+    // L is grey whenever there is an image, so luminance factors out of the texel.
+    area_luminance[i] = integral * double(luminance(l.L * area_image_scale[i]));
+  }
+
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     scene_center = 0.5f * (b.min + b.max);
@@ -146,9 +236,17 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
       float dist2 = glm::dot(d, d);
       if (dist2 == 0.0f) return std::nullopt;
       vec3 wi = d / std::sqrt(dist2);
-      RGB L = light.two_sided || glm::dot(ss->n, -wi) > 0.0f ? light.L : RGB(0.0f);
+      if (!light.two_sided && glm::dot(ss->n, -wi) <= 0.0f) return std::nullopt;
+      // pbrt-v4's invisible area light: a constant alpha of 0 hides the
+      // shape from every ray but not its emission, and since rays never find
+      // it, light samples take no MIS weight (pbrt-v4 makes it DeltaPosition).
+      const Shape& shape = lights.scene->shapes[size_t(light.shape)];
+      bool invisible = shape.alpha >= 0 && lights.scene->textures[size_t(shape.alpha)].kind == TextureKind::Constant &&
+                       lights.scene->textures[size_t(shape.alpha)].value.x <= 0.0f;
+      if (!invisible && area_light_alpha_masked(*lights.scene, light.shape, ss->p, ss->uv)) return std::nullopt;
+      RGB L = area_radiance(lights, light_index, ss->prim, ss->uv);
       if (is_black(L)) return std::nullopt;
-      return LightLiSample{L, wi, ss->pdf, ss->p, ss->p_error, ss->n, false, false};
+      return LightLiSample{L, wi, ss->pdf, ss->p, ss->p_error, ss->n, invisible, false};
     }
     case LightKind::Point:
     case LightKind::Spot: {
@@ -208,9 +306,19 @@ float infinite_light_pdf(const LightSet& lights, int light_index, const vec3& wi
   return environment_pdf(lights.environments[size_t(e)], to_light(light, wi), allow_incomplete_pdf);
 }
 
-RGB area_light_L(const Light& light, const SurfaceInteraction& hit, const vec3& w) {
+RGB area_light_L(const LightSet& lights, int light_index, const SurfaceInteraction& hit, const vec3& w) {
+  const Light& light = lights.scene->lights[size_t(light_index)];
   if (!light.two_sided && glm::dot(hit.ng, w) <= 0.0f) return RGB(0.0f);
-  return light.L;
+  return area_radiance(lights, light_index, hit.prim, hit.uv);
+}
+
+bool area_light_alpha_masked(const Scene& scene, int shape, const vec3& p, vec2 uv) {
+  int alpha = scene.shapes[size_t(shape)].alpha;
+  if (alpha < 0) return false;
+  float a = eval_float_texture(scene, alpha, TextureEvalContext{uv, p, {}});
+  if (a >= 1.0f) return false;
+  if (a <= 0.0f) return true;
+  return to_unit_float(uint32_t(hash_bytes(&p, sizeof(p)) >> 32)) > a;
 }
 
 RGB infinite_light_Le(const LightSet& lights, int light_index, const vec3& dir) {
@@ -227,7 +335,7 @@ float light_power(const LightSet& lights, int light_index) {
   float disk = kPi * sqr(lights.scene_radius);  // what a directional emitter illuminates
   switch (light.kind) {
     case LightKind::Area:
-      return kPi * (light.two_sided ? 2.0f : 1.0f) * lights.shapes.area(light.shape) * y;
+      return float(kPi * (light.two_sided ? 2.0 : 1.0) * lights.area_luminance[size_t(light_index)]);
     case LightKind::Point:
       return 4.0f * kPi * y;
     case LightKind::Spot:

@@ -26,7 +26,9 @@ struct LightSampleContext {
 struct LightLiSample {
   RGB L{0.0f};          // radiance arriving from the light (no visibility)
   vec3 wi{0.0f};        // unit direction towards the light
-  float pdf = 0.0f;     // solid angle; for delta lights 1 and `is_delta` set
+  // Solid angle; for delta lights 1 and `is_delta` set.  An invisible area
+  // light (constant alpha 0) keeps its pdf and sets `is_delta`: no MIS weight.
+  float pdf = 0.0f;
   vec3 p_light{0.0f};   // point on the light (for infinite lights: far away along wi)
   vec3 p_light_error{0.0f};
   vec3 n_light{0.0f};
@@ -61,10 +63,17 @@ struct LightSet {
   std::vector<int> infinite_lights;  // indices into Scene::lights (those seen by escaped rays)
   std::vector<EnvironmentMap> environments;
   std::vector<int> environment_of_light;  // per light: index into environments, or -1
+  // Per light (area lights; 1 for the others): the factor on L * triangle_scale
+  // * texel that is known only with the pixels, 1 / k_e for an image with "power".
+  std::vector<float> area_image_scale;
+  // Per light (area lights): the emitted luminance integrated over the shape's
+  // area, for light_power (luminance(L) * area for a uniform emitter).
+  std::vector<double> area_luminance;
 
   // Images must be loaded (scene/texture.h's load_images); throws
   // theia::Error for an environment image that is neither square nor 2:1 or
-  // has non-finite pixels.
+  // has non-finite pixels, and for an area light image that is not RGB or
+  // that "power" cannot normalise (zero mean luminance).
   LightSet(const Scene& scene, const Accel& accel);
 };
 
@@ -85,8 +94,15 @@ float area_light_pdf(const LightSet& lights, int light, const LightSampleContext
 // Solid-angle pdf that sample_li() on infinite `light` produces direction wi.
 float infinite_light_pdf(const LightSet& lights, int light, const vec3& wi, bool allow_incomplete_pdf = true);
 
-// Radiance an area light emits from `hit` towards `w` (one- or two-sided).
-RGB area_light_L(const Light& light, const SurfaceInteraction& hit, const vec3& w);
+// Radiance area light `light` emits from `hit` towards `w`: one- or
+// two-sided, its triangle's factor, its image at hit.uv.  No alpha test: a
+// hit found by a ray has passed the accel's stochastic alpha test already
+// (pbrt-v4 tests alpha again here, which makes the emission rays find a^2 L
+// while light sampling finds a L; theia tests once on each strategy).
+RGB area_light_L(const LightSet& lights, int light, const SurfaceInteraction& hit, const vec3& w);
+// pbrt-v4's DiffuseAreaLight::AlphaMasked for a sampled point on `shape`:
+// masked where alpha <= 0, never where alpha >= 1, else where a hash of p exceeds alpha.
+bool area_light_alpha_masked(const Scene& scene, int shape, const vec3& p, vec2 uv);
 // Radiance arriving along an escaped ray from one infinite light.
 RGB infinite_light_Le(const LightSet& lights, int light, const vec3& dir);
 

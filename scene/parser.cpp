@@ -1,6 +1,7 @@
 #include "scene/parser.h"
 
 #include "core/log.h"
+#include "scene/light_params.h"
 #include "scene/material_params.h"
 #include "scene/params.h"
 #include "scene/shapes.h"
@@ -30,9 +31,7 @@ struct GraphicsState {
   bool end_time_only = false;  // ActiveTransform EndTime: edits go to the end transform, which theia drops
   int material = -1;           // -1: the default diffuse 0.5
   bool area_light = false;
-  RGB area_L{0.0f};
-  bool area_two_sided = false, area_virtual = false;
-  float area_power = -1.0f;    // "power" of the AreaLightSource: resolved per shape, by its area
+  AreaLightParams area;        // resolved per shape by make_area_light
   ParamList shape_attrs, light_attrs, material_attrs, texture_attrs;
 };
 
@@ -86,7 +85,8 @@ class SceneParser {
   void pixel_filter(const std::string& type, ParamList& params, const SourceLoc& loc);
   void shape(const std::string& type, ParamList& params, const SourceLoc& loc, const std::string& base_dir);
   void light_source(const std::string& type, ParamList& params, const SourceLoc& loc, const std::string& base_dir);
-  void area_light_source(const std::string& type, ParamList& params, const SourceLoc& loc);
+  void area_light_source(const std::string& type, ParamList& params, const SourceLoc& loc,
+                         const std::string& base_dir);
   int make_material(const std::string& type, const std::string& name, ParamList& params, const SourceLoc& loc,
                     const std::string& base_dir);
   void texture(const std::string& name, const std::string& type, const std::string& cls, ParamList& params,
@@ -281,7 +281,7 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
       std::string type = string_arg(tok, d);
       ParamList params = parse_params(tok);
       params.add_defaults(gs_.light_attrs);
-      area_light_source(type, params, loc);
+      area_light_source(type, params, loc, base_dir);
       params.report_unused();
     } else if (d == "LightSource") {
       need_world(loc, d);
@@ -644,22 +644,30 @@ int SceneParser::default_material() {
 
 // ---------------------------------------------------------------- lights
 
-void SceneParser::area_light_source(const std::string& type, ParamList& params, const SourceLoc& loc) {
+void SceneParser::area_light_source(const std::string& type, ParamList& params, const SourceLoc& loc,
+                                    const std::string& base_dir) {
   gs_.area_light = false;
   if (type != "diffuse") {
     warn_at(loc, "area light \"{}\" is not supported; ignored", type);
     params.mark_all_used();
     return;
   }
-  RGB L = params.get_spectrum("L", SpectrumUse::Illuminant, RGB(1.0f)).value_or(RGB(1.0f));
+  std::optional<RGB> L = params.get_spectrum("L", SpectrumUse::Illuminant, RGB(1.0f));
   float scale = params.get_float("scale", 1.0f);
-  if (const Param* p = params.find("filename", ParamType::String))
-    warn_at(p->loc, "area light parameter {} is not supported; ignored", p->label());
+  AreaLightParams a;
+  if (const Param* f = params.find("filename", ParamType::String)) {
+    if (L) throw_at(loc, "diffuse area light with both \"L\" and \"filename\", expected one of them");
+    a.image = image(resolve(base_dir, f->strings[0]), "", true, f->loc);
+    a.L = RGB(scale);  // the texel is the radiance (pbrt-v4's RGBIlluminantSpectrum)
+  } else {
+    a.L = L.value_or(RGB(1.0f)) * scale;
+  }
+  float power = params.get_float("power", -1.0f);
+  a.power = power > 0.0f ? power : -1.0f;
+  a.two_sided = params.get_bool("twosided", false);
+  a.is_virtual = params.get_bool("virtual", false);
   gs_.area_light = true;
-  gs_.area_L = L * scale;
-  gs_.area_power = params.get_float("power", -1.0f);
-  gs_.area_two_sided = params.get_bool("twosided", false);
-  gs_.area_virtual = params.get_bool("virtual", false);
+  gs_.area = a;
 }
 
 void SceneParser::light_source(const std::string& type, ParamList& params, const SourceLoc& loc,
@@ -743,16 +751,6 @@ void SceneParser::bake(TriangleMesh& m) const {
     for (vec3& n : m.n) n = -n;
 }
 
-// pbrt_emitter_area (scene/shapes.h), warning where theia departs from pbrt-v4.
-static float pbrt_shape_area(const Scene& scene, const Shape& s) {
-  bool unequal = false;
-  float area = pbrt_emitter_area(scene, s, &unequal);
-  if (unequal)
-    warn_at(s.loc, "area light \"power\" on a mesh of unequal triangles: pbrt-v4 gives each triangle the power "
-                   "(radiance varying with its area); theia uses the mean triangle area");
-  return area;
-}
-
 void SceneParser::add_shape(Shape s, const ParamList& params) {
   s.reverse_orientation = gs_.reverse_orientation;
   s.transform_swaps_handedness = gs_.ctm.swaps_handedness();
@@ -768,17 +766,8 @@ void SceneParser::add_shape(Shape s, const ParamList& params) {
     if (object_ >= 0) {
       warn_at(s.loc, "area lights inside ObjectBegin are not supported (pbrt-v4 neither); emission ignored");
     } else {
-      Light l;
-      l.kind = LightKind::Area;
-      l.L = gs_.area_L;
-      if (gs_.area_power > 0.0f)
-        l.L *= gs_.area_power / (kPi * (gs_.area_two_sided ? 2.0f : 1.0f) * pbrt_shape_area(scene_, s));
-      l.two_sided = gs_.area_two_sided;
-      l.is_virtual = gs_.area_virtual;
-      l.shape = index;
-      l.loc = s.loc;
       s.area_light = int(scene_.lights.size());
-      scene_.lights.push_back(l);
+      scene_.lights.push_back(make_area_light(scene_, gs_.area, s, index));
     }
   }
   scene_.shapes.push_back(std::move(s));

@@ -165,7 +165,18 @@ struct Light {
   vec3 direction{0.0f, 0.0f, 1.0f};
   float cos_falloff_start = 1.0f;   // spot: full intensity inside this cone
   float cos_falloff_end = 1.0f;     // spot: zero outside this one (smoothstep between)
-  int image = -1;                   // infinite: environment image (index into Scene::images), or -1
+  // Infinite: environment image; area: emission image ("filename", RGB, looked
+  // up bilinearly at the hit's uv with v flipped).  Index into Scene::images, or -1.
+  // An area light with an image has L = RGB("scale"): the radiance is L times the texel.
+  int image = -1;
+  // Area on a triangle mesh with "power": pbrt-v4 makes one light per
+  // triangle, each emitting the whole power, so triangle i's radiance is
+  // L * triangle_scale[i] (phi / (pi * sides * area_i)).  Empty when every
+  // triangle has the same radiance (then L includes the factor).
+  std::vector<float> triangle_scale;
+  // Area: pbrt-v4 "power" (> 0) if given, already in L / triangle_scale except
+  // for an image's mean luminance k_e, which needs the pixels: LightSet divides by it.
+  float power = -1.0f;
   float illuminance = -1.0f;        // infinite with image: pbrt-v4 "illuminance" (> 0), applied by LightSet
   Transform render_from_light;      // infinite: orientation of the environment map
   SourceLoc loc;

@@ -93,6 +93,11 @@ vec2 disk_uv(const DiskShape& s, double x, double y) {
 
 // ---------------------------------------------------------------- local geometry
 
+double triangle_area(const TriangleMesh& m, size_t tri) {
+  dvec3 p0(m.p[m.indices[3 * tri]]), p1(m.p[m.indices[3 * tri + 1]]), p2(m.p[m.indices[3 * tri + 2]]);
+  return 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
+}
+
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
   if (m.uv.empty()) {
     uv[0] = vec2(0, 0), uv[1] = vec2(1, 0), uv[2] = vec2(1, 1);
@@ -230,6 +235,7 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   SurfaceInteraction si;
   if (s.kind == ShapeKind::TriangleMesh) {
     si = triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v);
+    si.prim = int(hit.prim);
   } else if (s.kind == ShapeKind::Sphere) {
     si = quadric_interaction(s, sphere_local(make_sphere_shape(s.sphere), hit.u, hit.v));
   } else {
@@ -330,7 +336,8 @@ ShapeSample from_quadric(const ShapeSampling::Entry& e, const LocalGeom& g) {
 
 }  // namespace
 
-ShapeSampling::ShapeSampling(const Scene& scene) : entry_of_shape_(scene.shapes.size(), -1) {
+ShapeSampling::ShapeSampling(const Scene& scene, const std::vector<std::vector<float>>& triangle_weight)
+    : entry_of_shape_(scene.shapes.size(), -1) {
   for (const ObjectPrototype& proto : scene.prototypes)
     for (int s : proto.shapes)
       if (scene.shapes[size_t(s)].area_light >= 0)
@@ -348,14 +355,25 @@ ShapeSampling::ShapeSampling(const Scene& scene) : entry_of_shape_(scene.shapes.
       std::vector<float> areas(e.mesh->triangle_count());
       double total = 0.0;
       for (size_t t = 0; t < areas.size(); ++t) {
-        dvec3 p0(e.mesh->p[e.mesh->indices[3 * t]]), p1(e.mesh->p[e.mesh->indices[3 * t + 1]]),
-            p2(e.mesh->p[e.mesh->indices[3 * t + 2]]);
-        double a = 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
-        areas[t] = float(a);
-        total += a;
+        areas[t] = float(triangle_area(*e.mesh, t));
+        total += double(areas[t]);
       }
-      e.triangles = Distribution1D(areas);
       e.area = float(total);
+      const std::vector<float>* w = size_t(index) < triangle_weight.size() ? &triangle_weight[size_t(index)] : nullptr;
+      if (w && !w->empty()) {
+        if (w->size() != areas.size())
+          throw_error("{}:{}: {} triangle weights for {} triangles", s.loc.file, s.loc.line, w->size(), areas.size());
+        std::vector<float> f(areas.size());
+        for (size_t t = 0; t < f.size(); ++t) f[t] = areas[t] * std::max((*w)[t], 0.0f);
+        e.triangles = Distribution1D(f);
+        // The exact density of what sample() does: the pmf it picks a
+        // triangle with, spread uniformly over that triangle.
+        e.triangle_pdf.resize(areas.size());
+        for (size_t t = 0; t < areas.size(); ++t)
+          e.triangle_pdf[t] = areas[t] > 0.0f ? e.triangles.discrete_pmf(int(t)) / areas[t] : 0.0f;
+      } else {
+        e.triangles = Distribution1D(areas);
+      }
     } else {
       e.render_from_object = dmat4(s.render_from_object.m);
       e.object_from_render = glm::inverse(e.render_from_object);
@@ -412,7 +430,9 @@ float ShapeSampling::area(int shape) const {
   return entries_[size_t(entry_of_shape_[size_t(shape)])].area;
 }
 
-float ShapeSampling::area_pdf(const Entry& e, const vec3& p) const {
+float ShapeSampling::area_pdf(const Entry& e, const vec3& p, int prim) const {
+  if (!e.triangle_pdf.empty())
+    return prim >= 0 && size_t(prim) < e.triangle_pdf.size() ? e.triangle_pdf[size_t(prim)] : 0.0f;
   if (e.kind == ShapeKind::Sphere) {
     dvec3 n = glm::normalize(dvec3(e.object_from_render * dvec4(dvec3(p), 1.0)));
     return float(1.0 / (e.object_area * area_jacobian(e, n)));
@@ -438,7 +458,8 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
     vec2 uv[3];
     triangle_uvs(m, t, uv);
     ss.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
-    return to_solid_angle(ss, 1.0f / e.area, ref);
+    ss.prim = int(t);
+    return to_solid_angle(ss, area_pdf(e, ss.p, ss.prim), ref);
   }
 
   if (e.kind == ShapeKind::Sphere) {
@@ -481,7 +502,7 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
     double theta = std::acos(std::clamp(z / sp.radius, -1.0, 1.0));
     LocalGeom g = sphere_local(sp, phi, theta);
     ShapeSample ss = from_quadric(e, g);
-    return to_solid_angle(ss, area_pdf(e, ss.p), ref);
+    return to_solid_angle(ss, area_pdf(e, ss.p, -1), ref);
   }
 
   const DiskShape& dk = e.disk;
@@ -523,32 +544,19 @@ float ShapeSampling::pdf(int shape, const ShapeSampleContext& ref, const vec3& w
   if (d2 == 0.0f || glm::dot(wi, d) <= 0.0f) return 0.0f;
   float cos = std::abs(glm::dot(light_hit.ng, d / std::sqrt(d2)));
   if (cos == 0.0f) return 0.0f;
-  float pdf = area_pdf(e, light_hit.p) * d2 / cos;
+  float pdf = area_pdf(e, light_hit.p, light_hit.prim) * d2 / cos;
   return std::isfinite(pdf) ? pdf : 0.0f;
 }
 
-float pbrt_emitter_area(const Scene& scene, const Shape& s, bool* unequal_triangles) {
+float pbrt_quadric_area(const Shape& s) {
   if (s.kind == ShapeKind::Sphere) {
     double r = s.sphere.radius;
     double zmin = std::clamp(double(std::min(s.sphere.zmin, s.sphere.zmax)), -r, r);
     double zmax = std::clamp(double(std::max(s.sphere.zmin, s.sphere.zmax)), -r, r);
     return float(radians(std::clamp(s.sphere.phimax, 0.0f, 360.0f)) * r * (zmax - zmin));
   }
-  if (s.kind == ShapeKind::Disk)
-    return float(0.5 * radians(std::clamp(s.disk.phimax, 0.0f, 360.0f)) *
-                 (double(s.disk.radius) * s.disk.radius - double(s.disk.innerradius) * s.disk.innerradius));
-  const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
-  double total = 0.0, lo = kInfinity, hi = 0.0;
-  for (size_t t = 0; t < m.triangle_count(); ++t) {
-    vec3 p0 = m.p[m.indices[3 * t]], p1 = m.p[m.indices[3 * t + 1]], p2 = m.p[m.indices[3 * t + 2]];
-    double a = 0.5 * double(glm::length(glm::cross(p1 - p0, p2 - p0)));
-    total += a;
-    lo = std::min(lo, a);
-    hi = std::max(hi, a);
-  }
-  if (unequal_triangles) *unequal_triangles = hi > 1.01 * lo;
-  return float(total / double(std::max<size_t>(m.triangle_count(), 1)));
+  return float(0.5 * radians(std::clamp(s.disk.phimax, 0.0f, 360.0f)) *
+               (double(s.disk.radius) * s.disk.radius - double(s.disk.innerradius) * s.disk.innerradius));
 }
-
 
 }  // namespace theia

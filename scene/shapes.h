@@ -60,7 +60,11 @@ struct SurfaceInteraction {
   vec3 wo{0.0f};  // -ray.d, unit
   float t = 0.0f;
   int shape = -1, material = -1, area_light = -1, instance = -1;
+  int prim = -1;  // triangle meshes: the triangle (per-triangle emission and sampling pdf)
 };
+
+// Area of triangle `tri`, in double from its stored (float) corners.
+double triangle_area(const TriangleMesh& m, size_t tri);
 
 // The (u, v) of triangle `tri`'s corners: the mesh's, or pbrt-v4's default (0,0) (1,0) (1,1).
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]);
@@ -80,6 +84,7 @@ struct ShapeSample {
   vec3 p_error{0.0f};
   vec3 n{0.0f};  // oriented as compute_interaction's ng at p
   vec2 uv{0.0f};
+  int prim = -1;     // triangle meshes: the triangle chosen
   float pdf = 0.0f;  // w.r.t. solid angle at the reference point
 };
 struct ShapeSampleContext {
@@ -90,8 +95,12 @@ struct ShapeSampleContext {
 class ShapeSampling {
  public:
   ShapeSampling() = default;
-  // Tables only for top-level shapes with area_light >= 0.
-  explicit ShapeSampling(const Scene& scene);
+  // Tables only for top-level shapes with area_light >= 0.  A mesh's
+  // triangles are chosen with probability proportional to area times
+  // triangle_weight[shape][i] (the light's emitted luminance per unit area on
+  // triangle i, so that triangles are chosen by power), or to area alone
+  // where that vector is missing or empty.
+  explicit ShapeSampling(const Scene& scene, const std::vector<std::vector<float>>& triangle_weight = {});
 
   std::optional<ShapeSample> sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim) const;
   // Solid-angle density with which sample() returns light_hit's point in direction wi.
@@ -104,7 +113,8 @@ class ShapeSampling {
     const TriangleMesh* mesh = nullptr;
     bool flip = false;  // reverse_orientation XOR transform_swaps_handedness
     float area = 0.0f;
-    Distribution1D triangles;  // mesh: proportional to triangle area
+    Distribution1D triangles;  // mesh: proportional to triangle area (times its weight)
+    std::vector<float> triangle_pdf;  // weighted mesh: area density on each triangle (pmf / area)
     SphereShape sphere{};
     DiskShape disk{};
     glm::dmat4 render_from_object{1.0}, object_from_render{1.0};
@@ -117,19 +127,14 @@ class ShapeSampling {
   };
 
  private:
-  float area_pdf(const Entry& e, const vec3& p) const;
+  float area_pdf(const Entry& e, const vec3& p, int prim) const;
   std::vector<Entry> entries_;
   std::vector<int> entry_of_shape_;
 };
 
-// The area pbrt-v4's DiffuseAreaLight divides "power" by.  pbrt-v4 makes one
-// light per triangle, so each triangle emits the whole "power" and its
-// radiance depends on its own area; theia keeps one radiance per shape and
-// uses the mean triangle area, which is exact for meshes of equal-area
-// triangles (quads, tessellated panels) and keeps the total power pbrt-v4
-// gives (triangles x power) for the others, with a warning.  Quadrics use
-// their object-space area, as pbrt-v4's Sphere::Area() and Disk::Area() do.
-// `unequal_triangles` reports a mesh whose triangle areas differ by more than 1%.
-float pbrt_emitter_area(const Scene& scene, const Shape& shape, bool* unequal_triangles = nullptr);
+// The area pbrt-v4's DiffuseAreaLight divides "power" by for a quadric: its
+// object-space area, as pbrt-v4's Sphere::Area() and Disk::Area() return
+// (meshes are one light per triangle: triangle_area).
+float pbrt_quadric_area(const Shape& shape);
 
 }  // namespace theia

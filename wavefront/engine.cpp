@@ -401,7 +401,7 @@ struct WavefrontEngine::Impl {
     // Emission found by the BSDF-sampled ray.
     if (si.area_light >= 0) {
       const Light& light = scene.lights[si.area_light];
-      RGB Le = area_light_L(light, si, wo);
+      RGB Le = area_light_L(lights, si.area_light, si, wo);
       if (!is_black(Le)) {
         float w = 1.0f;
         if (!prev_specular) {

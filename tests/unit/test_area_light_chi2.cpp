@@ -1,7 +1,9 @@
 // Chi-square tests of area-light sampling (sample_li) against its own pdf
 // (area_light_pdf), for every way a shape is sampled: triangles chosen by
-// area (unequal ones), the cone of a full sphere seen from outside, area
-// sampling of a partial sphere, and an annulus sector of a disk.
+// area (unequal ones), triangles chosen by power (pbrt-v4's "power" per
+// triangle; an emission image's luminance), the cone of a full sphere seen
+// from outside, area sampling of a partial sphere, and an annulus sector of
+// a disk.
 //
 // Directions are binned in the cone that bounds the light as seen from the
 // reference point, so the test resolves the light itself rather than a few
@@ -12,6 +14,7 @@
 #include "scene/accel.h"
 #include "scene/lights.h"
 #include "scene/parser.h"
+#include "tests/test_util.h"
 #include "tests/unit/chi2.h"
 
 #include <gtest/gtest.h>
@@ -54,12 +57,18 @@ struct ConeChart {
 // (a partial sphere shows its inside through the cut), so the density of a
 // direction sums the pdf of every hit; cone sampling of a full sphere picks
 // the first hit only, and its pdf already is the density of the direction.
+// `light`: the AreaLightSource's parameters; `image`: an emission image put
+// in place of its "L".
 void expect_light_sampling_matches_pdf(const std::string& name, const std::string& shape, vec3 p, int n_tests,
-                                       bool all_hits = false) {
-  Scene scene = parse_scene_string("WorldBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"bool twosided\" true\n" +
-                                       shape,
-                                   name);
+                                       bool all_hits = false,
+                                       const std::string& light = "\"rgb L\" [1 1 1] \"bool twosided\" true",
+                                       const Image* image = nullptr) {
+  Scene scene = parse_scene_string("WorldBegin\nAreaLightSource \"diffuse\" " + light + "\n" + shape, name);
   ASSERT_EQ(scene.lights.size(), 1u);
+  if (image) {
+    scene.images.push_back(*image);
+    scene.lights[0].image = int(scene.images.size()) - 1;
+  }
   Accel accel(scene);
   LightSet lights(scene, accel);
   LightSampleContext ctx{p};
@@ -98,6 +107,23 @@ TEST(Chi2AreaLight, SamplingMatchesPdfForEveryShapeKind) {
       "triangles", "Shape \"trianglemesh\" \"point3 P\" [0 0 0  2 0 0  2 1 0  2.5 0 0  3 0 0  3 1 0] "
                    "\"integer indices\" [0 1 2 3 4 5]",
       vec3(1.2f, 0.6f, 1.5f), n_tests, /*all_hits=*/true);
+  // The same with pbrt-v4's "power": each triangle emits it, so the small
+  // one (four times the radiance) is chosen as often as the large one.
+  expect_light_sampling_matches_pdf(
+      "triangles by power", "Shape \"trianglemesh\" \"point3 P\" [0 0 0  2 0 0  2 1 0  2.5 0 0  3 0 0  3 1 0] "
+                            "\"integer indices\" [0 1 2 3 4 5]",
+      vec3(1.2f, 0.6f, 1.5f), n_tests, /*all_hits=*/true, "\"float power\" 3 \"bool twosided\" true");
+  // Triangles chosen by their mean image luminance: a quad under an image
+  // bright in one corner, of a mesh of eight unequal triangles.
+  const Image corner = test::make_image(4, 4, 3, [](int x, int y) {
+    return RGB(x == 3 && y == 0 ? 20.0f : 0.2f * float(x + y), 0.5f, 0.1f);
+  });
+  expect_light_sampling_matches_pdf(
+      "triangles by image",
+      "Shape \"trianglemesh\" \"point3 P\" [0 0 0  1 0 0  1 1 0  0 1 0  0.3 0.6 0  0.8 0.2 0] "
+      "\"point2 uv\" [0 0  1 0  1 1  0 1  0.3 0.6  0.8 0.2] "
+      "\"integer indices\" [0 1 5  1 2 5  2 4 5  2 3 4  3 0 4  0 5 4]",
+      vec3(0.4f, 0.5f, 1.2f), n_tests, /*all_hits=*/true, "\"bool twosided\" true", &corner);
   // A full sphere from outside: uniform over its cone of directions.
   expect_light_sampling_matches_pdf("sphere cone", "Translate 0 0 -2\nShape \"sphere\" \"float radius\" 0.5",
                                     vec3(0.2f, -0.1f, 0.3f), n_tests);

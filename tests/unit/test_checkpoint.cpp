@@ -155,4 +155,18 @@ TEST(SceneFingerprint, ChangesWithEveryImageAffectingParameter) {
   EXPECT_NE(a, fp(R"(LightSource "spot" "point3 from" [0 2 0] "point3 to" [0 0 0]
     Material "dielectric" "float eta" 1.5 "float roughness" 0.1
     Shape "sphere" "bool holdout" true)"));
+  // Area-light fields that only the LightSet reads: "power" on a mesh of
+  // unequal triangles (the per-triangle factors) and an image's normalisation.
+  Scene emitter = parse_scene_string(R"(WorldBegin
+    AreaLightSource "diffuse" "float power" 10
+    Shape "trianglemesh" "point3 P" [0 0 0 2 0 0 2 1 0 2.5 0 0 3 0 0 3 1 0] "integer indices" [0 1 2 3 4 5])",
+                                     "<fp>");
+  ASSERT_EQ(emitter.lights.at(0).triangle_scale.size(), 2u);
+  const uint64_t e = scene_fingerprint(emitter);
+  emitter.lights[0].triangle_scale[1] *= 2.0f;
+  EXPECT_NE(e, scene_fingerprint(emitter));
+  emitter.lights[0].triangle_scale[1] /= 2.0f;
+  EXPECT_EQ(e, scene_fingerprint(emitter));
+  emitter.lights[0].power = 20.0f;
+  EXPECT_NE(e, scene_fingerprint(emitter));
 }

@@ -4,7 +4,6 @@
 #include "scene/light_params.h"
 #include "scene/material_params.h"
 #include "scene/params.h"
-#include "scene/shapes.h"
 #include "scene/ply.h"
 #include "scene/spectrum.h"
 #include "scene/tokenizer.h"

@@ -309,6 +309,7 @@ TriangleMesh tessellate_bilinear_patches(const TriangleMesh& in, bool flip_norma
   for (size_t k = 0; k < patches; ++k) {
     const uint32_t* q = &in.indices[4 * k];
     int g = planar[k] ? 1 : kGrid;
+    out.patch_start.push_back(uint32_t(out.triangle_count()));
     uint32_t base = uint32_t(out.p.size());
     for (int j = 0; j <= g; ++j)
       for (int i = 0; i <= g; ++i) {
@@ -335,6 +336,7 @@ TriangleMesh tessellate_bilinear_patches(const TriangleMesh& in, bool flip_norma
         out.indices.insert(out.indices.end(), {a, b, c, a, c, d});
       }
   }
+  out.patch_start.push_back(uint32_t(out.triangle_count()));
   return out;
 }
 

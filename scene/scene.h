@@ -105,6 +105,10 @@ struct TriangleMesh {
   std::vector<vec3> n;              // empty, or one per vertex
   std::vector<vec2> uv;             // empty, or one per vertex
   std::vector<uint32_t> indices;    // 3 per triangle
+  // A tessellated bilinearmesh: patch k is triangles [patch_start[k],
+  // patch_start[k + 1]).  Empty for other meshes.  pbrt-v4's "power" is per
+  // patch, so emission needs to know which triangles make one.
+  std::vector<uint32_t> patch_start;
   size_t triangle_count() const { return indices.size() / 3; }
 };
 

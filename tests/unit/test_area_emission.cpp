@@ -106,6 +106,27 @@ TEST(ParserAreaLight, PowerOnUnequalMeshGivesEachTriangleThePower) {
   }
 }
 
+// pbrt-v4 makes one light per bilinear patch: both triangles of a patch share
+// its radiance phi / (pi * A_patch), and each patch (not each triangle) emits phi.
+TEST(ParserAreaLight, PowerOnABilinearMeshIsPerPatch) {
+  // Patch 0: [0,2] x [0,1] (area 2); patch 1: [3,3.5] x [0,0.5] (area 0.25).
+  Scene s = parse_scene_string(R"(WorldBegin
+    AreaLightSource "diffuse" "float power" 10
+    Shape "bilinearmesh" "point3 P" [0 0 0  2 0 0  0 1 0  2 1 0  3 0 0  3.5 0 0  3 0.5 0  3.5 0.5 0]
+      "integer indices" [0 1 2 3 4 5 6 7])",
+                               "t.pbrt");
+  ASSERT_EQ(s.lights.size(), 1u);
+  ASSERT_EQ(s.lights[0].triangle_scale.size(), 4u);
+  Lit lit(std::move(s));
+  const vec2 inside[2][2] = {{vec2(1.5f, 0.2f), vec2(0.5f, 0.8f)}, {vec2(3.4f, 0.1f), vec2(3.1f, 0.4f)}};
+  const float area[2] = {2.0f, 0.25f};
+  for (int k = 0; k < 2; ++k)
+    for (const vec2& p : inside[k])
+      EXPECT_NEAR(luminance(lit.radiance_at(p.x, p.y)) / (10.0f / (kPi * area[k])), 1.0f, 1e-5f)
+          << "patch " << k << " at " << p.x << " " << p.y;
+  EXPECT_NEAR(light_power(*lit.lights, 0) / (2.0f * 10.0f), 1.0f, 1e-5f);
+}
+
 TEST(ParserAreaLight, PowerOnEqualTrianglesKeepsOneRadiance) {
   Scene s = parse_scene_string(std::string("WorldBegin\nAreaLightSource \"diffuse\" \"float power\" 6\n") + kQuad, "t.pbrt");
   ASSERT_EQ(s.lights.size(), 1u);
@@ -230,4 +251,35 @@ AreaLightSource "diffuse" "rgb L" [1 1 1]
   ASSERT_TRUE(ls);
   EXPECT_TRUE(ls->is_delta);
   EXPECT_NEAR(luminance(ls->L), 1.0f, 1e-5f);
+}
+
+// The same on a disk: the mask is looked up at pbrt-v4's disk (u, v) =
+// (phi / phimax, (rmax - r) / (rmax - rmin)), so sampled emission follows
+// the checkerboard in those coordinates.
+TEST(AreaEmission, AlphaMasksSampledEmissionOnADisk) {
+  Lit lit(parse_scene_string(R"(WorldBegin
+Texture "a" "float" "checkerboard" "float uscale" 2 "float vscale" 2 "float tex1" 1 "float tex2" 0
+AreaLightSource "diffuse" "rgb L" [1 1 1]
+Shape "disk" "float radius" 1 "texture alpha" "a")",
+                             "t.pbrt"));
+  LightSampleContext ctx{vec3(0.0f, 0.0f, 2.0f)};
+  int emitting = 0, masked = 0;
+  const int n = 1024;
+  for (int i = 0; i < n; ++i) {
+    vec2 u((float(i % 32) + 0.5f) / 32.0f, (float(i / 32) + 0.5f) / 32.0f);
+    auto ls = sample_li(*lit.lights, 0, ctx, u, 0.5f);
+    if (!ls) {
+      ++masked;
+      continue;
+    }
+    ++emitting;
+    float phi = std::atan2(ls->p_light.y, ls->p_light.x);
+    if (phi < 0.0f) phi += 2.0f * kPi;
+    vec2 uv(phi / (2.0f * kPi), 1.0f - glm::length(vec2(ls->p_light)));
+    EXPECT_EQ((int(std::floor(2.0f * uv.x)) + int(std::floor(2.0f * uv.y))) % 2, 0) << uv.x << " " << uv.y;
+  }
+  // By area: alpha is 1 on half of the outer ring (r > 1/2, 3/8 of the disk)
+  // and the other half of the inner disk (1/8).
+  EXPECT_NEAR(double(emitting) / n, 0.5, 0.05);
+  EXPECT_GT(masked, 0);
 }

@@ -60,5 +60,31 @@ class Report(unittest.TestCase):
                 er.load_curve(p)
 
 
+class Seeds(unittest.TestCase):
+    def test_bar_follows_the_issue(self):
+        pbrt = (0.0359, 0.00066, 0.0122)
+        self.assertEqual(er.bar(pbrt), (0.0718, 0.00198, 0.0322))
+        # Block relMSE is floored at 5e-4.
+        self.assertEqual(er.bar((0.001, 1e-5, 0.0))[1], 5e-4)
+        ok = {"rel_mse": 0.07, "block_rel_mse": 0.0019, "channel_mean_deviation": 0.03}
+        self.assertTrue(er.meets_bar(ok, pbrt))
+        for key, bad in (("rel_mse", 0.072), ("block_rel_mse", 0.002), ("channel_mean_deviation", 0.033)):
+            self.assertFalse(er.meets_bar(dict(ok, **{key: bad}), pbrt), key)
+
+    def test_diff_output_is_parsed_and_tiles_skipped(self):
+        text = "relMSE 0.25\nblock_relMSE 0.001\nworst 32x32 tiles (x0 y0 ...):\ntile 0 0 32 32 5.7 1 1 1\n"
+        self.assertEqual(er.parse_diff(text), {"relMSE": 0.25, "block_relMSE": 0.001})
+
+    def test_one_firefly_holds_its_share(self):
+        r = er.np.full((4, 8, 3), 0.1)
+        x = r.copy()
+        x[2, 5] = 10.1  # one bright pixel, everything else exact
+        (px, py), share = er.worst_pixel(x, r)
+        self.assertEqual((px, py), (5, 2))
+        self.assertAlmostEqual(share, 1.0)
+        x[0, 0] = 0.1 + 10.0  # a second, equal firefly halves it
+        self.assertAlmostEqual(er.worst_pixel(x, r)[1], 0.5)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -42,6 +42,20 @@ static double phi_of(double x, double y) {
   return phi < 0.0 ? phi + 2.0 * kPiD : phi;
 }
 
+// The roots of a t^2 + b t + c for a quadric of radius r, with pbrt-v4's
+// discriminant 4a (r^2 - vlen^2), vlen the ray's closest approach to the
+// centre (sphere) or axis (cylinder): no cancellation for distant origins.
+static bool quadric_roots(double a, double b, double c, double r, double vlen, double* t0, double* t1) {
+  double discrim = 4.0 * a * (r + vlen) * (r - vlen);
+  if (discrim < 0.0) return false;
+  double root = std::sqrt(discrim);
+  double q = b < 0.0 ? -0.5 * (b - root) : -0.5 * (b + root);
+  *t0 = q / a;
+  *t1 = q != 0.0 ? c / q : *t0;
+  if (*t0 > *t1) std::swap(*t0, *t1);
+  return true;
+}
+
 bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax,
                       QuadricHit* hit) {
   double r = s.radius;
@@ -50,14 +64,8 @@ bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, doub
   double b = 2.0 * glm::dot(d, o);
   double olen = glm::length(o);
   double c = (olen - r) * (olen + r);
-  // pbrt-v4's discriminant: 4a (r^2 - |o - (b/2a) d|^2) avoids cancellation for distant origins.
-  double vlen = glm::length(o - (b / (2.0 * a)) * d);
-  double discrim = 4.0 * a * (r + vlen) * (r - vlen);
-  if (discrim < 0.0) return false;
-  double root = std::sqrt(discrim);
-  double q = b < 0.0 ? -0.5 * (b - root) : -0.5 * (b + root);
-  double t0 = q / a, t1 = q != 0.0 ? c / q : t0;
-  if (t0 > t1) std::swap(t0, t1);
+  double t0, t1;
+  if (!quadric_roots(a, b, c, r, glm::length(o - (b / (2.0 * a)) * d), &t0, &t1)) return false;
   if (t0 >= tmax || t1 <= tmin) return false;
   for (double t : {t0, t1}) {
     if (t <= tmin) continue;
@@ -92,16 +100,9 @@ bool intersect_cylinder(const CylinderShape& s, const dvec3& o, const dvec3& d, 
   if (a == 0.0) return false;  // along the axis: never meets the side
   double b = 2.0 * (d.x * o.x + d.y * o.y);
   double c = o.x * o.x + o.y * o.y - r * r;
-  // pbrt-v4's discriminant form, as for the sphere: from the closest approach in xy.
   double f = b / (2.0 * a);
-  double vx = o.x - f * d.x, vy = o.y - f * d.y;
-  double vlen = std::sqrt(vx * vx + vy * vy);
-  double discrim = 4.0 * a * (r + vlen) * (r - vlen);
-  if (discrim < 0.0) return false;
-  double root = std::sqrt(discrim);
-  double q = b < 0.0 ? -0.5 * (b - root) : -0.5 * (b + root);
-  double t0 = q / a, t1 = q != 0.0 ? c / q : t0;
-  if (t0 > t1) std::swap(t0, t1);
+  double t0, t1;
+  if (!quadric_roots(a, b, c, r, std::hypot(o.x - f * d.x, o.y - f * d.y), &t0, &t1)) return false;
   if (t0 >= tmax || t1 <= tmin) return false;
   for (double t : {t0, t1}) {
     if (t <= tmin) continue;

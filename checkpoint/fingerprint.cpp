@@ -43,6 +43,7 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(sh.mesh);
     h.pod(sh.sphere);
     h.pod(sh.disk);
+    h.pod(sh.cylinder);
     h.pod(sh.render_from_object);
     h.pod(sh.reverse_orientation);
     h.pod(sh.transform_swaps_handedness);

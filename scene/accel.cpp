@@ -22,12 +22,13 @@ static_assert(kInvalidId == RTC_INVALID_GEOMETRY_ID);
 
 namespace {
 
-// A sphere or disk as an Embree user geometry: intersected in object space,
+// A sphere, disk or cylinder as an Embree user geometry: intersected in object space,
 // in double precision, with the transform kept exactly as the scene gave it.
 struct QuadricGeom {
   ShapeKind kind;
   SphereShape sphere;
   DiskShape disk;
+  CylinderShape cylinder;
   glm::dmat4 object_from_parent;  // parent = render space, or the prototype's space
   Bounds3 bounds;                 // in parent space
   bool is_virtual = false;        // a virtual light: never occludes
@@ -63,6 +64,23 @@ bool alpha_keeps_hit(const Scene& scene, int alpha, vec2 uv, const vec3& o, cons
   return !(u >= a);  // (a NaN alpha keeps the hit)
 }
 
+bool quadric_intersect_once(const QuadricGeom& g, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
+                            QuadricHit* hit) {
+  switch (g.kind) {
+    case ShapeKind::Sphere: return intersect_sphere(g.sphere, o, d, tmin, tmax, hit);
+    case ShapeKind::Cylinder: return intersect_cylinder(g.cylinder, o, d, tmin, tmax, hit);
+    default: return intersect_disk(g.disk, o, d, tmin, tmax, hit);
+  }
+}
+
+vec2 quadric_uv(const QuadricGeom& g, const QuadricHit& hit) {
+  switch (g.kind) {
+    case ShapeKind::Sphere: return sphere_uv(g.sphere, hit.u, hit.v);
+    case ShapeKind::Cylinder: return cylinder_uv(g.cylinder, hit.u, hit.v);
+    default: return disk_uv(g.disk, hit.u, hit.v);
+  }
+}
+
 // The closest hit in (tmin, tmax) that survives the alpha test: where the
 // first root is cut out the ray goes on to the second.  The hit distance
 // salts the test, so the two roots (and two quadrics) decide independently.
@@ -70,11 +88,10 @@ bool quadric_hit(const QuadricGeom& g, const glm::dvec3& o_parent, const glm::dv
                  double tmax, QuadricHit* hit) {
   glm::dvec3 o = glm::dvec3(g.object_from_parent * glm::dvec4(o_parent, 1.0));
   glm::dvec3 d = glm::dmat3(g.object_from_parent) * d_parent;
-  const bool sphere = g.kind == ShapeKind::Sphere;
   // Each pass finds a root strictly past the last one: at most two passes.
-  while (sphere ? intersect_sphere(g.sphere, o, d, tmin, tmax, hit) : intersect_disk(g.disk, o, d, tmin, tmax, hit)) {
+  while (quadric_intersect_once(g, o, d, tmin, tmax, hit)) {
     if (g.alpha < 0) return true;
-    vec2 uv = sphere ? sphere_uv(g.sphere, hit->u, hit->v) : disk_uv(g.disk, hit->u, hit->v);
+    vec2 uv = quadric_uv(g, *hit);
     float t = float(hit->t);
     if (alpha_keeps_hit(*g.scene, g.alpha, uv, vec3(o_parent), vec3(d_parent), t, float_bits(t))) return true;
     tmin = hit->t;
@@ -156,6 +173,10 @@ Bounds3 quadric_object_bounds(const Shape& s) {
   if (s.kind == ShapeKind::Sphere) {
     SphereShape sp = make_sphere_shape(s.sphere);
     return Bounds3(vec3(-sp.radius, -sp.radius, sp.zmin), vec3(sp.radius, sp.radius, sp.zmax));
+  }
+  if (s.kind == ShapeKind::Cylinder) {
+    CylinderShape cy = make_cylinder_shape(s.cylinder);
+    return Bounds3(vec3(-cy.radius, -cy.radius, cy.zmin), vec3(cy.radius, cy.radius, cy.zmax));
   }
   DiskShape dk = make_disk_shape(s.disk);
   return Bounds3(vec3(-dk.radius, -dk.radius, dk.height), vec3(dk.radius, dk.radius, dk.height));
@@ -273,6 +294,7 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     q.kind = s.kind;
     q.sphere = make_sphere_shape(s.sphere);
     q.disk = make_disk_shape(s.disk);
+    q.cylinder = make_cylinder_shape(s.cylinder);
     glm::dmat4 parent_from_object(s.render_from_object.m);
     q.object_from_parent = glm::inverse(parent_from_object);
     q.bounds = transform_bounds(parent_from_object, quadric_object_bounds(s));

@@ -30,6 +30,7 @@ struct Ray {
 //   triangles: (u, v) are Embree's barycentrics: p = (1-u-v) p0 + u p1 + v p2
 //   spheres:   (u, v) = object-space (phi, theta)
 //   disks:     (u, v) = object-space (x, y)
+//   cylinders: (u, v) = object-space (phi, z)
 struct Hit {
   float t = kInfinity;
   float u = 0, v = 0;

@@ -2,6 +2,7 @@
 
 #include "core/log.h"
 #include "scene/light_params.h"
+#include "scene/loop_subdiv.h"
 #include "scene/material_params.h"
 #include "scene/params.h"
 #include "scene/ply.h"
@@ -816,6 +817,15 @@ void SceneParser::shape(const std::string& type, ParamList& params, const Source
     s.kind = ShapeKind::Sphere;
     float r = params.get_float("radius", 1.0f);
     s.sphere = {r, params.get_float("zmin", -r), params.get_float("zmax", r), params.get_float("phimax", 360.0f)};
+    s.render_from_object = gs_.ctm;
+  } else if (type == "loopsubdiv") {
+    is_mesh = loop_subdiv_from_params(params, loc, &mesh);
+    if (!is_mesh) return;
+    bake(mesh);
+  } else if (type == "cylinder") {
+    s.kind = ShapeKind::Cylinder;
+    s.cylinder = {params.get_float("radius", 1.0f), params.get_float("zmin", -1.0f), params.get_float("zmax", 1.0f),
+                  params.get_float("phimax", 360.0f)};
     s.render_from_object = gs_.ctm;
   } else if (type == "disk") {
     s.kind = ShapeKind::Disk;

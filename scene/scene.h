@@ -96,7 +96,7 @@ struct Material {
 
 // ---------------------------------------------------------------- shapes
 
-enum class ShapeKind { TriangleMesh, Sphere, Disk };
+enum class ShapeKind { TriangleMesh, Sphere, Disk, Cylinder };
 
 // Indexed triangles.  Top-level meshes are stored in render space; meshes of
 // an object prototype are stored in the prototype's object space.
@@ -118,12 +118,17 @@ struct SphereParams {
 struct DiskParams {
   float height = 0, radius = 1, innerradius = 0, phimax = 360;
 };
+// Open at both ends, as pbrt-v4's: the caps are not part of the shape.
+struct CylinderParams {
+  float radius = 1, zmin = -1, zmax = 1, phimax = 360;
+};
 
 struct Shape {
   ShapeKind kind = ShapeKind::TriangleMesh;
   int mesh = -1;                    // TriangleMesh: index into Scene::meshes
   SphereParams sphere;
   DiskParams disk;
+  CylinderParams cylinder;
   // Quadrics are intersected in object space; meshes are already baked.
   Transform render_from_object;
   bool reverse_orientation = false; // ReverseOrientation in effect (flips the normal)

@@ -32,9 +32,28 @@ DiskShape make_disk_shape(const DiskParams& p) {
   return {p.height, p.radius, p.innerradius, std::clamp(double(p.phimax), 0.0, 360.0) * (kPiD / 180.0)};
 }
 
+CylinderShape make_cylinder_shape(const CylinderParams& p) {
+  return {p.radius, std::min(p.zmin, p.zmax), std::max(p.zmin, p.zmax),
+          std::clamp(double(p.phimax), 0.0, 360.0) * (kPiD / 180.0)};
+}
+
 static double phi_of(double x, double y) {
   double phi = std::atan2(y, x);
   return phi < 0.0 ? phi + 2.0 * kPiD : phi;
+}
+
+// The roots of a t^2 + b t + c for a quadric of radius r, with pbrt-v4's
+// discriminant 4a (r^2 - vlen^2), vlen the ray's closest approach to the
+// centre (sphere) or axis (cylinder): no cancellation for distant origins.
+static bool quadric_roots(double a, double b, double c, double r, double vlen, double* t0, double* t1) {
+  double discrim = 4.0 * a * (r + vlen) * (r - vlen);
+  if (discrim < 0.0) return false;
+  double root = std::sqrt(discrim);
+  double q = b < 0.0 ? -0.5 * (b - root) : -0.5 * (b + root);
+  *t0 = q / a;
+  *t1 = q != 0.0 ? c / q : *t0;
+  if (*t0 > *t1) std::swap(*t0, *t1);
+  return true;
 }
 
 bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax,
@@ -45,14 +64,8 @@ bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, doub
   double b = 2.0 * glm::dot(d, o);
   double olen = glm::length(o);
   double c = (olen - r) * (olen + r);
-  // pbrt-v4's discriminant: 4a (r^2 - |o - (b/2a) d|^2) avoids cancellation for distant origins.
-  double vlen = glm::length(o - (b / (2.0 * a)) * d);
-  double discrim = 4.0 * a * (r + vlen) * (r - vlen);
-  if (discrim < 0.0) return false;
-  double root = std::sqrt(discrim);
-  double q = b < 0.0 ? -0.5 * (b - root) : -0.5 * (b + root);
-  double t0 = q / a, t1 = q != 0.0 ? c / q : t0;
-  if (t0 > t1) std::swap(t0, t1);
+  double t0, t1;
+  if (!quadric_roots(a, b, c, r, glm::length(o - (b / (2.0 * a)) * d), &t0, &t1)) return false;
   if (t0 >= tmax || t1 <= tmin) return false;
   for (double t : {t0, t1}) {
     if (t <= tmin) continue;
@@ -80,6 +93,31 @@ bool intersect_disk(const DiskShape& s, const dvec3& o, const dvec3& d, double t
   return true;
 }
 
+bool intersect_cylinder(const CylinderShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax,
+                        QuadricHit* hit) {
+  double r = s.radius;
+  double a = d.x * d.x + d.y * d.y;
+  if (a == 0.0) return false;  // along the axis: never meets the side
+  double b = 2.0 * (d.x * o.x + d.y * o.y);
+  double c = o.x * o.x + o.y * o.y - r * r;
+  double f = b / (2.0 * a);
+  double t0, t1;
+  if (!quadric_roots(a, b, c, r, std::hypot(o.x - f * d.x, o.y - f * d.y), &t0, &t1)) return false;
+  if (t0 >= tmax || t1 <= tmin) return false;
+  for (double t : {t0, t1}) {
+    if (t <= tmin) continue;
+    if (t >= tmax) break;
+    dvec3 p = o + t * d;
+    double rxy = std::sqrt(p.x * p.x + p.y * p.y);
+    if (rxy > 0.0) p.x *= r / rxy, p.y *= r / rxy;
+    double phi = phi_of(p.x, p.y);
+    if (p.z < s.zmin || p.z > s.zmax || phi > s.phimax) continue;
+    *hit = {t, float(phi), float(p.z)};
+    return true;
+  }
+  return false;
+}
+
 vec2 sphere_uv(const SphereShape& s, double phi, double theta) {
   double dtheta = s.theta_zmax - s.theta_zmin;
   return vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dtheta != 0.0 ? (theta - s.theta_zmin) / dtheta : 0.0));
@@ -89,6 +127,11 @@ vec2 disk_uv(const DiskShape& s, double x, double y) {
   double dr = s.radius - s.inner_radius;
   return vec2(float(s.phimax > 0.0 ? phi_of(x, y) / s.phimax : 0.0),
               float(dr != 0.0 ? (s.radius - std::sqrt(x * x + y * y)) / dr : 0.0));
+}
+
+vec2 cylinder_uv(const CylinderShape& s, double phi, double z) {
+  double dz = s.zmax - s.zmin;
+  return vec2(float(s.phimax > 0.0 ? phi / s.phimax : 0.0), float(dz != 0.0 ? (z - s.zmin) / dz : 0.0));
 }
 
 // ---------------------------------------------------------------- local geometry
@@ -139,6 +182,18 @@ LocalGeom disk_local(const DiskShape& s, double x, double y) {
   g.uv = disk_uv(s, x, y);
   g.dpdu = dvec3(-s.phimax * y, s.phimax * x, 0.0);
   g.dpdv = r_hit > 0.0 ? dvec3(x, y, 0.0) * (-dr / r_hit) : dvec3(0.0);
+  return g;
+}
+
+// pbrt-v4's cylinder: dpdu x dpdv is the outward normal.
+LocalGeom cylinder_local(const CylinderShape& s, double phi, double z) {
+  LocalGeom g;
+  g.p = dvec3(s.radius * std::cos(phi), s.radius * std::sin(phi), z);
+  g.p_error = double(gamma_bound(3)) * glm::abs(dvec3(g.p.x, g.p.y, 0.0));
+  g.n = dvec3(std::cos(phi), std::sin(phi), 0.0);
+  g.uv = cylinder_uv(s, phi, z);
+  g.dpdu = dvec3(-s.phimax * g.p.y, s.phimax * g.p.x, 0.0);
+  g.dpdv = dvec3(0.0, 0.0, s.zmax - s.zmin);
   return g;
 }
 
@@ -238,6 +293,8 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
     si.prim = int(hit.prim);
   } else if (s.kind == ShapeKind::Sphere) {
     si = quadric_interaction(s, sphere_local(make_sphere_shape(s.sphere), hit.u, hit.v));
+  } else if (s.kind == ShapeKind::Cylinder) {
+    si = quadric_interaction(s, cylinder_local(make_cylinder_shape(s.cylinder), hit.u, hit.v));
   } else {
     si = quadric_interaction(s, disk_local(make_disk_shape(s.disk), hit.u, hit.v));
   }
@@ -301,6 +358,18 @@ namespace {
 
 // Area scale of the linear map at a point with object-space unit normal n (Nanson).
 double area_jacobian(const ShapeSampling::Entry& e, const dvec3& n) { return e.det * glm::length(e.normal_matrix * n); }
+
+// A linear map that is a rotation times a uniform scale s (s2 = s^2) keeps
+// quadrics' areas in closed form.
+bool is_similarity(const dmat3& lin, double* s2_out) {
+  dmat3 g = glm::transpose(lin) * lin;
+  double s2 = (g[0][0] + g[1][1] + g[2][2]) / 3.0;
+  *s2_out = s2;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (std::abs(g[i][j] - (i == j ? s2 : 0.0)) > 1e-5 * s2) return false;
+  return true;
+}
 
 bool is_full_sphere(const SphereShape& s) {
   return s.zmin <= -s.radius && s.zmax >= s.radius && s.phimax >= 2.0 * kPiD;
@@ -385,13 +454,8 @@ ShapeSampling::ShapeSampling(const Scene& scene, const std::vector<std::vector<f
         const SphereShape& sp = e.sphere;
         e.object_area = sp.phimax * sp.radius * (sp.zmax - sp.zmin);
         // A similarity keeps the sphere a sphere: closed-form area, cone sampling.
-        dmat3 g = glm::transpose(lin) * lin;
-        double s2 = (g[0][0] + g[1][1] + g[2][2]) / 3.0;
-        bool similarity = true;
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            if (std::abs(g[i][j] - (i == j ? s2 : 0.0)) > 1e-5 * s2) similarity = false;
-        if (similarity) {
+        double s2;
+        if (is_similarity(lin, &s2)) {
           e.area = float(e.object_area * s2);
           e.cone = is_full_sphere(sp);
           e.center = vec3(dvec3(e.render_from_object[3]));
@@ -410,6 +474,24 @@ ShapeSampling::ShapeSampling(const Scene& scene, const std::vector<std::vector<f
             }
           }
           e.area = float(e.object_area * sum / (double(kZ) * kPhi));
+        }
+      } else if (s.kind == ShapeKind::Cylinder) {
+        e.cylinder = make_cylinder_shape(s.cylinder);
+        const CylinderShape& cy = e.cylinder;
+        e.object_area = cy.phimax * cy.radius * (cy.zmax - cy.zmin);
+        // The area element scales with phi only (the normal does not depend on
+        // z): the midpoint rule over phi, exact under a similarity.
+        double s2;
+        if (is_similarity(lin, &s2)) {
+          e.area = float(e.object_area * s2);
+        } else {
+          constexpr int kPhi = 4096;
+          double sum = 0.0;
+          for (int ip = 0; ip < kPhi; ++ip) {
+            double phi = cy.phimax * (ip + 0.5) / kPhi;
+            sum += area_jacobian(e, dvec3(std::cos(phi), std::sin(phi), 0.0));
+          }
+          e.area = float(e.object_area * sum / kPhi);
         }
       } else {
         e.disk = make_disk_shape(s.disk);
@@ -436,6 +518,12 @@ float ShapeSampling::area_pdf(const Entry& e, const vec3& p, int prim) const {
   if (e.kind == ShapeKind::Sphere) {
     dvec3 n = glm::normalize(dvec3(e.object_from_render * dvec4(dvec3(p), 1.0)));
     return float(1.0 / (e.object_area * area_jacobian(e, n)));
+  }
+  if (e.kind == ShapeKind::Cylinder) {
+    dvec3 q = dvec3(e.object_from_render * dvec4(dvec3(p), 1.0));
+    double rxy = std::sqrt(q.x * q.x + q.y * q.y);
+    if (!(rxy > 0.0)) return 0.0f;
+    return float(1.0 / (e.object_area * area_jacobian(e, dvec3(q.x / rxy, q.y / rxy, 0.0))));
   }
   return 1.0f / e.area;
 }
@@ -505,6 +593,15 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
     return to_solid_angle(ss, area_pdf(e, ss.p, -1), ref);
   }
 
+  if (e.kind == ShapeKind::Cylinder) {
+    // pbrt-v4: uniform in (z, phi), which is uniform in object-space area.
+    const CylinderShape& cy = e.cylinder;
+    double z = cy.zmin + double(u.x) * (cy.zmax - cy.zmin);
+    double phi = double(u.y) * cy.phimax;
+    ShapeSample ss = from_quadric(e, cylinder_local(cy, phi, z));
+    return to_solid_angle(ss, area_pdf(e, ss.p, -1), ref);
+  }
+
   const DiskShape& dk = e.disk;
   double x, y;
   if (dk.inner_radius == 0.0 && dk.phimax >= 2.0 * kPiD) {
@@ -554,6 +651,10 @@ float pbrt_quadric_area(const Shape& s) {
     double zmin = std::clamp(double(std::min(s.sphere.zmin, s.sphere.zmax)), -r, r);
     double zmax = std::clamp(double(std::max(s.sphere.zmin, s.sphere.zmax)), -r, r);
     return float(radians(std::clamp(s.sphere.phimax, 0.0f, 360.0f)) * r * (zmax - zmin));
+  }
+  if (s.kind == ShapeKind::Cylinder) {
+    double dz = std::abs(double(s.cylinder.zmax) - double(s.cylinder.zmin));
+    return float(radians(std::clamp(s.cylinder.phimax, 0.0f, 360.0f)) * double(s.cylinder.radius) * dz);
   }
   return float(0.5 * radians(std::clamp(s.disk.phimax, 0.0f, 360.0f)) *
                (double(s.disk.radius) * s.disk.radius - double(s.disk.innerradius) * s.disk.innerradius));

@@ -29,8 +29,12 @@ struct SphereShape {
 struct DiskShape {
   double height, radius, inner_radius, phimax;
 };
+struct CylinderShape {
+  double radius, zmin, zmax, phimax;
+};
 SphereShape make_sphere_shape(const SphereParams& p);
 DiskShape make_disk_shape(const DiskParams& p);
+CylinderShape make_cylinder_shape(const CylinderParams& p);
 
 struct QuadricHit {
   double t;
@@ -42,11 +46,17 @@ bool intersect_sphere(const SphereShape& s, const glm::dvec3& o, const glm::dvec
                       QuadricHit* hit);
 bool intersect_disk(const DiskShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
                     QuadricHit* hit);
+// Both roots considered; the caps are open (pbrt-v4), so a ray can enter at
+// one end and hit the inside.
+bool intersect_cylinder(const CylinderShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
+                        QuadricHit* hit);
 // pbrt-v4's (u, v) of a hit from QuadricHit's u, v: (phi / phimax, the
 // fraction of the theta range) on spheres, (phi / phimax, (radius - r) /
-// (radius - inner radius)) on disks.
+// (radius - inner radius)) on disks, (phi / phimax, (z - zmin) / (zmax -
+// zmin)) on cylinders.
 vec2 sphere_uv(const SphereShape& s, double phi, double theta);
 vec2 disk_uv(const DiskShape& s, double x, double y);
+vec2 cylinder_uv(const CylinderShape& s, double phi, double z);
 
 // ---------------------------------------------------------------- interactions
 
@@ -117,6 +127,7 @@ class ShapeSampling {
     std::vector<float> triangle_pdf;  // weighted mesh: area density on each triangle (pmf / area)
     SphereShape sphere{};
     DiskShape disk{};
+    CylinderShape cylinder{};
     glm::dmat4 render_from_object{1.0}, object_from_render{1.0};
     glm::dmat3 normal_matrix{1.0};  // inverse transpose of the linear part
     double det = 1.0;               // |det| of the linear part
@@ -133,7 +144,7 @@ class ShapeSampling {
 };
 
 // The area pbrt-v4's DiffuseAreaLight divides "power" by for a quadric: its
-// object-space area, as pbrt-v4's Sphere::Area() and Disk::Area() return
+// object-space area, as pbrt-v4's Sphere::Area(), Disk::Area() and Cylinder::Area() return
 // (meshes are one light per triangle: triangle_area).
 float pbrt_quadric_area(const Shape& shape);
 

@@ -38,6 +38,11 @@ inline int add_disk(Scene& sc, DiskParams p, Transform t = {}, bool reverse = fa
   s.disk = p;
   return add_shape(sc, s, top);
 }
+inline int add_cylinder(Scene& sc, CylinderParams p, Transform t = {}, bool reverse = false, bool top = true) {
+  Shape s = quadric_shape(ShapeKind::Cylinder, t, reverse);
+  s.cylinder = p;
+  return add_shape(sc, s, top);
+}
 // `m` in render space (the parser bakes the transform into the vertices).
 inline int add_mesh(Scene& sc, TriangleMesh m, bool reverse = false, bool swaps = false, bool top = true) {
   Shape s;

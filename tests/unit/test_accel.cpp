@@ -218,6 +218,97 @@ TEST(AccelDisk, TransformReverseOrientationAndHandedness) {
   }
 }
 
+// ---------------------------------------------------------------- cylinders
+
+TEST(AccelCylinder, OutsideInsideAndOpenEnds) {
+  Scene sc;
+  int c = add_cylinder(sc, {});  // radius 1, z in [-1, 1], full
+  Accel a(sc);
+  // From outside: the near root, outward normal, pbrt-v4's uv and derivatives.
+  float xh = std::sqrt(1.0f - 0.09f);
+  Traced t = trace(sc, a, make_ray(vec3(5, 0.3f, 0.2f), vec3(-1, 0, 0)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_EQ(a.shape_index(t.hit), c);
+  EXPECT_NEAR(t.hit.t, 5.0f - xh, 1e-5f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(xh, 0.3f, 0.2f), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(xh, 0.3f, 0), 1e-5f);
+  float phi = std::atan2(0.3f, xh);
+  EXPECT_NEAR(t.si.uv.x, phi / (2.0f * kPi), 1e-6f);
+  EXPECT_NEAR(t.si.uv.y, (0.2f + 1.0f) / 2.0f, 1e-6f);
+  EXPECT_VEC_NEAR(t.si.dpdu, 2.0f * kPi * vec3(-0.3f, xh, 0), 1e-4f);
+  EXPECT_VEC_NEAR(t.si.dpdv, vec3(0, 0, 2), 1e-6f);
+  EXPECT_VEC_NEAR(glm::normalize(glm::cross(t.si.dpdu, t.si.dpdv)), t.si.ng, 1e-5f);
+  // From the axis: the normal still points out (pbrt-v4 does not face it to the ray).
+  t = trace(sc, a, make_ray(vec3(0, 0, 0), vec3(0, 1, 0.5f)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_VEC_NEAR(t.si.p, vec3(0, 1, 0.5f), 1e-6f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(0, 1, 0), 1e-6f);
+  // The ends are open: in through the top, onto the inside of the wall.
+  t = trace(sc, a, make_ray(vec3(0, 0, 3), vec3(1, 0, -3)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_NEAR(t.hit.t, 1.0f, 1e-6f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(1, 0, 0), 1e-6f);
+  EXPECT_GT(glm::dot(t.si.ng, vec3(1, 0, -3)), 0.0f);  // seen from inside
+  // Near root below zmin, far root in range: the inside of the far wall.
+  t = trace(sc, a, make_ray(vec3(-5, 0, -2), vec3(1, 0, 0.2f)));
+  ASSERT_TRUE(t.hit.hit());
+  EXPECT_NEAR(t.hit.t, 6.0f, 1e-5f);
+  EXPECT_VEC_NEAR(t.si.p, vec3(1, 0, -0.8f), 1e-5f);
+  EXPECT_VEC_NEAR(t.si.ng, vec3(1, 0, 0), 1e-6f);
+  // Down the axis, past both ends, above, and stopped short by tmax: misses.
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(0.2f, 0.1f, 5), vec3(0, 0, -1))).hit());
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(-5, 0, 1.5f), vec3(1, 0, 0))).hit());
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(-5, 0, -2), vec3(1, 0, 0.05f))).hit());
+  EXPECT_FALSE(a.intersect1(Ray{vec3(5, 0.3f, 0.2f), 0.0f, vec3(-1, 0, 0), 4.0f}).hit());
+  EXPECT_FALSE(a.intersect1(make_ray(vec3(5, 1.01f, 0), vec3(-1, 0, 0))).hit());
+  EXPECT_TRUE(a.occluded1(make_ray(vec3(5, 0.3f, 0.2f), vec3(-1, 0, 0))));
+}
+
+TEST(AccelCylinder, PartialPhiMaxTransformAndOrientation) {
+  {
+    Scene sc;
+    add_cylinder(sc, {0.5f, 0.0f, 2.0f, 90.0f});  // the quarter x, y > 0
+    Accel a(sc);
+    float xh = std::sqrt(0.25f - 0.09f);
+    // The near root (phi = 180 - 37 degrees) is cut: the far one's inside.
+    Traced t = trace(sc, a, make_ray(vec3(-5, 0.3f, 1), vec3(1, 0, 0)));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_NEAR(t.hit.t, 5.0f + xh, 1e-5f);
+    EXPECT_VEC_NEAR(t.si.ng, vec3(xh, 0.3f, 0) / 0.5f, 1e-5f);
+    EXPECT_NEAR(t.si.uv.x, std::atan2(0.3f, xh) / (kPi / 2.0f), 1e-5f);
+    EXPECT_NEAR(t.si.uv.y, 0.5f, 1e-6f);
+    // Both roots outside the quarter.
+    EXPECT_FALSE(a.intersect1(make_ray(vec3(-5, -0.3f, 1), vec3(1, 0, 0))).hit());
+    // zmin, zmax given the wrong way round are swapped, as pbrt-v4 does.
+    Scene sw;
+    add_cylinder(sw, {0.5f, 2.0f, 0.0f, 90.0f});
+    Accel aw(sw);
+    EXPECT_TRUE(aw.intersect1(make_ray(vec3(-5, 0.3f, 1), vec3(1, 0, 0))).hit());
+  }
+  // pbrt-v4: the object-space outward normal, carried by the normal
+  // transform, flipped by ReverseOrientation XOR a handedness swap.
+  Transform rot = translate(vec3(0, 0, 3)) * rotate(90, vec3(1, 0, 0));  // axis z -> -y
+  Transform mirror = scale(vec3(-1, 1, 1));
+  struct Case {
+    Transform t;
+    bool reverse;
+    float sign;
+  };
+  for (const Case& k : {Case{rot, false, 1}, Case{rot, true, -1}, Case{mirror, false, -1}, Case{mirror, true, 1}}) {
+    Scene sc;
+    add_cylinder(sc, {}, k.t, k.reverse);
+    Accel a(sc);
+    vec3 p_obj(0.6f, 0.8f, 0.25f);
+    vec3 target = k.t.point(p_obj);
+    vec3 n_out = glm::normalize(k.t.normal(vec3(0.6f, 0.8f, 0)));
+    vec3 o = target + 4.0f * n_out + vec3(0.1f, 0.2f, 0.3f);
+    Traced t = trace(sc, a, make_ray(o, target - o));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_VEC_NEAR(t.si.p, target, 1e-5f);
+    EXPECT_VEC_NEAR(t.si.ng, k.sign * n_out, 1e-5f);
+  }
+}
+
 // ---------------------------------------------------------------- triangles
 
 TEST(AccelTriangles, OrientationRules) {
@@ -512,6 +603,39 @@ TEST(AccelAlpha, CutOutDiskAndInstancedSphere) {
   EXPECT_TRUE(a.occluded1(ray_to(vec3(20.3f, -5.0f, 0.1f), vec3(0, 1, 0), 6.5f)));
 }
 
+// The cylinder's half y < 0 (u = phi / 2 pi > 0.5) is cut away: a ray
+// through it reaches the inside of the kept half; a virtual one never blocks.
+TEST(AccelAlpha, CutOutCylinderShowsItsInside) {
+  for (bool is_virtual : {false, true}) {
+    Scene sc;
+    int cyl = add_cylinder(sc, {});
+    sc.shapes[size_t(cyl)].alpha = half_cut_alpha(sc);
+    if (is_virtual) {
+      make_emissive(sc, cyl);
+      sc.lights.back().is_virtual = true;
+    }
+    int wall = add_mesh(sc, wall_at_x(3.0f));
+    Accel a(sc);
+    SCOPED_TRACE(is_virtual ? "virtual light" : "plain cylinder");
+    const float chord = std::sqrt(1.0f - 0.09f);
+    const vec3 o_up(0.3f, -5.0f, 0.1f);
+    Traced t = trace(sc, a, make_ray(o_up, vec3(0, 1, 0)));
+    ASSERT_TRUE(t.hit.hit());
+    EXPECT_EQ(a.shape_index(t.hit), cyl);
+    EXPECT_NEAR(t.hit.t, 5.0f + chord, 1e-4f);
+    EXPECT_LT(t.si.uv.x, 0.5f);
+    t = trace(sc, a, make_ray(vec3(0.3f, 5.0f, 0.1f), vec3(0, -1, 0)));
+    EXPECT_NEAR(t.hit.t, 5.0f - chord, 1e-4f);
+    t = trace(sc, a, make_ray(vec3(-5.0f, -0.5f, 0.1f), vec3(1, 0, 0)));  // through the cut half only
+    EXPECT_EQ(a.shape_index(t.hit), wall);
+    const bool blocks = !is_virtual;
+    EXPECT_FALSE(a.occluded1(ray_to(o_up, vec3(0, 1, 0), 5.5f)));
+    EXPECT_EQ(a.occluded1(ray_to(o_up, vec3(0, 1, 0), 6.5f)), blocks);
+    EXPECT_EQ(a.occluded1(ray_to(vec3(0.3f, 5.0f, 0.1f), vec3(0, -1, 0), 4.5f)), blocks);
+    EXPECT_TRUE(a.occluded1(ray_to(vec3(-5.0f, -0.5f, 0.1f), vec3(1, 0, 0), 8.5f)));  // the wall
+  }
+}
+
 // Alpha 0.5: each surface crossing is kept with probability 1/2, the two
 // roots of a sphere independently; shadow rays agree with closest hits ray
 // by ray.
@@ -618,6 +742,26 @@ TEST(AccelSpawn, FarAwayAndTinySpheresDoNotSelfIntersect) {
     sc.instances.push_back({0, translate(c) * scale(vec3(7.0f))});
     Accel a(sc);
     check_no_self_intersection(sc, a, c, 7.0f, 4000);
+  }
+}
+
+// Long enough that every ray check_no_self_intersection traces meets the
+// side before an open end.
+TEST(AccelSpawn, FarAwayAndTinyCylindersDoNotSelfIntersect) {
+  const CylinderParams tall{1.0f, -1000.0f, 1000.0f, 360.0f};
+  {
+    Scene sc;
+    vec3 c(1e5f, -1e5f, 1e5f);
+    add_cylinder(sc, tall, translate(c) * rotate(30, vec3(1, 2, 0)));
+    Accel a(sc);
+    check_no_self_intersection(sc, a, c, 1.0f, 4000);
+  }
+  {
+    Scene sc;
+    vec3 c(0.3f, 0.2f, 0.1f);
+    add_cylinder(sc, tall, translate(c) * scale(vec3(1e-4f)));
+    Accel a(sc);
+    check_no_self_intersection(sc, a, c, 1e-4f, 4000);
   }
 }
 

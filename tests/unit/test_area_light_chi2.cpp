@@ -2,8 +2,8 @@
 // (area_light_pdf), for every way a shape is sampled: triangles chosen by
 // area (unequal ones), triangles chosen by power (pbrt-v4's "power" per
 // triangle; an emission image's luminance), the cone of a full sphere seen
-// from outside, area sampling of a partial sphere, and an annulus sector of
-// a disk.
+// from outside, area sampling of a partial sphere, an annulus sector of
+// a disk, and partial and elliptic cylinders.
 //
 // Directions are binned in the cone that bounds the light as seen from the
 // reference point, so the test resolves the light itself rather than a few
@@ -135,4 +135,13 @@ TEST(Chi2AreaLight, SamplingMatchesPdfForEveryShapeKind) {
   expect_light_sampling_matches_pdf(
       "disk sector", "Rotate 30 1 0 0\nShape \"disk\" \"float radius\" 1 \"float innerradius\" 0.3 \"float phimax\" 300",
       vec3(0.2f, 0.5f, 2.0f), n_tests, /*all_hits=*/true);
+  // A partial cylinder, tilted: uniform by area; its inside shows through the cut.
+  expect_light_sampling_matches_pdf(
+      "cylinder", "Rotate 50 1 1 0\nShape \"cylinder\" \"float radius\" 0.7 \"float zmin\" -0.5 \"float zmax\" 0.8 "
+                  "\"float phimax\" 260",
+      vec3(0.3f, 0.4f, 2.5f), n_tests, /*all_hits=*/true);
+  // A full elliptic cylinder: the density follows the non-uniform area scale.
+  expect_light_sampling_matches_pdf(
+      "elliptic cylinder", "Rotate 70 0 1 0\nScale 1.6 0.6 1\nShape \"cylinder\" \"float radius\" 0.7",
+      vec3(0.2f, -0.3f, 3.0f), n_tests, /*all_hits=*/true);
 }

@@ -267,10 +267,15 @@ TEST(Parser, SphereDiskAndUnsupportedShapes) {
   Scene s = parse(R"(WorldBegin
 Shape "sphere" "float radius" 2 "float zmin" -1 "float zmax" 1.5 "float phimax" 180
 Shape "disk" "float height" 0.5 "float radius" 3 "float innerradius" 1 "float phimax" 90
-Shape "cylinder" "float radius" 1
+Shape "cylinder" "float radius" 0.5 "float zmax" 2 "float phimax" 270
 Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3])");
-  EXPECT_EQ(warning_count() - before, 2);
-  ASSERT_EQ(s.shapes.size(), 2u);
+  EXPECT_EQ(warning_count() - before, 1);  // the curve only
+  ASSERT_EQ(s.shapes.size(), 3u);
+  EXPECT_EQ(s.shapes[2].kind, ShapeKind::Cylinder);
+  EXPECT_FLOAT_EQ(s.shapes[2].cylinder.radius, 0.5f);
+  EXPECT_FLOAT_EQ(s.shapes[2].cylinder.zmin, -1);  // pbrt-v4's defaults: -1 and 1, whatever the radius
+  EXPECT_FLOAT_EQ(s.shapes[2].cylinder.zmax, 2);
+  EXPECT_FLOAT_EQ(s.shapes[2].cylinder.phimax, 270);
   EXPECT_FLOAT_EQ(s.shapes[0].sphere.radius, 2);
   EXPECT_FLOAT_EQ(s.shapes[0].sphere.zmin, -1);
   EXPECT_FLOAT_EQ(s.shapes[0].sphere.zmax, 1.5f);

@@ -298,6 +298,64 @@ TEST(ShapeSampling, FullDiskAndMirroredSphere) {
   check_samples(sc, a, ss, s, ref, 3200, false);
 }
 
+// pbrt-v4 samples a cylinder uniformly in (z, phi): uniform by area under a
+// similarity.  Under a non-uniform scale the density follows the area scale.
+TEST(ShapeSampling, CylinderByAreaUnderSimilarityAndNonUniformScale) {
+  for (bool reverse : {false, true}) {
+    Scene sc;
+    CylinderParams p{0.5f, -0.4f, 1.1f, 250.0f};
+    Transform t = translate(vec3(1, -2, 3)) * rotate(35, vec3(1, 0, 1)) * scale(vec3(2));
+    int s = make_emissive(sc, add_cylinder(sc, p, t, reverse));
+    Accel a(sc);
+    ShapeSampling ss(sc);
+    double area = 4.0 * radians(250.0f) * 0.5 * 1.5;
+    EXPECT_NEAR(ss.area(s), area, 1e-5 * area);
+    EXPECT_NEAR(pbrt_quadric_area(sc.shapes[size_t(s)]), area / 4.0, 1e-6 * area);
+    ShapeSampleContext ref{vec3(3.5f, -1.0f, 4.5f), vec3(0)};
+    Checked k = check_samples(sc, a, ss, s, ref, 100000);
+    EXPECT_GT(k.traced, 2000);
+    EXPECT_ESTIMATE(k.area_estimate, area);
+    // Normals are the transformed outward normals (flipped by ReverseOrientation),
+    // and samples stay on the partial side in object space.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    Transform inv = t.inverse();
+    for (int i = 0; i < 2000; ++i) {
+      ShapeSample smp = *ss.sample(s, ref, vec2(u(rng), u(rng)), u(rng));
+      vec3 q = inv.point(smp.p);
+      EXPECT_NEAR(std::sqrt(q.x * q.x + q.y * q.y), 0.5f, 1e-5f);
+      EXPECT_GE(q.z, -0.4f - 1e-5f);
+      EXPECT_LE(q.z, 1.1f + 1e-5f);
+      float phi = std::atan2(q.y, q.x);
+      if (phi < 0) phi += 2 * kPi;
+      EXPECT_LE(phi, radians(250.0f) + 1e-4f);
+      vec3 n_out = glm::normalize(t.normal(vec3(q.x, q.y, 0)));
+      EXPECT_NEAR(glm::dot(smp.n, n_out), reverse ? -1.0f : 1.0f, 1e-5f);
+    }
+  }
+  {
+    // An elliptic cylinder: semi-axes 2 and 0.5, height 3.  Its area is the
+    // ellipse's perimeter (a fine polygon) times the height.
+    Scene sc;
+    Transform t = translate(vec3(0, 0, 6)) * rotate(50, vec3(0, 1, 0)) * scale(vec3(2, 0.5f, 1.5f));
+    int s = make_emissive(sc, add_cylinder(sc, {}, t));
+    Accel a(sc);
+    ShapeSampling ss(sc);
+    double perimeter = 0.0;
+    const int n = 200000;
+    for (int i = 0; i < n; ++i) {
+      double a0 = 2.0 * M_PI * i / n, a1 = 2.0 * M_PI * (i + 1) / n;
+      perimeter += std::hypot(2.0 * (std::cos(a1) - std::cos(a0)), 0.5 * (std::sin(a1) - std::sin(a0)));
+    }
+    double area = perimeter * 3.0;
+    EXPECT_NEAR(ss.area(s), area, 1e-4 * area);
+    ShapeSampleContext ref{vec3(0.5f, -0.5f, 0), vec3(0, 0, 1)};
+    Checked k = check_samples(sc, a, ss, s, ref, 100000, false);
+    EXPECT_GT(k.traced, 1000);
+    EXPECT_ESTIMATE(k.area_estimate, area);
+  }
+}
+
 TEST(ShapeSampling, NonEmissiveShapesAreNotSampled) {
   Scene sc;
   add_sphere(sc, {});

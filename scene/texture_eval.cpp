@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <iterator>
 #include <type_traits>
 
 namespace theia {
@@ -75,19 +76,21 @@ inline RGB cubic_bezier(const RGB* c, float u) {
   return lerp3(lerp3(c01, c12), lerp3(c12, c23));
 }
 
-// pbrt-v4's marble: a sine of height perturbed by fbm, through a spline of
-// greys and one dark blue vein (sRGB, converted to the working space).
+// The control points of pbrt-v4's marble spline: greys and one dark blue vein (sRGB).
+const RGB kMarbleColors[] = {{.58f, .58f, .6f}, {.58f, .58f, .6f}, {.58f, .58f, .6f},
+                             {.5f, .5f, .5f},   {.6f, .59f, .58f}, {.58f, .58f, .6f},
+                             {.58f, .58f, .6f}, {.2f, .2f, .33f},  {.58f, .58f, .6f}};
+
+// pbrt-v4's marble: a sine of height perturbed by fbm, through the spline
+// (converted to the working space).
 RGB marble(const Texture& tex, const TextureEvalContext& ctx) {
   vec3 p = tex.marble_scale * tex.texture_from_render.point(ctx.p);
   float m = p.y + tex.variation * fbm(p, vec3(0.0f), vec3(0.0f), tex.roughness, tex.octaves);
   float t = 0.5f + 0.5f * std::sin(m);
-  static const RGB kColors[] = {{.58f, .58f, .6f}, {.58f, .58f, .6f}, {.58f, .58f, .6f},
-                                {.5f, .5f, .5f},   {.6f, .59f, .58f}, {.58f, .58f, .6f},
-                                {.58f, .58f, .6f}, {.2f, .2f, .33f},  {.58f, .58f, .6f}};
-  constexpr int kSegments = int(sizeof(kColors) / sizeof(kColors[0])) - 3;
+  constexpr int kSegments = int(std::size(kMarbleColors)) - 3;
   if (!std::isfinite(t)) t = 0.5f;  // sin of a huge p.y
   int first = std::clamp(int(std::floor(t * kSegments)), 0, kSegments - 1);
-  return srgb_to_working(1.5f * cubic_bezier(kColors + first, t * kSegments - float(first)));
+  return srgb_to_working(1.5f * cubic_bezier(kMarbleColors + first, t * kSegments - float(first)));
 }
 
 }  // namespace

@@ -75,6 +75,16 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(t.tex1);
     h.pod(t.tex2);
     h.pod(t.amount);
+    h.pod(t.mapping_kind);
+    h.pod(t.planar_s);
+    h.pod(t.planar_t);
+    h.pod(t.texture_from_render);
+    h.pod(t.corners);
+    h.pod(t.octaves);
+    h.pod(t.roughness);
+    h.pod(t.marble_scale);
+    h.pod(t.variation);
+    h.pod(t.dir);
   }
   for (const Image& img : s.images) h.vec(img.pixels);
   for (const Light& l : s.lights) {

@@ -82,8 +82,8 @@ Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteract
     if (!(du > 0.0f) || !std::isfinite(du)) du = 0.0005f;
     if (!(dv > 0.0f) || !std::isfinite(dv)) dv = 0.0005f;
     float d = eval_float_texture(scene, m->displacement, tc);
-    float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu, tc.fp});
-    float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv, tc.fp});
+    float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu, tc.fp, tc.n});
+    float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv, tc.fp, tc.n});
     dpdu = si.dpdu + (d_u - d) / du * ns;
     dpdv = si.dpdv + (d_v - d) / dv * ns;
     mapped = true;
@@ -150,7 +150,7 @@ void set_lobes(BSDF& b) {
 BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootprint& fp) {
   BSDF bsdf;
   bsdf.ng = si.ng;
-  const TextureEvalContext tc{si.uv, si.p, fp};
+  const TextureEvalContext tc{si.uv, si.p, fp, si.ng};
   const Material* m = si.material >= 0 ? &scene.materials[size_t(si.material)] : nullptr;
   m = resolve_mix(scene, m, si, tc);
   if (m && m->kind == MaterialKind::Interface) m = nullptr;

@@ -7,6 +7,7 @@
 #include "scene/params.h"
 #include "scene/ply.h"
 #include "scene/spectrum.h"
+#include "scene/texture_params.h"
 #include "scene/tokenizer.h"
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -544,70 +545,14 @@ void SceneParser::texture(const std::string& name, const std::string& type, cons
   bool is_float = type == "float";
   auto& names = is_float ? float_textures_ : spectrum_textures_;
   if (names.count(name)) throw_at(loc, "texture \"{}\" redefined, expected a new name", name);
-
-  Texture t;
-  t.name = name;
-  t.is_float = is_float;
-  t.loc = loc;
-  std::string mapping = params.get_string("mapping", "uv");
-  if (mapping != "uv") warn_at(loc, "texture mapping \"{}\" is not supported; using uv", mapping);
-  for (const char* n : {"v1", "v2"}) params.find(n, ParamType::Vector3);  // planar mapping only
-  t.mapping = {params.get_float("uscale", 1), params.get_float("vscale", 1), params.get_float("udelta", 0),
-               params.get_float("vdelta", 0)};
-
-  auto value_tex = [&](const char* n, float def) {
-    return texture_param(params, n, is_float, RGB(def), SpectrumUse::Reflectance);
+  TextureLookups lookups;
+  lookups.texture = [this](const ParamList& p, std::string_view n, bool f, RGB def, SpectrumUse use) {
+    return texture_param(p, n, f, def, use);
   };
-  if (cls == "imagemap") {
-    const Param* f = params.find("filename", ParamType::String);
-    if (!f) throw_at(loc, "imagemap texture \"{}\" without \"string filename\", expected an image file", name);
-    std::string encoding = params.get_string("encoding", "");
-    if (!encoding.empty() && encoding != "sRGB" && encoding != "linear" && encoding.rfind("gamma ", 0) != 0)
-      throw_at(loc, "encoding \"{}\", expected \"sRGB\", \"linear\" or \"gamma G\"", encoding);
-    t.kind = TextureKind::ImageMap;
-    t.image = image(resolve(base_dir, f->strings[0]), encoding, !is_float, f->loc);
-    std::string wrap = params.get_string("wrap", "repeat");
-    if (wrap == "repeat") t.wrap = WrapMode::Repeat;
-    else if (wrap == "black") t.wrap = WrapMode::Black;
-    else if (wrap == "clamp") t.wrap = WrapMode::Clamp;
-    else if (wrap == "octahedralsphere") t.wrap = WrapMode::OctahedralSphere;
-    else throw_at(loc, "wrap mode \"{}\", expected repeat, black, clamp or octahedralsphere", wrap);
-    t.scale = params.get_float("scale", 1.0f);
-    t.invert = params.get_bool("invert", false);
-    std::string filter = params.get_string("filter", "bilinear");
-    t.max_anisotropy = params.get_float("maxanisotropy", 8.0f);
-    if (!(t.max_anisotropy > 0.0f)) throw_at(loc, "maxanisotropy {}, expected a positive ratio", t.max_anisotropy);
-    if (filter == "point") {
-      t.filter = TextureFilter::Point;
-    } else if (filter == "trilinear" || filter == "ewa") {
-      t.filter = filter == "ewa" ? TextureFilter::EWA : TextureFilter::Trilinear;
-    } else if (filter != "bilinear") {
-      throw_at(loc, "texture filter \"{}\", expected point, bilinear, trilinear or ewa", filter);
-    }
-  } else if (cls == "checkerboard") {
-    t.kind = TextureKind::Checkerboard;
-    if (int dim = params.get_int("dimension", 2); dim != 2)
-      warn_at(loc, "checkerboard dimension {} is not supported; using 2", dim);
-    t.tex1 = value_tex("tex1", 1.0f);
-    t.tex2 = value_tex("tex2", 0.0f);
-  } else if (cls == "scale") {
-    t.kind = TextureKind::Scale;
-    t.tex1 = value_tex("tex", 1.0f);
-    t.tex2 = texture_param(params, "scale", true, RGB(1.0f), SpectrumUse::Unbounded);
-  } else if (cls == "mix") {
-    t.kind = TextureKind::Mix;
-    t.tex1 = value_tex("tex1", 0.0f);
-    t.tex2 = value_tex("tex2", 1.0f);
-    t.amount = texture_param(params, "amount", true, RGB(0.5f), SpectrumUse::Unbounded);
-  } else if (cls == "constant") {
-    t.kind = TextureKind::Constant;
-    t.value = scene_.textures[size_t(value_tex("value", 1.0f))].value;
-  } else {
-    warn_at(loc, "texture class \"{}\" is not supported; substituting a constant 0.5", cls);
-    params.mark_all_used();
-    t.value = RGB(0.5f);
-  }
-  scene_.textures.push_back(std::move(t));
+  lookups.image = [&](const std::string& file, const std::string& encoding, bool is_color, const SourceLoc& l) {
+    return image(resolve(base_dir, file), encoding, is_color, l);
+  };
+  scene_.textures.push_back(parse_texture(name, is_float, cls, params, gs_.ctm, loc, lookups));
   names[name] = int(scene_.textures.size()) - 1;
 }
 

@@ -24,7 +24,12 @@ struct SourceLoc {
 
 // ---------------------------------------------------------------- textures
 
-enum class TextureKind { Constant, ImageMap, Checkerboard, Scale, Mix };
+enum class TextureKind {
+  Constant, ImageMap, Checkerboard, Scale, Mix, Bilerp, Dots, FBm, Wrinkled, Windy, Marble, DirectionMix
+};
+// pbrt-v4's 2D mappings (TextureMapping2D); Point3D is its 3D PointTransformMapping,
+// used by 3D textures (fbm, wrinkled, windy, marble, checkerboard dimension 3).
+enum class TextureMappingKind { UV, Spherical, Cylindrical, Planar, Point3D };
 enum class WrapMode { Repeat, Black, Clamp, OctahedralSphere };
 // pbrt-v4's imagemap "filter" (scene/mipmap.h for Trilinear and EWA).
 enum class TextureFilter { Point, Bilinear, Trilinear, EWA };
@@ -52,7 +57,12 @@ struct Texture {
   std::string name;
   TextureKind kind = TextureKind::Constant;
   bool is_float = false;
-  UVMapping mapping;
+  TextureMappingKind mapping_kind = TextureMappingKind::UV;
+  UVMapping mapping;           // UV; Planar uses du, dv as its udelta, vdelta
+  vec3 planar_s{1, 0, 0}, planar_t{0, 1, 0};  // Planar "v1", "v2" (texture space)
+  // Every mapping but UV works on p in texture space: pbrt-v4's textureFromRender,
+  // the inverse of the CTM in effect at the Texture directive.
+  Transform texture_from_render;
   RGB value{0.0f};             // Constant
   int image = -1;              // ImageMap: index into Scene::images
   WrapMode wrap = WrapMode::Repeat;
@@ -60,8 +70,15 @@ struct Texture {
   bool invert = false;         // ImageMap "invert"
   TextureFilter filter = TextureFilter::Bilinear;  // ImageMap "filter"
   float max_anisotropy = 8.0f;                     // ImageMap "maxanisotropy" (EWA only)
-  int tex1 = -1, tex2 = -1;    // Checkerboard (tex1, tex2), Scale (tex, scale), Mix (tex1, tex2)
+  // Checkerboard (tex1, tex2), Scale (tex, scale), Mix and DirectionMix (tex1, tex2),
+  // Dots (inside the dot, outside it: see scene/texture_params.cpp for pbrt-v4's swap)
+  int tex1 = -1, tex2 = -1;
   int amount = -1;             // Mix amount (float texture)
+  RGB corners[4] = {RGB(0.0f), RGB(1.0f), RGB(0.0f), RGB(1.0f)};  // Bilerp v00, v01, v10, v11
+  int octaves = 8;             // FBm, Wrinkled, Marble
+  float roughness = 0.5f;      // FBm, Wrinkled, Marble: pbrt-v4's omega
+  float marble_scale = 1.0f, variation = 0.2f;  // Marble
+  vec3 dir{0, 1, 0};           // DirectionMix: unit, render space
   SourceLoc loc;
 };
 

@@ -34,15 +34,37 @@ void load_image(Image& image, const std::string& base_dir = "");
 struct UVFootprint {
   float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;
 };
+// p is in render space; n is the geometric normal (only "directionmix" reads
+// it; zero where the caller has none, e.g. alpha tests).
 struct TextureEvalContext {
   vec2 uv;
   vec3 p;
   UVFootprint fp;
+  vec3 n{0.0f};
 };
+
+// pbrt-v4's 2D texture coordinates: st and its screen-space derivatives
+// (dst0 = (ds/dx, dt/dx), dst1 = (ds/dy, dt/dy)).  Only the uv mapping has
+// derivatives: theia has no dp/dx, dp/dy, so spherical, cylindrical and planar
+// mappings return a zero footprint.
+struct TexCoord2D {
+  vec2 st;
+  vec2 dst0{0.0f}, dst1{0.0f};
+};
+TexCoord2D map_texture_2d(const Texture& tex, const TextureEvalContext& ctx);
+
+// pbrt-v4's filtered checkerboard weight of tex2 (0 = tex1, 1 = tex2, between
+// them near an edge inside the footprint): 2D over st, 3D (Point3D mapping)
+// over p in texture space with a zero footprint.
+float checkerboard_weight(const Texture& tex, const TextureEvalContext& ctx);
+// pbrt-v4's InsidePolkaDot: one dot of radius 0.35 in about half the unit
+// cells around integer st, its centre jittered by noise.
+bool inside_polka_dot(vec2 st);
 
 // Spectrum texture.  A missing child (index -1) takes pbrt-v4's default for
 // that slot: checkerboard tex1 = 1, tex2 = 0; scale tex = 1, scale = 1;
-// mix tex1 = 0, tex2 = 1, amount = 0.5.
+// mix and directionmix tex1 = 0, tex2 = 1, amount = 0.5; dots inside 0,
+// outside 1 (scene/texture_params.cpp says why).
 RGB eval_texture(const Scene& scene, int texture, const TextureEvalContext& ctx);
 // Float texture: the first channel wherever a texture or image has several.
 float eval_float_texture(const Scene& scene, int texture, const TextureEvalContext& ctx);

@@ -504,10 +504,12 @@ TEST(Parser, CheckerboardAndTextureWarnings) {
   int before = warning_count();
   Scene s = parse(R"(WorldBegin
 Texture "c" "float" "checkerboard" "float tex1" 0.2 "float tex2" 0.7 "integer dimension" 3 "string mapping" "spherical"
-Texture "f" "spectrum" "fbm" "integer octaves" 4)");
-  EXPECT_EQ(warning_count() - before, 3);
-  const Texture& c = s.textures.back().name == "f" ? s.textures[s.textures.size() - 2] : s.textures.back();
+Texture "p" "spectrum" "ptex" "string filename" "a.ptx")");
+  // A 3D checkerboard has no 2D mapping, so "mapping" goes unused; ptex is substituted.
+  EXPECT_EQ(warning_count() - before, 2);
+  const Texture& c = s.textures.back().name == "p" ? s.textures[s.textures.size() - 2] : s.textures.back();
   EXPECT_EQ(c.kind, TextureKind::Checkerboard);
+  EXPECT_EQ(c.mapping_kind, TextureMappingKind::Point3D);
   EXPECT_FLOAT_EQ(s.textures[size_t(c.tex1)].value.x, 0.2f);
   EXPECT_FLOAT_EQ(s.textures[size_t(c.tex2)].value.x, 0.7f);
 }

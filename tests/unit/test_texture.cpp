@@ -280,10 +280,13 @@ TEST(TextureBumpMap, LinearRampTiltsTheNormalByItsSlopeWithAnyOffset) {
 TEST(TextureBumpMap, OffsetIsHalfTheFootprintOrTheFixedFallback) {
   // A unit step (checkerboard: 1 below u = 1, 0 above) seen from just left of
   // it: the finite difference is -1 / offset when the offset reaches past the
-  // step and 0 when it does not, which reveals the offset.
+  // step and 0 when it does not, which reveals the offset.  The 3D checkerboard
+  // (p = (u, v, 0) here) keeps the step sharp whatever the footprint; the 2D one
+  // would filter it over the footprint, as pbrt-v4 does.
   Scene s;
   Texture c;
   c.kind = TextureKind::Checkerboard;
+  c.mapping_kind = TextureMappingKind::Point3D;
   c.is_float = true;
   int step = add(s, c);
   auto expect_normal = [](vec3 n, vec3 e, const char* what) {

@@ -169,13 +169,16 @@ void approximate_dp_dxy(const Camera& c, const vec3& p, const vec3& n, float spp
       dx = f.from_local(vec3(0, 0, 1) + c.min_dir_dx);
       dy = f.from_local(vec3(0, 0, 1) + c.min_dir_dy);
     } else {
-      // pbrt-v4's GenerateRayDifferential at the raster point that sees p: a
-      // 0.05-pixel step, scaled to one pixel.  d0 is w to float rounding.
+      // pbrt-v4's GenerateRayDifferential at the raster point that sees p,
+      // 0.05 pixel either side (pbrt-v4 steps one way, whose error shows on
+      // the curved maps), scaled to one pixel.
       constexpr float kEps = 0.05f;
       vec2 r = spherical_camera_raster(c, w);
-      vec3 d0 = spherical_camera_direction(c, r);
-      dx = d0 + (spherical_camera_direction(c, r + vec2(kEps, 0.0f)) - d0) / kEps;
-      dy = d0 + (spherical_camera_direction(c, r + vec2(0.0f, kEps)) - d0) / kEps;
+      auto derivative = [&](vec2 step) {
+        return (spherical_camera_direction(c, r + step) - spherical_camera_direction(c, r - step)) / (2.0f * kEps);
+      };
+      dx = w + derivative(vec2(kEps, 0.0f));
+      dy = w + derivative(vec2(0.0f, kEps));
     }
   }
   dpdx = spp_scale * c.render_from_camera.vector(offset_on_plane(ox, dx, pc, nc));

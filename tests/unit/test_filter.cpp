@@ -1,6 +1,8 @@
 #include "core/log.h"
 #include "core/sampler.h"
+#include "core/color.h"
 #include "scene/filter.h"
+#include "wavefront/film.h"
 #include "tests/unit/chi2.h"
 
 #include <gtest/gtest.h>
@@ -234,4 +236,37 @@ TEST(Filter, RejectsBadParameters) {
   EXPECT_THROW(lanczos(vec2(4.0f), 0.0f), Error);
   EXPECT_THROW(mitchell(vec2(2.0f), kInfinity), Error);
   EXPECT_THROW(mitchell(vec2(-2.0f)), Error);
+}
+
+// Negative weights reach the film unclamped, as pbrt-v4's RGBFilm adds
+// weight * L and weight: a pixel is sum(w L) / sum(w) with signed terms.  A
+// pixel whose weights cancel exactly stays 0, as in pbrt-v4 (no NaN), and so
+// does one whose quotient overflows.
+TEST(Filter, FilmSumsSignedWeightsAndLeavesCancelledPixelsBlack) {
+  Film film(3, 1);
+  auto add = [&](uint32_t pixel, uint32_t sample, float w, RGB L) {
+    film.add_weight(pixel, sample, w);
+    film.add_alpha_weight(pixel, w);
+    film.splat(pixel, sample, w * L);
+    film.splat_first_hit(pixel, w, true, RGB(0.5f), vec3(0, 0, 1), 2.0f);
+  };
+  add(0, 0, 2.0f, RGB(1.0f, 2.0f, 3.0f));
+  add(0, 1, -0.5f, RGB(4.0f));
+  add(1, 0, 1.5f, RGB(1.0f));
+  add(1, 1, -1.5f, RGB(3.0f));
+  film.add_weight(2, 0, 1e-39f);  // denormal: 1 / it overflows
+  film.splat(2, 0, RGB(1.0f));
+  ImageBuffer img = resolve_film(film);
+  const size_t nc = img.channels.size();
+  RGB want = working_to_srgb((2.0f * RGB(1.0f, 2.0f, 3.0f) - 0.5f * RGB(4.0f)) / 1.5f);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(img.data[size_t(c)], want[c], 1e-5f);
+  EXPECT_LT(img.data[0], 1.0f / 1.5f);  // the negative sample pulled it down: nothing clamped it at zero
+  EXPECT_FLOAT_EQ(img.data[3], 1.0f);   // alpha: sum of hit weights over the alpha weights
+  EXPECT_FLOAT_EQ(img.data[10], 2.0f);  // depth, averaged over the signed hit weights
+  for (size_t pixel : {size_t(1), size_t(2)})
+    for (size_t c = 0; c < nc; ++c) {
+      float v = img.data[pixel * nc + c];
+      EXPECT_TRUE(std::isfinite(v)) << pixel << " " << img.channels[c];
+      EXPECT_EQ(v, 0.0f) << pixel << " " << img.channels[c];
+    }
 }

@@ -20,14 +20,29 @@ Transform look_at(vec3 pos, vec3 look, vec3 up) {
   return Transform(world_from_camera);
 }
 
+FilmParams film_of(int w, int h) {
+  FilmParams f;
+  f.width = w;
+  f.height = h;
+  return f;
+}
+
 Camera pinhole(int w, int h, float fov, Transform render_from_camera = {}) {
   CameraParams c;
   c.fov = fov;
   c.render_from_camera = render_from_camera;
-  FilmParams f;
-  f.width = w;
-  f.height = h;
-  return make_camera(c, f);
+  return make_camera(c, film_of(w, h));
+}
+
+// A thin-lens camera at (1, 2, 3) looking at the origin, z up.
+CameraParams thin_lens(CameraKind kind, float lens_radius, float focal_distance) {
+  CameraParams p;
+  p.kind = kind;
+  p.fov = 50.0f;
+  p.lens_radius = lens_radius;
+  p.focal_distance = focal_distance;
+  p.render_from_camera = look_at(vec3(1, 2, 3), vec3(0, 0, 0), vec3(0, 0, 1));
+  return p;
 }
 
 // Direction of the pinhole ray through a raster point, in camera space.
@@ -100,15 +115,8 @@ TEST(Camera, ScreenWindowMapsTheImageCorners) {
 }
 
 TEST(Camera, ThinLensRaysConvergeOnThePlaneOfFocus) {
-  CameraParams p;
-  p.fov = 50.0f;
-  p.lens_radius = 0.25f;
-  p.focal_distance = 7.0f;
-  p.render_from_camera = look_at(vec3(1, 2, 3), vec3(0, 0, 0), vec3(0, 0, 1));
-  FilmParams f;
-  f.width = 200;
-  f.height = 100;
-  Camera c = make_camera(p, f);
+  CameraParams p = thin_lens(CameraKind::Perspective, 0.25f, 7.0f);
+  Camera c = make_camera(p, film_of(200, 100));
   Camera pin = c;
   pin.lens_radius = 0.0f;
   for (vec2 film : {vec2(100, 50), vec2(13.5f, 80.25f), vec2(199, 1)}) {
@@ -164,10 +172,7 @@ Camera orthographic(int w, int h, Transform render_from_camera = {}, const float
     p.has_screen_window = true;
     std::copy(window, window + 4, p.screen_window);
   }
-  FilmParams f;
-  f.width = w;
-  f.height = h;
-  return make_camera(p, f);
+  return make_camera(p, film_of(w, h));
 }
 
 Camera spherical(int w, int h, SphericalMapping mapping, Transform render_from_camera = {}) {
@@ -175,10 +180,7 @@ Camera spherical(int w, int h, SphericalMapping mapping, Transform render_from_c
   p.kind = CameraKind::Spherical;
   p.mapping = mapping;
   p.render_from_camera = render_from_camera;
-  FilmParams f;
-  f.width = w;
-  f.height = h;
-  return make_camera(p, f);
+  return make_camera(p, film_of(w, h));
 }
 
 }  // namespace
@@ -210,20 +212,14 @@ TEST(Camera, OrthographicPixelCentresMapToTheScreenWindow) {
 }
 
 TEST(Camera, ThinLensOrthographicFocuses) {
-  CameraParams p;
-  p.kind = CameraKind::Orthographic;
-  p.lens_radius = 0.3f;
-  p.focal_distance = 5.0f;
-  p.render_from_camera = look_at(vec3(1, 2, 3), vec3(0, 0, 0), vec3(0, 0, 1));
-  FilmParams f;
-  f.width = 64;
-  f.height = 32;
-  Camera c = make_camera(p, f);
+  CameraParams p = thin_lens(CameraKind::Orthographic, 0.3f, 5.0f);
+  Camera c = make_camera(p, film_of(64, 32));
+  Camera pin = make_camera(thin_lens(CameraKind::Orthographic, 0.0f, 5.0f), film_of(64, 32));
   const Transform camera_from_render = p.render_from_camera.inverse();
   for (vec2 film : {vec2(32, 16), vec2(3.5f, 30.25f), vec2(63, 1)}) {
     // The pinhole ray leaves the film point along +z; every lens ray meets it
     // at the plane of focus.
-    vec3 o = camera_from_render.point(generate_camera_ray(make_camera([&] { CameraParams q = p; q.lens_radius = 0; return q; }(), f), film, vec2(0.5f)).o);
+    vec3 o = camera_from_render.point(generate_camera_ray(pin, film, vec2(0.5f)).o);
     vec3 focus = o + vec3(0, 0, p.focal_distance);
     float max_spread = 0.0f;
     for (int i = 0; i < 64; ++i) {

@@ -113,6 +113,7 @@ Filter make_filter(const FilterParams& params) {
       table[size_t(y) * size_t(nx) + size_t(x)] = std::abs(tabulated_eval(f, (2.0f * t - 1.0f) * f.radius));
     }
   f.distribution = Distribution2D(table, nx, ny);
+  f.table_size = ivec2(nx, ny);
   return f;
 }
 
@@ -131,11 +132,17 @@ FilterSample sample_filter(const Filter& f, vec2 u) {
     case FilterKind::Triangle: return {{sample_tent(u.x, f.radius.x), sample_tent(u.y, f.radius.y)}, 1.0f};
     default: {
       float pdf = 0.0f;
-      vec2 t = f.distribution.sample_continuous(u, &pdf);
+      ivec2 cell(0);
+      vec2 t = f.distribution.sample_continuous(u, &pdf, &cell);
       vec2 p = glm::clamp((2.0f * t - 1.0f) * f.radius, -f.radius, f.radius);
       // The table's density over [0,1)^2 becomes a density over the filter's extent.
       pdf /= 4.0f * f.radius.x * f.radius.y;
-      return {p, pdf > 0.0f ? tabulated_eval(f, p) / pdf : 0.0f};
+      if (!(pdf > 0.0f)) return {p, 0.0f};
+      if (f.kind == FilterKind::Gaussian) return {p, tabulated_eval(f, p) / pdf};
+      // pbrt-v4's f[cell] / pdf is +-integral(|table|) up to rounding; taken
+      // exactly, so that opposite weights cancel to exactly 0.
+      vec2 centre = ((vec2(cell) + 0.5f) / vec2(f.table_size) * 2.0f - 1.0f) * f.radius;
+      return {p, std::copysign(f.distribution.integral() * 4.0f * f.radius.x * f.radius.y, tabulated_eval(f, centre))};
     }
   }
 }

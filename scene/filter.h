@@ -26,6 +26,7 @@ struct Filter {
   float tau = 3.0f;                        // Lanczos
   float integral = 0.0f;                   // of f over its support
   Distribution2D distribution; // tabulated filters: |f| over [-radius, radius]
+  ivec2 table_size{0};
 };
 
 // Throws Error for a non-positive or non-finite radius, sigma or tau, or a
@@ -35,9 +36,13 @@ Filter make_filter(const FilterParams& params);
 // Box: uniform, weight 1.  Triangle: separable tent, weight 1.  Both are exact
 // importance sampling of f / integral(f).  Gaussian, Mitchell, Lanczos:
 // pbrt-v4's FilterSampler, sampled from the tabulated |f| at 32 cells per unit
-// radius; the weight is f(p) / pdf(p) evaluated at p itself (pbrt-v4 uses the
-// tabulated cell value), which keeps E[weight * g(p)] equal to the integral of
-// f * g exactly wherever the table is non-zero.
+// radius.  Gaussian: the weight is f(p) / pdf(p) at p itself, which keeps
+// E[weight * g(p)] equal to the integral of f * g exactly.  Mitchell and
+// Lanczos: pbrt-v4's weight, the cell's tabulated f over the pdf, which is
+// +-integral(|table|) in every cell: a pixel's weights sum to a multiple of
+// it, exactly 0 when they cancel (the film leaves that pixel black, as
+// pbrt-v4), never to a sliver that would blow sum(w L) / sum(w) up.  The
+// price is the table's midpoint-rule bias, second order in the cell size.
 FilterSample sample_filter(const Filter& filter, vec2 u);
 // Density of sample_filter()'s offsets.
 float filter_pdf(const Filter& filter, vec2 p);

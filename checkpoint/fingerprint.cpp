@@ -107,6 +107,8 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(i.prototype);
     h.pod(i.render_from_instance);
   }
+  h.pod(s.camera.kind);
+  h.pod(s.camera.mapping);
   h.pod(s.camera.render_from_camera);
   h.pod(s.camera.fov);
   h.pod(s.camera.lens_radius);
@@ -117,6 +119,9 @@ uint64_t scene_fingerprint(const Scene& s) {
   h.pod(s.filter.kind);
   h.pod(s.filter.radius);
   h.pod(s.filter.sigma);
+  h.pod(s.filter.b);
+  h.pod(s.filter.c);
+  h.pod(s.filter.tau);
   return h.h;
 }
 

@@ -5,28 +5,36 @@
 
 namespace theia {
 
-Camera make_camera(const CameraParams& params, const FilmParams& film) {
-  if (film.width <= 0 || film.height <= 0)
-    throw_error("film: resolution must be positive, got {}x{}", film.width, film.height);
-  if (!(params.fov > 0.0f && params.fov < 180.0f))
-    throw_error("perspective camera: \"fov\" must be in (0, 180) degrees, got {}", params.fov);
-  if (!(params.lens_radius >= 0.0f && std::isfinite(params.lens_radius)))
-    throw_error("perspective camera: \"lensradius\" must be non-negative, got {}", params.lens_radius);
-  if (params.lens_radius > 0.0f && !(params.focal_distance > 0.0f && std::isfinite(params.focal_distance)))
-    throw_error("perspective camera: \"focaldistance\" must be positive, got {}", params.focal_distance);
+namespace {
 
-  Camera c;
-  c.render_from_camera = params.render_from_camera;
-  c.resolution = vec2(float(film.width), float(film.height));
-  c.lens_radius = params.lens_radius;
-  c.focal_distance = params.focal_distance;
+const char* kind_name(CameraKind k) {
+  return k == CameraKind::Perspective ? "perspective" : k == CameraKind::Orthographic ? "orthographic" : "spherical";
+}
 
+// pbrt-v4's WrapEqualAreaSquare: a point just off the square (a filter
+// offset past the image edge) continues on the sphere across that edge.
+vec2 wrap_equal_area_square(vec2 uv) {
+  if (uv.x < 0.0f) {
+    uv = vec2(-uv.x, 1.0f - uv.y);
+  } else if (uv.x > 1.0f) {
+    uv = vec2(2.0f - uv.x, 1.0f - uv.y);
+  }
+  if (uv.y < 0.0f) {
+    uv = vec2(1.0f - uv.x, -uv.y);
+  } else if (uv.y > 1.0f) {
+    uv = vec2(1.0f - uv.x, 2.0f - uv.y);
+  }
+  return uv;
+}
+
+// The screen window and the raster -> camera map of the two projective cameras.
+void setup_projective(Camera& c, const CameraParams& params) {
   float* sw = c.screen_window;
   if (params.has_screen_window) {
     for (int i = 0; i < 4; ++i) sw[i] = params.screen_window[i];
     if (!(sw[0] < sw[1] && sw[2] < sw[3]))
-      throw_error("perspective camera: \"screenwindow\" needs xmin < xmax and ymin < ymax, got [{} {} {} {}]",
-                  sw[0], sw[1], sw[2], sw[3]);
+      throw_error("{} camera: \"screenwindow\" needs xmin < xmax and ymin < ymax, got [{} {} {} {}]",
+                  kind_name(c.kind), sw[0], sw[1], sw[2], sw[3]);
   } else {
     // pbrt-v4: the shorter image axis spans [-1, 1], so fov applies to it.
     float aspect = c.resolution.x / c.resolution.y;
@@ -36,14 +44,17 @@ Camera make_camera(const CameraParams& params, const FilmParams& film) {
       sw[0] = -1.0f, sw[1] = 1.0f, sw[2] = -1.0f / aspect, sw[3] = 1.0f / aspect;
     }
   }
-
-  // Screen (sx, sy) is camera (x, y) / (z * tan(fov / 2)); raster y runs from
-  // the window's top (ymax) downwards.
-  float t = std::tan(radians(params.fov) * 0.5f);
-  c.p00 = vec3(sw[0] * t, sw[3] * t, 1.0f);
+  // Screen (sx, sy) is camera (x, y) / (z * tan(fov / 2)) for perspective and
+  // camera (x, y) itself for orthographic (pbrt-v4's Orthographic(0, 1));
+  // raster y runs from the window's top (ymax) downwards.
+  float t = c.kind == CameraKind::Perspective ? std::tan(radians(params.fov) * 0.5f) : 1.0f;
+  float z = c.kind == CameraKind::Perspective ? 1.0f : 0.0f;
+  c.p00 = vec3(sw[0] * t, sw[3] * t, z);
   c.dx = vec3((sw[1] - sw[0]) * t / c.resolution.x, 0.0f, 0.0f);
   c.dy = vec3(0.0f, -(sw[3] - sw[2]) * t / c.resolution.y, 0.0f);
+}
 
+void find_minimum_differentials(Camera& c) {
   // Along the diagonal, as pbrt-v4 searches: off-axis pixels subtend less angle.
   constexpr int kSteps = 512;
   float best_x = INFINITY, best_y = INFINITY;
@@ -56,18 +67,64 @@ Camera make_camera(const CameraParams& params, const FilmParams& film) {
     if (glm::length(dxf) < best_x) best_x = glm::length(dxf), c.min_dir_dx = dxf;
     if (glm::length(dyf) < best_y) best_y = glm::length(dyf), c.min_dir_dy = dyf;
   }
+}
+
+}  // namespace
+
+Camera make_camera(const CameraParams& params, const FilmParams& film) {
+  if (film.width <= 0 || film.height <= 0)
+    throw_error("film: resolution must be positive, got {}x{}", film.width, film.height);
+  Camera c;
+  c.kind = params.kind;
+  c.mapping = params.mapping;
+  c.render_from_camera = params.render_from_camera;
+  c.resolution = vec2(float(film.width), float(film.height));
+  if (c.kind == CameraKind::Spherical) return c;
+
+  const char* name = kind_name(c.kind);
+  if (c.kind == CameraKind::Perspective && !(params.fov > 0.0f && params.fov < 180.0f))
+    throw_error("perspective camera: \"fov\" must be in (0, 180) degrees, got {}", params.fov);
+  if (!(params.lens_radius >= 0.0f && std::isfinite(params.lens_radius)))
+    throw_error("{} camera: \"lensradius\" must be non-negative, got {}", name, params.lens_radius);
+  if (params.lens_radius > 0.0f && !(params.focal_distance > 0.0f && std::isfinite(params.focal_distance)))
+    throw_error("{} camera: \"focaldistance\" must be positive, got {}", name, params.focal_distance);
+  c.lens_radius = params.lens_radius;
+  c.focal_distance = params.focal_distance;
+  setup_projective(c, params);
+  if (c.kind == CameraKind::Perspective) find_minimum_differentials(c);
   return c;
 }
 
+vec3 spherical_camera_direction(const Camera& c, vec2 p_film) {
+  vec2 uv = p_film / c.resolution;
+  vec3 d = c.mapping == SphericalMapping::Equirectangular ? equirect_to_sphere(uv)
+                                                          : equal_area_square_to_sphere(wrap_equal_area_square(uv));
+  return {d.x, d.z, d.y};
+}
+
+vec2 spherical_camera_raster(const Camera& c, const vec3& dir) {
+  vec3 d(dir.x, dir.z, dir.y);
+  vec2 uv = c.mapping == SphericalMapping::Equirectangular ? sphere_to_equirect(d) : equal_area_sphere_to_square(d);
+  return uv * c.resolution;
+}
+
 Ray generate_camera_ray(const Camera& c, vec2 p_film, vec2 u_lens) {
-  vec3 p_camera = c.p00 + p_film.x * c.dx + p_film.y * c.dy;  // on z = 1
-  vec3 o(0.0f), d = p_camera;
-  if (c.lens_radius > 0.0f) {
-    // Every ray through this film point meets the pinhole ray on the plane of focus.
-    vec3 p_focus = p_camera * c.focal_distance;
-    vec2 p_lens = c.lens_radius * sample_uniform_disk_concentric(u_lens);
-    o = vec3(p_lens, 0.0f);
-    d = p_focus - o;
+  vec3 o(0.0f), d;
+  if (c.kind == CameraKind::Spherical) {
+    d = spherical_camera_direction(c, p_film);
+  } else {
+    vec3 p_camera = c.p00 + p_film.x * c.dx + p_film.y * c.dy;
+    bool ortho = c.kind == CameraKind::Orthographic;
+    o = ortho ? p_camera : vec3(0.0f);
+    d = ortho ? vec3(0, 0, 1) : p_camera;  // perspective: p_camera is on z = 1
+    if (c.lens_radius > 0.0f) {
+      // Every ray through this film point meets the pinhole ray on the plane
+      // of focus.  As pbrt-v4, the orthographic lens is centred on the camera
+      // origin, not on the film point.
+      vec3 p_focus = o + d * c.focal_distance;
+      o = vec3(c.lens_radius * sample_uniform_disk_concentric(u_lens), 0.0f);
+      d = p_focus - o;
+    }
   }
   Ray ray;
   ray.o = c.render_from_camera.point(o);
@@ -79,27 +136,53 @@ Ray generate_camera_ray(const Camera& c, vec2 p_film, vec2 u_lens) {
 
 namespace theia {
 
+namespace {
+
+// Where the line o + t d meets the plane through p with normal n, minus p;
+// zero when it runs (nearly) parallel to the plane.
+vec3 offset_on_plane(const vec3& o, const vec3& d, const vec3& p, const vec3& n) {
+  float denom = glm::dot(n, d);
+  float t = glm::dot(n, p - o) / denom;
+  if (denom == 0.0f || !std::isfinite(t)) return vec3(0.0f);
+  vec3 v = o + t * d - p;
+  return std::isfinite(v.x + v.y + v.z) ? v : vec3(0.0f);
+}
+
+}  // namespace
+
 void approximate_dp_dxy(const Camera& c, const vec3& p, const vec3& n, float spp_scale, vec3& dpdx, vec3& dpdy) {
   dpdx = dpdy = vec3(0.0f);
   const Transform camera_from_render = c.render_from_camera.inverse();
-  vec3 pc = camera_from_render.point(p);
-  float z = glm::length(pc);
-  if (!(z > 0.0f) || !std::isfinite(z)) return;
-  // Turn the camera so p lies on +z; the differential rays leave the origin
-  // along +z + min_dir_d* and meet the plane through p with normal n.
-  Frame f = Frame::from_z(pc / z);
-  vec3 nd = f.to_local(camera_from_render.normal(n));
-  float d = nd.z * z;
-  auto offset = [&](const vec3& dir_delta) {
-    vec3 dir = vec3(0, 0, 1) + dir_delta;
-    float denom = glm::dot(nd, dir);
-    float t = d / denom;
-    if (!std::isfinite(t) || denom == 0.0f) return vec3(0.0f);  // grazing: no usable footprint
-    vec3 v = c.render_from_camera.vector(f.from_local(t * dir - vec3(0, 0, z)));
-    return std::isfinite(v.x + v.y + v.z) ? spp_scale * v : vec3(0.0f);
-  };
-  dpdx = offset(c.min_dir_dx);
-  dpdy = offset(c.min_dir_dy);
+  vec3 pc = camera_from_render.point(p), nc = camera_from_render.normal(n);
+  vec3 ox(0.0f), oy(0.0f), dx, dy;  // the two differential rays, in camera space
+  if (c.kind == CameraKind::Orthographic) {
+    ox = pc + c.dx, oy = pc + c.dy;
+    dx = dy = vec3(0, 0, 1);
+  } else {
+    float z = glm::length(pc);
+    if (!(z > 0.0f) || !std::isfinite(z)) return;
+    vec3 w = pc / z;
+    if (c.kind == CameraKind::Perspective) {
+      // Turn the camera so p lies on +z; the differential rays leave the
+      // origin along +z + min_dir_d*.
+      Frame f = Frame::from_z(w);
+      dx = f.from_local(vec3(0, 0, 1) + c.min_dir_dx);
+      dy = f.from_local(vec3(0, 0, 1) + c.min_dir_dy);
+    } else {
+      // pbrt-v4's GenerateRayDifferential at the raster point that sees p,
+      // 0.05 pixel either side (pbrt-v4 steps one way, whose error shows on
+      // the curved maps), scaled to one pixel.
+      constexpr float kEps = 0.05f;
+      vec2 r = spherical_camera_raster(c, w);
+      auto derivative = [&](vec2 step) {
+        return (spherical_camera_direction(c, r + step) - spherical_camera_direction(c, r - step)) / (2.0f * kEps);
+      };
+      dx = w + derivative(vec2(kEps, 0.0f));
+      dy = w + derivative(vec2(0.0f, kEps));
+    }
+  }
+  dpdx = spp_scale * c.render_from_camera.vector(offset_on_plane(ox, dx, pc, nc));
+  dpdy = spp_scale * c.render_from_camera.vector(offset_on_plane(oy, dy, pc, nc));
 }
 
 UVFootprint texture_footprint(const Camera& c, const SurfaceInteraction& si, float spp_scale) {

@@ -21,7 +21,54 @@ float gaussian_eval(const Filter& f, vec2 p) {
          std::max(0.0f, gaussian(p.y, f.sigma) - f.gaussian_offset.y);
 }
 
+// Mitchell-Netravali over [-2, 2]; integrates to 1 for every B and C.
+float mitchell_1d(float x, float b, float c) {
+  x = std::abs(x);
+  if (x <= 1.0f)
+    return ((12.0f - 9.0f * b - 6.0f * c) * x * x * x + (-18.0f + 12.0f * b + 6.0f * c) * x * x + (6.0f - 2.0f * b)) *
+           (1.0f / 6.0f);
+  if (x <= 2.0f)
+    return ((-b - 6.0f * c) * x * x * x + (6.0f * b + 30.0f * c) * x * x + (-12.0f * b - 48.0f * c) * x +
+            (8.0f * b + 24.0f * c)) *
+           (1.0f / 6.0f);
+  return 0.0f;
+}
+
+template <typename T>
+T sinc(T x) {
+  T px = T(kPi) * x;
+  // sin(x)/x rounds to 1 wherever 1 - x^2/6 does.
+  return T(1) + px * px == T(1) ? T(1) : std::sin(px) / px;
+}
+
+float windowed_sinc(float x, float radius, float tau) {
+  return std::abs(x) > radius ? 0.0f : sinc(x) * sinc(x / tau);
+}
+
+// Composite Simpson of the windowed sinc over [-r, r]; the function is
+// smooth inside, so 4096 intervals leave only float rounding.
+float windowed_sinc_integral(float r, float tau) {
+  const int n = 4096;
+  double h = 2.0 * r / n, sum = 0.0;
+  for (int i = 0; i <= n; ++i) {
+    double x = -double(r) + i * h;
+    double w = (i == 0 || i == n) ? 1.0 : (i % 2 ? 4.0 : 2.0);
+    sum += w * sinc(x) * sinc(x / double(tau));
+  }
+  return float(sum * h / 3.0);
+}
+
 bool inside(const Filter& f, vec2 p) { return std::abs(p.x) <= f.radius.x && std::abs(p.y) <= f.radius.y; }
+
+float tabulated_eval(const Filter& f, vec2 p) {
+  switch (f.kind) {
+    case FilterKind::Gaussian: return gaussian_eval(f, p);
+    case FilterKind::Mitchell:
+      return mitchell_1d(2.0f * p.x / f.radius.x, f.b, f.c) * mitchell_1d(2.0f * p.y / f.radius.y, f.b, f.c);
+    case FilterKind::Lanczos: return windowed_sinc(p.x, f.radius.x, f.tau) * windowed_sinc(p.y, f.radius.y, f.tau);
+    default: return 0.0f;
+  }
+}
 
 }  // namespace
 
@@ -30,60 +77,74 @@ Filter make_filter(const FilterParams& params) {
   f.kind = params.kind;
   f.radius = params.radius;
   f.sigma = params.sigma;
+  f.b = params.b;
+  f.c = params.c;
+  f.tau = params.tau;
   if (!(f.radius.x > 0.0f && f.radius.y > 0.0f && std::isfinite(f.radius.x) && std::isfinite(f.radius.y)))
     throw_error("filter: \"radius\" must be positive and finite, got ({}, {})", f.radius.x, f.radius.y);
-  if (f.kind != FilterKind::Gaussian) return f;
-  if (!(f.sigma > 0.0f && std::isfinite(f.sigma)))
-    throw_error("gaussian filter: \"sigma\" must be positive and finite, got {}", f.sigma);
-  f.gaussian_offset = {gaussian(f.radius.x, f.sigma), gaussian(f.radius.y, f.sigma)};
+  switch (f.kind) {
+    case FilterKind::Box: f.integral = 4.0f * f.radius.x * f.radius.y; return f;
+    case FilterKind::Triangle: f.integral = sqr(f.radius.x) * sqr(f.radius.y); return f;
+    case FilterKind::Gaussian:
+      if (!(f.sigma > 0.0f && std::isfinite(f.sigma)))
+        throw_error("gaussian filter: \"sigma\" must be positive and finite, got {}", f.sigma);
+      f.gaussian_offset = {gaussian(f.radius.x, f.sigma), gaussian(f.radius.y, f.sigma)};
+      f.integral = (gaussian_integral(f.radius.x, f.sigma) - 2.0f * f.radius.x * f.gaussian_offset.x) *
+                   (gaussian_integral(f.radius.y, f.sigma) - 2.0f * f.radius.y * f.gaussian_offset.y);
+      break;
+    case FilterKind::Mitchell:
+      if (!(std::isfinite(f.b) && std::isfinite(f.c)))
+        throw_error("mitchell filter: \"B\" and \"C\" must be finite, got {} and {}", f.b, f.c);
+      f.integral = f.radius.x * f.radius.y / 4.0f;
+      break;
+    case FilterKind::Lanczos:
+      if (!(f.tau > 0.0f && std::isfinite(f.tau)))
+        throw_error("sinc filter: \"tau\" must be positive and finite, got {}", f.tau);
+      f.integral = windowed_sinc_integral(f.radius.x, f.tau) * windowed_sinc_integral(f.radius.y, f.tau);
+      break;
+  }
 
-  // pbrt-v4's FilterSampler: f sampled at cell centres, 32 cells per unit radius.
+  // pbrt-v4's FilterSampler: |f| sampled at cell centres, 32 cells per unit radius.
   int nx = std::max(1, int(32.0f * f.radius.x)), ny = std::max(1, int(32.0f * f.radius.y));
   std::vector<float> table(size_t(nx) * size_t(ny));
   for (int y = 0; y < ny; ++y)
     for (int x = 0; x < nx; ++x) {
       vec2 t((float(x) + 0.5f) / float(nx), (float(y) + 0.5f) / float(ny));
-      table[size_t(y) * size_t(nx) + size_t(x)] = std::abs(gaussian_eval(f, (2.0f * t - 1.0f) * f.radius));
+      table[size_t(y) * size_t(nx) + size_t(x)] = std::abs(tabulated_eval(f, (2.0f * t - 1.0f) * f.radius));
     }
   f.distribution = Distribution2D(table, nx, ny);
+  f.table_size = ivec2(nx, ny);
   return f;
 }
 
 float filter_eval(const Filter& f, vec2 p) {
+  if (!inside(f, p)) return 0.0f;
   switch (f.kind) {
-    case FilterKind::Box: return inside(f, p) ? 1.0f : 0.0f;
-    case FilterKind::Triangle:
-      return std::max(0.0f, f.radius.x - std::abs(p.x)) * std::max(0.0f, f.radius.y - std::abs(p.y));
-    case FilterKind::Gaussian: return inside(f, p) ? gaussian_eval(f, p) : 0.0f;
+    case FilterKind::Box: return 1.0f;
+    case FilterKind::Triangle: return (f.radius.x - std::abs(p.x)) * (f.radius.y - std::abs(p.y));
+    default: return tabulated_eval(f, p);
   }
-  return 0.0f;
-}
-
-float filter_integral(const Filter& f) {
-  switch (f.kind) {
-    case FilterKind::Box: return 4.0f * f.radius.x * f.radius.y;
-    case FilterKind::Triangle: return sqr(f.radius.x) * sqr(f.radius.y);
-    case FilterKind::Gaussian:
-      return (gaussian_integral(f.radius.x, f.sigma) - 2.0f * f.radius.x * f.gaussian_offset.x) *
-             (gaussian_integral(f.radius.y, f.sigma) - 2.0f * f.radius.y * f.gaussian_offset.y);
-  }
-  return 0.0f;
 }
 
 FilterSample sample_filter(const Filter& f, vec2 u) {
   switch (f.kind) {
     case FilterKind::Box: return {(2.0f * u - 1.0f) * f.radius, 1.0f};
     case FilterKind::Triangle: return {{sample_tent(u.x, f.radius.x), sample_tent(u.y, f.radius.y)}, 1.0f};
-    case FilterKind::Gaussian: {
+    default: {
       float pdf = 0.0f;
-      vec2 t = f.distribution.sample_continuous(u, &pdf);
-      vec2 p = (2.0f * t - 1.0f) * f.radius;
+      ivec2 cell(0);
+      vec2 t = f.distribution.sample_continuous(u, &pdf, &cell);
+      vec2 p = glm::clamp((2.0f * t - 1.0f) * f.radius, -f.radius, f.radius);
       // The table's density over [0,1)^2 becomes a density over the filter's extent.
       pdf /= 4.0f * f.radius.x * f.radius.y;
-      return {p, pdf > 0.0f ? gaussian_eval(f, p) / pdf : 0.0f};
+      if (!(pdf > 0.0f)) return {p, 0.0f};
+      if (f.kind == FilterKind::Gaussian) return {p, tabulated_eval(f, p) / pdf};
+      // pbrt-v4's f[cell] / pdf is +-integral(|table|) up to rounding; taken
+      // exactly, so that opposite weights cancel to exactly 0.
+      vec2 centre = ((vec2(cell) + 0.5f) / vec2(f.table_size) * 2.0f - 1.0f) * f.radius;
+      return {p, std::copysign(f.distribution.integral() * 4.0f * f.radius.x * f.radius.y, tabulated_eval(f, centre))};
     }
   }
-  return {vec2(0.0f), 0.0f};
 }
 
 float filter_pdf(const Filter& f, vec2 p) {
@@ -91,10 +152,8 @@ float filter_pdf(const Filter& f, vec2 p) {
   switch (f.kind) {
     case FilterKind::Box: return 1.0f / (4.0f * f.radius.x * f.radius.y);
     case FilterKind::Triangle: return tent_pdf(p.x, f.radius.x) * tent_pdf(p.y, f.radius.y);
-    case FilterKind::Gaussian:
-      return f.distribution.pdf((p / f.radius + 1.0f) * 0.5f) / (4.0f * f.radius.x * f.radius.y);
+    default: return f.distribution.pdf((p / f.radius + 1.0f) * 0.5f) / (4.0f * f.radius.x * f.radius.y);
   }
-  return 0.0f;
 }
 
 }  // namespace theia

@@ -1,6 +1,7 @@
 #include "scene/parser.h"
 
 #include "core/log.h"
+#include "scene/camera_params.h"
 #include "scene/light_params.h"
 #include "scene/loop_subdiv.h"
 #include "scene/material_params.h"
@@ -445,50 +446,17 @@ void SceneParser::finish(const SourceLoc& end) {
 // ---------------------------------------------------------------- options
 
 void SceneParser::camera(const std::string& type, ParamList& params, const SourceLoc& loc) {
-  CameraParams& c = scene_.camera;
   named_coords_["camera"] = gs_.ctm.inverse();
-  c.render_from_camera = gs_.ctm.inverse();
-  if (type != "perspective") warn_at(loc, "camera \"{}\" is not supported; substituting perspective", type);
-  c.fov = params.get_float("fov", c.fov);
-  c.lens_radius = params.get_float("lensradius", c.lens_radius);
-  c.focal_distance = params.get_float("focaldistance", c.focal_distance);
-  if (const Param* f = params.find("frameaspectratio", ParamType::Float)) {
-    float a = float(f->numbers[0]);
-    float w[4] = {-a, a, -1.0f, 1.0f};
-    if (a <= 1.0f) w[0] = -1.0f, w[1] = 1.0f, w[2] = -1.0f / a, w[3] = 1.0f / a;
-    std::copy(w, w + 4, c.screen_window);
-    c.has_screen_window = true;
-  }
-  if (const Param* s = params.find("screenwindow", ParamType::Float)) {
-    if (s->numbers.size() != 4) throw_at(s->loc, "{} has {} values, expected 4", s->label(), s->numbers.size());
-    for (int i = 0; i < 4; ++i) c.screen_window[i] = float(s->numbers[size_t(i)]);
-    c.has_screen_window = true;
-  }
-  if (type != "perspective") params.mark_all_used();
+  scene_.camera.render_from_camera = gs_.ctm.inverse();
+  read_camera(type, params, loc, scene_.camera);
 }
 
 void SceneParser::film(const std::string& type, ParamList& params, const SourceLoc& loc) {
-  if (type != "rgb") warn_at(loc, "film \"{}\" is not supported; treated as \"rgb\"", type);
-  scene_.film.width = params.get_int("xresolution", scene_.film.width);
-  scene_.film.height = params.get_int("yresolution", scene_.film.height);
-  scene_.film.filename = params.get_string("filename", scene_.film.filename);
-  if (scene_.film.width <= 0 || scene_.film.height <= 0)
-    throw_at(loc, "film resolution {}x{}, expected positive sizes", scene_.film.width, scene_.film.height);
+  read_film(type, params, loc, scene_.film);
 }
 
 void SceneParser::pixel_filter(const std::string& type, ParamList& params, const SourceLoc& loc) {
-  FilterParams& f = scene_.filter;
-  float r = 1.5f;
-  if (type == "box") f.kind = FilterKind::Box, r = 0.5f;
-  else if (type == "triangle") f.kind = FilterKind::Triangle, r = 2.0f;
-  else if (type == "gaussian") f.kind = FilterKind::Gaussian;
-  else {
-    warn_at(loc, "pixel filter \"{}\" is not supported; substituting gaussian", type);
-    f.kind = FilterKind::Gaussian;
-    for (const char* n : {"B", "C", "tau"}) params.find(n, ParamType::Float);
-  }
-  f.radius = vec2(params.get_float("xradius", r), params.get_float("yradius", r));
-  f.sigma = f.kind == FilterKind::Gaussian ? params.get_float("sigma", 0.5f) : 0.5f;
+  read_pixel_filter(type, params, loc, scene_.filter);
 }
 
 // ---------------------------------------------------------------- textures and materials

@@ -210,18 +210,27 @@ struct Light {
 
 // ---------------------------------------------------------------- camera & film
 
-enum class FilterKind { Box, Triangle, Gaussian };
+// Lanczos is pbrt-v4's "sinc" filter (LanczosSincFilter).
+enum class FilterKind { Box, Triangle, Gaussian, Mitchell, Lanczos };
 
 struct FilterParams {
   FilterKind kind = FilterKind::Gaussian;   // pbrt-v4's default
   vec2 radius{1.5f, 1.5f};
   float sigma = 0.5f;                        // gaussian
+  float b = 1.0f / 3.0f, c = 1.0f / 3.0f;    // mitchell "B", "C"
+  float tau = 3.0f;                          // lanczos: periods of the window's sinc over the radius
 };
 
+// "realistic" is parsed as perspective (scene/README.md).
+enum class CameraKind { Perspective, Orthographic, Spherical };
+enum class SphericalMapping { EqualArea, Equirectangular };
+
 struct CameraParams {
+  CameraKind kind = CameraKind::Perspective;
   Transform render_from_camera;              // camera space: +z forward, pbrt-v4 conventions
-  float fov = 90.0f;                         // degrees, along the shorter image axis
-  float lens_radius = 0.0f;
+  float fov = 90.0f;                         // perspective: degrees, along the shorter image axis
+  SphericalMapping mapping = SphericalMapping::EqualArea;  // spherical
+  float lens_radius = 0.0f;                  // perspective, orthographic
   float focal_distance = 1e6f;
   float screen_window[4] = {0, 0, 0, 0};     // xmin xmax ymin ymax; all zero = derive from aspect
   bool has_screen_window = false;

@@ -82,7 +82,8 @@ void append_film_layers(ImageBuffer& img, const std::vector<FilmLayer>& layers, 
     for (size_t l = 0; l < layers.size(); ++l) {
       const std::vector<float>& rgb = layers[l].rgb;
       if (rgb.size() != 3 * n) continue;
-      RGB v = working_to_srgb(RGB(rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]) / weight[i]);
+      RGB v = working_to_srgb(RGB(resolve_sum(rgb[3 * i], weight[i]), resolve_sum(rgb[3 * i + 1], weight[i]),
+                                  resolve_sum(rgb[3 * i + 2], weight[i])));
       for (int c = 0; c < 3; ++c) data[i * nc + old_nc + 3 * l + size_t(c)] = v[c];
     }
   }
@@ -99,23 +100,24 @@ ImageBuffer resolve_film(const Film& film) {
   for (size_t i = 0; i < film.pixel_count(); ++i) {
     float* px = &img.data[i * nc];
     // Alpha has its own sample count (consistent alpha): its own denominator.
-    if (film.alpha_weight[i] > 0.0f) px[3] = film.alpha[i] / film.alpha_weight[i];
+    px[3] = resolve_sum(film.alpha[i], film.alpha_weight[i]);
     float w = film.weight[i];
     if (w == 0.0f) continue;
-    float inv = 1.0f / w;
-    RGB c = working_to_srgb(RGB(film.r[i], film.g[i], film.b[i]) * inv);
+    RGB c = working_to_srgb(RGB(resolve_sum(film.r[i], w), resolve_sum(film.g[i], w), resolve_sum(film.b[i], w)));
     px[0] = c.x;
     px[1] = c.y;
     px[2] = c.z;
-    // AOVs average over the samples that hit something, so edges do not fade to zero.
+    // AOVs average over the samples that hit something, so edges do not fade
+    // to zero.  Signed weights can cancel here too.
     float a = film.alpha[i];
-    if (a > 0.0f) {
-      RGB albedo = working_to_srgb(RGB(film.albedo[0][i], film.albedo[1][i], film.albedo[2][i]) / a);
+    if (a != 0.0f) {
+      RGB albedo = working_to_srgb(RGB(resolve_sum(film.albedo[0][i], a), resolve_sum(film.albedo[1][i], a),
+                                       resolve_sum(film.albedo[2][i], a)));
       for (int c = 0; c < 3; ++c) {
         px[4 + c] = albedo[c];
-        px[7 + c] = film.normal[c][i] / a;
+        px[7 + c] = resolve_sum(film.normal[c][i], a);
       }
-      px[10] = film.depth[i] / a;
+      px[10] = resolve_sum(film.depth[i], a);
     }
   }
   if (!film.layers.empty()) append_film_layers(img, film.layers, film.weight);

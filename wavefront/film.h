@@ -3,12 +3,15 @@
 // Every sample contributes weight * value to its own pixel (filter importance
 // sampling: no sample touches a neighbour), so a pixel is sum(w L) / sum(w).
 // A value that is NaN or infinite is dropped and counted, never stored.
+// Weights are negative in the negative lobes of Mitchell and Lanczos filters
+// and are summed as they are, as pbrt-v4's RGBFilm does: nothing clamps them.
 #pragma once
 
 #include "core/image.h"
 #include "core/math.h"
 
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -59,6 +62,14 @@ struct Film {
   void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
 };
+
+// sum / weight, or 0 where that is not a finite number: a pixel whose
+// (signed) weights sum to zero stays black, as in pbrt-v4, and one whose sum
+// is so small that the quotient overflows does too.
+inline float resolve_sum(float sum, float weight) {
+  float v = weight != 0.0f ? sum / weight : 0.0f;
+  return std::isfinite(v) ? v : 0.0f;
+}
 
 // Appends each layer (per-pixel sums of w * value, working space) to `image`
 // as NAME.R/G/B in linear sRGB, divided by the per-pixel weight sums.

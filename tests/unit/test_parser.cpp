@@ -105,8 +105,21 @@ TEST(Parser, PixelFilterDefaultsAndSubstitution) {
   EXPECT_EQ(g.filter.kind, FilterKind::Gaussian);
   EXPECT_EQ(g.filter.radius, vec2(1.5f, 3.0f));
   EXPECT_FLOAT_EQ(g.filter.sigma, 0.25f);
-  EXPECT_EQ(warnings_of("PixelFilter \"mitchell\" \"float B\" 0.3\nWorldBegin"), 1);
-  EXPECT_EQ(parse("PixelFilter \"lanczos\"\nWorldBegin").filter.kind, FilterKind::Gaussian);
+  EXPECT_EQ(warnings_of("PixelFilter \"mitchell\" \"float B\" 0.3\nWorldBegin"), 0);
+  Scene m = parse("PixelFilter \"mitchell\" \"float B\" 0.3\nWorldBegin");
+  EXPECT_EQ(m.filter.kind, FilterKind::Mitchell);
+  EXPECT_EQ(m.filter.radius, vec2(2.0f));
+  EXPECT_FLOAT_EQ(m.filter.b, 0.3f);
+  EXPECT_FLOAT_EQ(m.filter.c, 1.0f / 3.0f);
+  // pbrt-v4 calls the Lanczos-windowed sinc "sinc"; "lanczos" is accepted too.
+  for (const char* name : {"sinc", "lanczos"}) {
+    Scene l = parse(std::string("PixelFilter \"") + name + "\" \"float tau\" 2\nWorldBegin");
+    EXPECT_EQ(l.filter.kind, FilterKind::Lanczos);
+    EXPECT_EQ(l.filter.radius, vec2(4.0f));
+    EXPECT_FLOAT_EQ(l.filter.tau, 2.0f);
+  }
+  EXPECT_EQ(warnings_of("PixelFilter \"blackmanharris\" \"float B\" 0.3\nWorldBegin"), 1);
+  EXPECT_EQ(parse("PixelFilter \"blackmanharris\"\nWorldBegin").filter.kind, FilterKind::Gaussian);
 }
 
 TEST(Parser, FrameAspectRatioSetsTheScreenWindow) {
@@ -118,7 +131,19 @@ TEST(Parser, FrameAspectRatioSetsTheScreenWindow) {
 }
 
 TEST(Parser, UnsupportedFilmCameraWarn) {
-  EXPECT_EQ(warnings_of("Film \"gbuffer\"\nCamera \"orthographic\" \"float lensradius\" 0\nWorldBegin"), 2);
+  EXPECT_EQ(warnings_of("Film \"gbuffer\"\nCamera \"realistic\" \"string lensfile\" \"x.dat\"\nWorldBegin"), 2);
+  EXPECT_EQ(parse("Camera \"realistic\"\nWorldBegin").camera.kind, CameraKind::Perspective);
+  Scene o = parse("Camera \"orthographic\" \"float lensradius\" 0.5 \"float screenwindow\" [-2 2 -1 1]\nWorldBegin");
+  EXPECT_EQ(o.camera.kind, CameraKind::Orthographic);
+  EXPECT_FLOAT_EQ(o.camera.lens_radius, 0.5f);
+  EXPECT_FLOAT_EQ(o.camera.screen_window[0], -2.0f);
+  Scene sph = parse("Camera \"spherical\" \"string mapping\" \"equirectangular\"\nWorldBegin");
+  EXPECT_EQ(sph.camera.kind, CameraKind::Spherical);
+  EXPECT_EQ(sph.camera.mapping, SphericalMapping::Equirectangular);
+  EXPECT_EQ(parse("Camera \"spherical\"\nWorldBegin").camera.mapping, SphericalMapping::EqualArea);
+  EXPECT_EQ(warnings_of("Camera \"spherical\" \"float lensradius\" 1 \"float focaldistance\" 2\nWorldBegin"), 0);
+  EXPECT_EQ(error_of("Camera \"spherical\" \"string mapping\" \"cube\"\nWorldBegin"),
+            "test.pbrt:1:20: error: spherical camera mapping \"cube\", expected \"equalarea\" or \"equirectangular\"");
 }
 
 TEST(Parser, UnusedParametersWarnOnceEach) {

@@ -33,15 +33,14 @@ std::vector<float> half_buffer_variance(const Film& f) {
 
 void ImageAccumulator::fold(const Film& it) {
   total.add(it);
+  // Resolved exactly as the output is (linear sRGB, cancelled weights black),
+  // so resolve() can mix iteration images into it.
   IterationImage img;
   img.rgb.assign(it.pixel_count() * 3, 0.0f);
-  for (size_t i = 0; i < it.pixel_count(); ++i) {
-    float w = it.weight[i];
-    if (w == 0.0f) continue;
-    img.rgb[3 * i + 0] = it.r[i] / w;
-    img.rgb[3 * i + 1] = it.g[i] / w;
-    img.rgb[3 * i + 2] = it.b[i] / w;
-  }
+  const ImageBuffer resolved = resolve_film(it);
+  const size_t nc = resolved.channels.size();
+  for (size_t i = 0; i < it.pixel_count(); ++i)
+    for (size_t c = 0; c < 3; ++c) img.rgb[3 * i + c] = resolved.data[i * nc + c];
   double sum = 0.0;
   size_t known = 0;
   for (float v : half_buffer_variance(it))

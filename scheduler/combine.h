@@ -26,7 +26,7 @@ inline constexpr size_t kInverseVarianceWindow = 4;
 
 // One iteration's colour, kept for inverse-variance weighting.
 struct IterationImage {
-  std::vector<float> rgb;   // resolved R G B per pixel, interleaved
+  std::vector<float> rgb;   // resolved R G B per pixel (linear sRGB, as the output), interleaved
   double mean_variance = 0; // mean over pixels and channels of the variance of the pixel estimate; < 0: unknown
 };
 

@@ -106,7 +106,8 @@ struct WavefrontEngine::Impl {
   vec3 bounds_min{0.0f}, bounds_inv_extent{1.0f};
   EngineStats stats;
   // Texture footprints cost a transform per hit: only when a texture filters
-  // or a material is bump mapped.
+  // (MIP-mapped images, pbrt-v4's box-filtered 2D checkerboard) or a material
+  // is bump mapped.
   bool uses_footprint = false;
   float footprint_scale = 1.0f;
 
@@ -126,7 +127,8 @@ struct WavefrontEngine::Impl {
     }
     opt.batch_size = std::max<size_t>(opt.batch_size, 1);
     for (const Texture& t : scene.textures)
-      uses_footprint |= t.kind == TextureKind::ImageMap && filter_uses_mipmap(t.filter);
+      uses_footprint |= (t.kind == TextureKind::ImageMap && filter_uses_mipmap(t.filter)) ||
+                        (t.kind == TextureKind::Checkerboard && t.mapping_kind != TextureMappingKind::Point3D);
     // Bump mapping takes its finite-difference offsets from the footprint too.
     for (const Material& m : scene.materials) uses_footprint |= m.displacement >= 0;
     footprint_scale = footprint_spp_scale(opt.footprint_spp);

@@ -7,10 +7,13 @@
 #include "scene/parser.h"
 #include "scene/texture.h"
 
+#include <gtest/gtest.h>
+
 #include <array>
 #include <cstdio>
 #include <string>
 #include <sys/wait.h>
+#include <vector>
 
 namespace theia::test {
 
@@ -37,6 +40,24 @@ inline RenderConfig quick_config(int spp) {
 inline vec3 pixel_on_plane(const Camera& camera, int x, int y, float plane_y = 0.0f) {
   Ray ray = generate_camera_ray(camera, vec2(float(x) + 0.5f, float(y) + 0.5f), vec2(0.5f));
   return ray.o + ((plane_y - ray.o.y) / ray.d.y) * ray.d;
+}
+
+// An analytic plane test's comparison over regions: for every pixel, where its
+// central ray meets the ground plane picks a region (bin_of(p) in [0, bins)),
+// and the region sums the rendered green channel and predicted(p).  A sum over
+// a hundred pixels averages the noise of one pixel down to about a percent.
+template <class BinOf, class Predict>
+void expect_region_sums_match(const ImageBuffer& image, const Camera& camera, int bins, BinOf bin_of,
+                              Predict predicted, double tolerance, const std::vector<std::string>& names) {
+  std::vector<double> got(size_t(bins), 0.0), want(size_t(bins), 0.0);
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x) {
+      vec3 p = pixel_on_plane(camera, x, y);
+      size_t b = size_t(bin_of(p));
+      got[b] += image.data[(size_t(y) * image.width + x) * image.channels.size() + 1];
+      want[b] += predicted(p);
+    }
+  for (size_t b = 0; b < got.size(); ++b) EXPECT_NEAR(got[b] / want[b], 1.0, tolerance) << names[b];
 }
 
 inline RGB pixel_rgb(const ImageBuffer& img, int x, int y) {

@@ -250,14 +250,8 @@ TEST(AreaLightPower, DiffusePlaneUnderUnequalTrianglesMatchesPerTrianglePower) {
   // triangles' radiances (the mean-area radiance would be 1.6x too bright on
   // the large triangle's side, 0.4x on the small one's); one pixel at 64 spp
   // is noisy to ~10%, a sum over 150 to ~1%.
-  double got[3] = {0, 0, 0}, want[3] = {0, 0, 0};
-  for (int y = 0; y < 24; ++y)
-    for (int x = 0; x < 24; ++x) {
-      vec3 p = pixel_on_plane(cam, x, y);
-      int bin = p.x > 0.8f ? 0 : p.x < -0.8f ? 1 : 2;
-      got[bin] += pixel_channel(r.image, x, y, 1);
-      want[bin] += predicted(p);
-    }
-  for (int b = 0; b < 3; ++b) EXPECT_NEAR(got[b] / want[b], 1.0, 0.01) << (b == 0 ? "large" : b == 1 ? "small" : "middle");
+  expect_region_sums_match(
+      r.image, cam, 3, [](vec3 p) { return p.x > 0.8f ? 0 : p.x < -0.8f ? 1 : 2; }, predicted, 0.01,
+      {"large", "small", "middle"});
   EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u);
 }

@@ -57,15 +57,8 @@ TEST(CylinderLight, DiffusePlaneMatchesTheIrradianceIntegral) {
   Camera cam = make_camera(scene.camera, scene.film);
   // Under the cylinder (|z| small) and to either side of it; one pixel is
   // noisy to a few percent at 256 spp, a sum over ~190 to well under 1%.
-  double got[3] = {0, 0, 0}, want[3] = {0, 0, 0};
-  for (int y = 0; y < 24; ++y)
-    for (int x = 0; x < 24; ++x) {
-      vec3 p = pixel_on_plane(cam, x, y);
-      int bin = std::abs(p.z) < 0.25f ? 0 : p.z > 0.0f ? 1 : 2;
-      got[bin] += pixel_channel(r.image, x, y, 1);
-      want[bin] += predicted(p);
-    }
-  for (int b = 0; b < 3; ++b)
-    EXPECT_NEAR(got[b] / want[b], 1.0, 0.01) << (b == 0 ? "under" : b == 1 ? "+z side" : "-z side");
+  expect_region_sums_match(
+      r.image, cam, 3, [](vec3 p) { return std::abs(p.z) < 0.25f ? 0 : p.z > 0.0f ? 1 : 2; }, predicted, 0.01,
+      {"under", "+z side", "-z side"});
   EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u);
 }

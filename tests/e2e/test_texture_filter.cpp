@@ -21,32 +21,43 @@ namespace {
 
 namespace fs = std::filesystem;
 
-Scene grazing_checker(const std::string& dir, const std::string& filter) {
-  return load_test_scene(fmt::format(R"(
+// A ground plane seen at a grazing angle under a white sky, reflecting the
+// spectrum texture "checks" that `texture` declares.
+Scene grazing_ground(const std::string& texture) {
+  return load_test_scene(R"(
     Film "rgb" "integer xresolution" [64] "integer yresolution" [48]
     Integrator "volpath" "integer maxdepth" [1]
     LookAt 0 0.4 0  0 0 10  0 1 0
     Camera "perspective" "float fov" [40]
     WorldBegin
     LightSource "infinite" "rgb L" [1 1 1]
-    Texture "checks" "spectrum" "imagemap" "string filename" "{}/checker.exr" "string filter" "{}"
-      "float uscale" [60] "float vscale" [60]
+    )" + texture + R"(
     Material "diffuse" "texture reflectance" "checks"
     Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
       "point3 P" [-20 0 0  20 0 0  20 0 40  -20 0 40]
       "point2 uv" [0 0  1 0  1 1  0 1]
-  )",
-                                     dir, filter));
+  )");
 }
 
-TEST(TextureFilter, TrilinearAliasesLessThanBilinearAtGrazingAngles) {
-  fs::path dir = fs::temp_directory_path() / fmt::format("theia-mip-{}", getpid());
+Scene grazing_checker(const std::string& dir, const std::string& filter) {
+  return grazing_ground(fmt::format(R"(Texture "checks" "spectrum" "imagemap" "string filename" "{}/checker.exr"
+      "string filter" "{}" "float uscale" [60] "float vscale" [60])",
+                                    dir, filter));
+}
+
+// 8 x 8 checks of 0.9 and 0.05 as dir/checker.exr.
+void write_checker_image(const fs::path& dir) {
   fs::create_directories(dir);
   ImageBuffer checks(8, 8, {"R", "G", "B"});
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x)
       for (int c = 0; c < 3; ++c) checks.at(x, y, c) = (x + y) % 2 ? 0.9f : 0.05f;
   write_exr((dir / "checker.exr").string(), checks);
+}
+
+TEST(TextureFilter, TrilinearAliasesLessThanBilinearAtGrazingAngles) {
+  fs::path dir = fs::temp_directory_path() / fmt::format("theia-mip-{}", getpid());
+  write_checker_image(dir);
 
   ImageBuffer reference = render_scene(grazing_checker(dir.string(), "bilinear"), quick_config(1024)).image;
   RenderResult bilinear = render_scene(grazing_checker(dir.string(), "bilinear"), quick_config(4));
@@ -70,29 +81,12 @@ TEST(TextureFilter, TrilinearAliasesLessThanBilinearAtGrazingAngles) {
 // control: at 4 spp the procedural one must alias clearly less.
 TEST(TextureFilter, ProceduralCheckerboardIsFilteredByTheEngineFootprint) {
   fs::path dir = fs::temp_directory_path() / fmt::format("theia-checks-{}", getpid());
-  fs::create_directories(dir);
-  ImageBuffer checks(8, 8, {"R", "G", "B"});
-  for (int y = 0; y < 8; ++y)
-    for (int x = 0; x < 8; ++x)
-      for (int c = 0; c < 3; ++c) checks.at(x, y, c) = (x + y) % 2 ? 0.9f : 0.05f;
-  write_exr((dir / "checker.exr").string(), checks);
+  write_checker_image(dir);
   // 480 checks across, as the 8 x 8 image repeated 60 times (texel parity
   // with the image's top row first: 0.9 where floor(s) + floor(t) is even).
   auto procedural = [] {
-    return load_test_scene(R"(
-    Film "rgb" "integer xresolution" [64] "integer yresolution" [48]
-    Integrator "volpath" "integer maxdepth" [1]
-    LookAt 0 0.4 0  0 0 10  0 1 0
-    Camera "perspective" "float fov" [40]
-    WorldBegin
-    LightSource "infinite" "rgb L" [1 1 1]
-    Texture "checks" "spectrum" "checkerboard" "float uscale" [480] "float vscale" [480]
-      "rgb tex1" [0.9 0.9 0.9] "rgb tex2" [0.05 0.05 0.05]
-    Material "diffuse" "texture reflectance" "checks"
-    Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
-      "point3 P" [-20 0 0  20 0 0  20 0 40  -20 0 40]
-      "point2 uv" [0 0  1 0  1 1  0 1]
-  )");
+    return grazing_ground(R"(Texture "checks" "spectrum" "checkerboard" "float uscale" [480] "float vscale" [480]
+      "rgb tex1" [0.9 0.9 0.9] "rgb tex2" [0.05 0.05 0.05])");
   };
   ImageBuffer reference = render_scene(grazing_checker(dir.string(), "point"), quick_config(1024)).image;
   // The two describe the same checks: converged, they agree.

@@ -99,6 +99,7 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(l.cos_falloff_end);
     h.pod(l.image);
     h.pod(l.illuminance);
+    h.pod(l.fov);
     h.vec(l.triangle_scale);
     h.pod(l.power);
     h.pod(l.render_from_light);

@@ -4,6 +4,7 @@
 #include "core/log.h"
 #include "core/sampling.h"
 #include "scene/texture.h"
+#include "scene/tokenizer.h"
 
 #include <numeric>
 
@@ -11,11 +12,57 @@ namespace theia {
 
 namespace {
 
-RGB environment_texel(const EnvironmentMap& env, vec2 uv) {
-  const Image& img = *env.image;
+// pbrt-v4's Image::LookupNearest: uv in [0,1]^2 with (0, 0) the top-left
+// corner, clamped; negative values clamped to zero.
+RGB nearest_texel(const Image& img, vec2 uv) {
   ivec2 p(std::clamp(int(uv.x * float(img.width)), 0, img.width - 1),
           std::clamp(int(uv.y * float(img.height)), 0, img.height - 1));
   return glm::max(image_texel(img, p, WrapMode::Clamp), RGB(0.0f));
+}
+
+RGB environment_texel(const EnvironmentMap& env, vec2 uv) { return nearest_texel(*env.image, uv); }
+
+// A goniometric texel: pbrt-v4 keeps one channel, the mean of R, G and B
+// (a grey image's value).
+float goniometric_texel(const Image& img, vec2 uv) {
+  RGB c = nearest_texel(img, uv);
+  return (c.x + c.y + c.z) / 3.0f;
+}
+
+// pbrt-v4's ProjectionLight frustum: Perspective(fov) maps a light-space
+// direction w to the screen point w.xy / (w.z tan(fov / 2)), and the screen
+// is [-aspect, aspect] x [-1, 1] (or [-1, 1] x [-1/aspect, 1/aspect] for a
+// tall image), so fov spans the image's shorter axis.
+struct ProjectionFrustum {
+  vec2 screen_max{1.0f};
+  float tan_half_fov = 1.0f;
+  float area = 4.0f;  // pbrt-v4's A: the screen's area on the plane z = 1
+};
+
+ProjectionFrustum projection_frustum(const Light& light, const Image& img) {
+  ProjectionFrustum f;
+  float aspect = float(img.width) / float(img.height);
+  f.screen_max = aspect > 1.0f ? vec2(aspect, 1.0f) : vec2(1.0f, 1.0f / aspect);
+  f.tan_half_fov = std::tan(radians(light.fov) / 2.0f);
+  f.area = 4.0f * sqr(f.tan_half_fov) * (aspect > 1.0f ? aspect : 1.0f / aspect);
+  return f;
+}
+
+constexpr float kProjectionHither = 1e-3f;  // pbrt-v4's: directions this close to the screen's plane see nothing
+
+// The texel a unit light-space direction projects to; black outside the frustum.
+RGB projection_texel(const ProjectionFrustum& f, const Image& img, const vec3& w) {
+  if (w.z < kProjectionHither) return RGB(0.0f);
+  vec2 ps = vec2(w.x, w.y) / (w.z * f.tan_half_fov);
+  if (std::abs(ps.x) > f.screen_max.x || std::abs(ps.y) > f.screen_max.y) return RGB(0.0f);
+  return nearest_texel(img, (ps + f.screen_max) / (2.0f * f.screen_max));
+}
+
+// The direction through the centre of screen texel (x, y), light space, unit.
+vec3 projection_direction(const ProjectionFrustum& f, const Image& img, int x, int y) {
+  vec2 uv((float(x) + 0.5f) / float(img.width), (float(y) + 0.5f) / float(img.height));
+  vec2 ps = (2.0f * uv - 1.0f) * f.screen_max * f.tan_half_fov;
+  return glm::normalize(vec3(ps, 1.0f));
 }
 
 // Solid angle of texel (x, y) and its centre direction, light space.
@@ -105,7 +152,7 @@ RGB area_texel(const Image& img, vec2 uv) {
 // Radiance of area light `light_index` at triangle `prim` (-1 for quadrics), uv, before the side test.
 RGB area_radiance(const LightSet& lights, int light_index, int prim, vec2 uv) {
   const Light& light = lights.scene->lights[size_t(light_index)];
-  RGB L = light.L * lights.area_image_scale[size_t(light_index)];
+  RGB L = light.L * lights.image_scale[size_t(light_index)];
   if (!light.triangle_scale.empty())
     L *= prim >= 0 && size_t(prim) < light.triangle_scale.size() ? light.triangle_scale[size_t(prim)] : 0.0f;
   if (light.image >= 0) L *= area_texel(lights.scene->images[size_t(light.image)], uv);
@@ -144,6 +191,39 @@ double image_mean_luminance(const Light& light, const Image& img) {
   return sum / (double(img.width) * double(img.height));
 }
 
+// k_e of a goniometric or projection light: the luminous power it emits for
+// L of luminance 1, as pbrt-v4 sums it over the texels (exact for the equal-area map,
+// pbrt-v4's midpoint rule over the texels' cos^3 Jacobian for the frustum).
+// Throws for images these lights cannot use.
+double point_image_power(const Light& light, const Image& img) {
+  const char* kind = light.kind == LightKind::Goniometric ? "goniometric" : "projection";
+  if (img.pixels.empty() || img.width <= 0 || img.height <= 0)
+    throw_at(light.loc, "{} light image \"{}\" was not loaded, expected its pixels", kind, img.filename);
+  double sum = 0.0;
+  if (light.kind == LightKind::Goniometric) {
+    if (img.width != img.height)
+      throw_at(light.loc,
+               "goniometric light image \"{}\" is {}x{}, expected a square (equal-area) map as pbrt-v4 does",
+               img.filename, img.width, img.height);
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x)
+        sum += double(goniometric_texel(img, vec2((float(x) + 0.5f) / float(img.width),
+                                                  (float(y) + 0.5f) / float(img.height))));
+    return 4.0 * kPi * sum / (double(img.width) * double(img.height));
+  }
+  if (img.channels < 3)
+    throw_at(light.loc, "projection light image \"{}\" has {} channel(s), expected an RGB image (as pbrt-v4)",
+             img.filename, img.channels);
+  ProjectionFrustum f = projection_frustum(light, img);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      float cos_theta = projection_direction(f, img, x, y).z;
+      sum += double(luminance(glm::max(image_texel(img, {x, y}, WrapMode::Clamp), RGB(0.0f)))) *
+             double(cos_theta * cos_theta * cos_theta);
+    }
+  return double(f.area) * sum / (double(img.width) * double(img.height));
+}
+
 }  // namespace
 
 vec3 environment_direction(const EnvironmentMap& env, vec2 uv) {
@@ -165,12 +245,27 @@ float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compe
 LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
   // Area lights: the image normalisation, the triangles' emission per unit
   // area (their choice by power) and the integral of it over the shape.
-  area_image_scale.assign(s.lights.size(), 1.0f);
+  image_scale.assign(s.lights.size(), 1.0f);
+  image_power.assign(s.lights.size(), 0.0);
   area_luminance.assign(s.lights.size(), 0.0);
   std::vector<std::vector<float>> triangle_weight(s.shapes.size());
   std::vector<double> pixel_mean(s.lights.size(), 1.0), weighted_area(s.lights.size(), -1.0);
   for (size_t i = 0; i < s.lights.size(); ++i) {
     const Light& l = s.lights[i];
+    if (l.kind == LightKind::Goniometric || l.kind == LightKind::Projection) {
+      if (l.image < 0) throw_at(l.loc, "light without an image, expected \"string filename\"");
+      const Image& img = s.images.at(size_t(l.image));
+      double k_e = point_image_power(l, img);
+      if (l.power > 0.0f) {
+        if (!(k_e > 0.0))
+          throw_at(l.loc, "\"power\" given for a light whose image \"{}\" is black, expected some light",
+                   img.filename);
+        // pbrt-v4 multiplies: "scale" and the luminance of "I" still apply on top of "power".
+        image_scale[i] = float(double(l.power) / k_e);
+      }
+      image_power[i] = double(luminance(l.L)) * double(image_scale[i]) * k_e;
+      continue;
+    }
     if (l.kind != LightKind::Area || l.shape < 0) continue;
     const Image* img = l.image >= 0 ? &s.images.at(size_t(l.image)) : nullptr;
     if (img) {
@@ -179,7 +274,7 @@ LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
         if (!(pixel_mean[i] > 0.0))
           throw_error("{}:{}: \"power\" given for an area light whose image \"{}\" is black", l.loc.file,
                       l.loc.line, img->filename);
-        area_image_scale[i] = float(1.0 / pixel_mean[i]);
+        image_scale[i] = float(1.0 / pixel_mean[i]);
       }
     }
     const Shape& shape = s.shapes[size_t(l.shape)];
@@ -201,7 +296,7 @@ LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
     if (l.kind != LightKind::Area) continue;
     double integral = weighted_area[i] >= 0.0 ? weighted_area[i] : double(shapes.area(l.shape)) * pixel_mean[i];
     // L is grey whenever there is an image, so luminance factors out of the texel.
-    area_luminance[i] = integral * double(luminance(l.L * area_image_scale[i]));
+    area_luminance[i] = integral * double(luminance(l.L * image_scale[i]));
   }
 
   Bounds3 b = accel.bounds();
@@ -249,16 +344,15 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
       return LightLiSample{L, wi, ss->pdf, ss->p, ss->p_error, ss->n, invisible, false};
     }
     case LightKind::Point:
-    case LightKind::Spot: {
+    case LightKind::Spot:
+    case LightKind::Goniometric:
+    case LightKind::Projection: {
       vec3 d = light.position - ctx.p;
       float dist2 = glm::dot(d, d);
       if (dist2 == 0.0f) return std::nullopt;
       vec3 wi = d / std::sqrt(dist2);
-      RGB I = light.L;
-      if (light.kind == LightKind::Spot) {
-        I *= smooth_step(light.cos_falloff_end, light.cos_falloff_start, glm::dot(-wi, light.direction));
-        if (is_black(I)) return std::nullopt;
-      }
+      RGB I = light_intensity(lights, light_index, -wi);
+      if (is_black(I)) return std::nullopt;
       return LightLiSample{I / dist2, wi, 1.0f, light.position, vec3(0.0f), vec3(0.0f), true, false};
     }
     case LightKind::Distant: {
@@ -306,6 +400,28 @@ float infinite_light_pdf(const LightSet& lights, int light_index, const vec3& wi
   return environment_pdf(lights.environments[size_t(e)], to_light(light, wi), allow_incomplete_pdf);
 }
 
+RGB light_intensity(const LightSet& lights, int light_index, const vec3& w) {
+  const Light& light = lights.scene->lights[size_t(light_index)];
+  switch (light.kind) {
+    case LightKind::Point:
+      return light.L;
+    case LightKind::Spot:
+      return light.L * smooth_step(light.cos_falloff_end, light.cos_falloff_start, glm::dot(w, light.direction));
+    case LightKind::Goniometric: {
+      const Image& img = lights.scene->images[size_t(light.image)];
+      float y = goniometric_texel(img, equal_area_sphere_to_square(to_light(light, w)));
+      return light.L * (lights.image_scale[size_t(light_index)] * y);
+    }
+    case LightKind::Projection: {
+      const Image& img = lights.scene->images[size_t(light.image)];
+      RGB texel = projection_texel(projection_frustum(light, img), img, to_light(light, w));
+      return light.L * lights.image_scale[size_t(light_index)] * texel;
+    }
+    default:
+      return RGB(0.0f);
+  }
+}
+
 RGB area_light_L(const LightSet& lights, int light_index, const SurfaceInteraction& hit, const vec3& w) {
   const Light& light = lights.scene->lights[size_t(light_index)];
   if (!light.two_sided && glm::dot(hit.ng, w) <= 0.0f) return RGB(0.0f);
@@ -343,6 +459,9 @@ float light_power(const LightSet& lights, int light_index) {
              ((1.0f - light.cos_falloff_start) + (light.cos_falloff_start - light.cos_falloff_end) / 2.0f);
     case LightKind::Distant:
       return disk * y;
+    case LightKind::Goniometric:
+    case LightKind::Projection:
+      return float(lights.image_power[size_t(light_index)]);
     case LightKind::Infinite: {
       int e = lights.environment_of_light[size_t(light_index)];
       return disk * (e < 0 ? 4.0f * kPi * y : lights.environments[size_t(e)].luminance_integral);

@@ -1,5 +1,6 @@
 // Light evaluation and sampling for the light kinds of scene/scene.h: area,
-// point, spot, distant, and infinite (constant or an environment image).
+// point, spot, distant, infinite (constant or an environment image), and
+// pbrt-v4's image-modulated point lights, goniometric and projection.
 //
 // Sampling is split the way pbrt-v4 splits it: a LightSampler
 // (cachepoints/light_sampler.h) chooses a light, then sample_li() chooses a
@@ -63,17 +64,21 @@ struct LightSet {
   std::vector<int> infinite_lights;  // indices into Scene::lights (those seen by escaped rays)
   std::vector<EnvironmentMap> environments;
   std::vector<int> environment_of_light;  // per light: index into environments, or -1
-  // Per light (area lights; 1 for the others): the factor on L * triangle_scale
-  // * texel that is known only with the pixels, 1 / k_e for an image with "power".
-  std::vector<float> area_image_scale;
+  // Per light (area, goniometric, projection; 1 for the others): the factor
+  // on L (* triangle_scale) * texel that is known only with the pixels,
+  // 1 / k_e for an image with "power" (times "power" for the point-like two).
+  std::vector<float> image_scale;
+  // Per light (goniometric, projection): the emitted luminous power, for light_power.
+  std::vector<double> image_power;
   // Per light (area lights): the emitted luminance integrated over the shape's
   // area, for light_power (luminance(L) * area for a uniform emitter).
   std::vector<double> area_luminance;
 
   // Images must be loaded (scene/texture.h's load_images); throws
   // theia::Error for an environment image that is neither square nor 2:1 or
-  // has non-finite pixels, and for an area light image that is not RGB or
-  // that "power" cannot normalise (zero mean luminance).
+  // has non-finite pixels, for an area or projection light image that is not
+  // RGB, a goniometric image that is not square, and an image that "power"
+  // cannot normalise (black).
   LightSet(const Scene& scene, const Accel& accel);
 };
 
@@ -93,6 +98,14 @@ float area_light_pdf(const LightSet& lights, int light, const LightSampleContext
                      const SurfaceInteraction& hit);
 // Solid-angle pdf that sample_li() on infinite `light` produces direction wi.
 float infinite_light_pdf(const LightSet& lights, int light, const vec3& wi, bool allow_incomplete_pdf = true);
+
+// Radiant intensity a point-like light (point, spot, goniometric,
+// projection) emits along the unit render-space direction w leaving it;
+// black for the other kinds.  Goniometric: L times the nearest texel's mean
+// of R, G, B at the equal-area position of w in light space.  Projection: L
+// times the nearest texel where w crosses the frustum's screen, black behind
+// pbrt-v4's hither plane (light-space z < 1e-3) and outside the screen.
+RGB light_intensity(const LightSet& lights, int light, const vec3& w);
 
 // Radiance area light `light` emits from `hit` towards `w`: one- or
 // two-sided, its triangle's factor, its image at hit.uv.  No alpha test: a

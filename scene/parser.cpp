@@ -644,8 +644,28 @@ void SceneParser::light_source(const std::string& type, ParamList& params, const
     }
     if (const Param* p = params.find("portal", ParamType::Point3))
       warn_at(p->loc, "infinite light portals are not supported; \"portal\" ignored");
+  } else if (type == "goniometric" || type == "projection") {
+    // Point lights modulated by an image; k_e for "power" needs the pixels (LightSet).
+    const Param* f = params.find("filename", ParamType::String);
+    if (!f) throw_at(loc, "{} light without \"string filename\", expected an image", type);
+    bool gonio = type == "goniometric";
+    // pbrt-v4 averages a goniometric image's stored R, G, B (data, not a colour).
+    l.image = image(resolve(base_dir, f->strings[0]), "", !gonio, f->loc);
+    l.position = gs_.ctm.point(vec3(0.0f));
+    l.power = positive("power");
+    if (gonio) {
+      l.kind = LightKind::Goniometric;
+      l.L = spectrum("I") * scale;
+      l.render_from_light = gs_.ctm * Transform(mat4(1, 0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 1));  // y <-> z
+    } else {
+      l.kind = LightKind::Projection;
+      l.L = RGB(scale);  // the texel is the intensity (pbrt-v4's RGBIlluminantSpectrum)
+      l.fov = params.get_float("fov", 90.0f);
+      if (!(l.fov > 0.0f && l.fov < 180.0f)) throw_at(loc, "projection \"fov\" {}, expected (0, 180) degrees", l.fov);
+      l.render_from_light = gs_.ctm * Transform(glm::scale(mat4(1.0f), vec3(1, -1, 1)));
+    }
   } else {
-    warn_at(loc, "light \"{}\" is not supported yet; ignored", type);
+    warn_at(loc, "light \"{}\" is not supported; ignored", type);
     params.mark_all_used();
     return;
   }

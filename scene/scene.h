@@ -169,31 +169,37 @@ struct Instance {
 
 // ---------------------------------------------------------------- lights
 
-enum class LightKind { Area, Point, Infinite, Spot, Distant };
+// Goniometric and Projection are pbrt-v4's image-modulated point lights
+// (scene/lights.h evaluates their intensity).
+enum class LightKind { Area, Point, Infinite, Spot, Distant, Goniometric, Projection };
 
 // pbrt-v4's light semantics, resolved at parse time: L holds the emission
 // with "scale" and "power" / "illuminance" already applied (spectra are
 // luminance-normalised by scene/spectrum.h, which is pbrt-v4's division by
-// SpectrumToPhotometric).  The one exception is an environment image's
-// "illuminance", which needs the pixels: scene/lights.cpp applies it when the
-// LightSet is built.
+// SpectrumToPhotometric).  The exceptions need the pixels: an environment
+// image's "illuminance" and an image's k_e for "power" (area, goniometric,
+// projection); scene/lights.cpp applies them when the LightSet is built.
 struct Light {
   LightKind kind = LightKind::Area;
-  // Radiance (area, infinite, distant) or intensity (point, spot).  For an
-  // infinite light with an image: the factor the image is multiplied by.
+  // Radiance (area, infinite, distant) or intensity (point, spot, goniometric).
+  // For an infinite or projection light with an image: the factor the image
+  // is multiplied by.
   RGB L{0.0f};
   bool two_sided = false;           // area
   bool is_virtual = false;          // area: the scene's "bool virtual" parameter
   int shape = -1;                   // area: the emitting shape (index into Scene::shapes)
-  vec3 position{0.0f};              // point, spot: in render space
+  vec3 position{0.0f};              // point, spot, goniometric, projection: in render space
   // Spot: unit axis of the cone (from -> to).  Distant: unit direction
   // towards the light (from - to), both in render space.
   vec3 direction{0.0f, 0.0f, 1.0f};
   float cos_falloff_start = 1.0f;   // spot: full intensity inside this cone
   float cos_falloff_end = 1.0f;     // spot: zero outside this one (smoothstep between)
   // Infinite: environment image; area: emission image ("filename", RGB, looked
-  // up bilinearly at the hit's uv with v flipped).  Index into Scene::images, or -1.
-  // An area light with an image has L = RGB("scale"): the radiance is L times the texel.
+  // up bilinearly at the hit's uv with v flipped); goniometric: square
+  // equal-area map of intensity (loaded as data: pbrt-v4 averages the file's
+  // R, G, B into one channel); projection: the RGB image projected.  Index
+  // into Scene::images, or -1.  An area or projection light with an image has
+  // L = RGB("scale"): the radiance or intensity is L times the texel.
   int image = -1;
   // Area on a triangle mesh with "power": pbrt-v4 makes one light per
   // triangle, each emitting the whole power, so triangle i's radiance is
@@ -202,9 +208,16 @@ struct Light {
   std::vector<float> triangle_scale;
   // Area: pbrt-v4 "power" (> 0) if given, already in L / triangle_scale except
   // for an image's mean luminance k_e, which needs the pixels: LightSet divides by it.
+  // Goniometric, projection: "power" (> 0) not yet in L; their k_e needs the
+  // pixels (and the projection's frustum the image's aspect ratio).
   float power = -1.0f;
   float illuminance = -1.0f;        // infinite with image: pbrt-v4 "illuminance" (> 0), applied by LightSet
-  Transform render_from_light;      // infinite: orientation of the environment map
+  float fov = 90.0f;                // projection: degrees, along the image's shorter axis
+  // Infinite: orientation of the environment map.  Goniometric: the CTM times
+  // pbrt-v4's y/z swap (the map's pole, light-space +z, is the CTM's +y).
+  // Projection: the CTM times pbrt-v4's Scale(1, -1, 1) (the CTM's +y is the
+  // image's top); the frustum looks down light-space +z.
+  Transform render_from_light;
   SourceLoc loc;
 };
 

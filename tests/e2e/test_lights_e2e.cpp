@@ -2,7 +2,8 @@
 // a constant environment image equals the constant-L furnace; spot and
 // distant lights on a diffuse plane; an alpha cut-out casts no shadow where
 // alpha is zero; area-light emission images seen directly, and a diffuse
-// plane under pbrt-v4's per-triangle "power".
+// plane under pbrt-v4's per-triangle "power"; projection and goniometric
+// lights on a diffuse plane.
 #include "render_helpers.h"
 #include "core/sampling.h"
 #include "scene/camera.h"
@@ -254,4 +255,99 @@ TEST(AreaLightPower, DiffusePlaneUnderUnequalTrianglesMatchesPerTrianglePower) {
       r.image, cam, 3, [](vec3 p) { return p.x > 0.8f ? 0 : p.x < -0.8f ? 1 : 2; }, predicted, 0.01,
       {"large", "small", "middle"});
   EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u);
+}
+
+// A projection light of a 2 x 2 colour image pointing down from (0, 2, 0)
+// with the CTM's +y (the image's top) along render +z: the plane shows the
+// four texels in their quadrants, L = rho / pi * scale * texel * cos / d^2,
+// and nothing outside the 30 degree frustum (|x|, |z| > 2 tan 15).
+TEST(Analytic, DiffusePlaneUnderProjectionLightShowsTheImageQuadrants) {
+  test::TempDir tmp;
+  // Row 0 is the image's top: red, green / blue, yellow.
+  const RGB texel[2][2] = {{RGB(0.9f, 0.1f, 0.1f), RGB(0.1f, 0.8f, 0.2f)},
+                           {RGB(0.1f, 0.2f, 0.9f), RGB(0.8f, 0.7f, 0.1f)}};
+  ImageBuffer quad(2, 2, {"R", "G", "B"});
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 2; ++x)
+      for (int c = 0; c < 3; ++c) quad.at(x, y, c) = texel[y][x][c];
+  write_exr(tmp.file("quad.exr"), quad);
+  Scene scene = parse_scene_string(R"(
+    Film "rgb" "integer xresolution" [32] "integer yresolution" [32]
+    PixelFilter "box" "float xradius" [0.5] "float yradius" [0.5]
+    LookAt 0 5 0  0 0 0  0 0 1
+    Camera "perspective" "float fov" [20]
+    WorldBegin
+    AttributeBegin
+    Translate 0 2 0
+    Rotate 90 1 0 0
+    LightSource "projection" "string filename" "quad.exr" "float fov" 30 "float scale" 3
+    AttributeEnd
+    Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+    Shape "trianglemesh" "point3 P" [-10 0 -10  10 0 -10  10 0 10  -10 0 10]
+      "integer indices" [0 1 2 0 2 3]
+  )", tmp.file("t.pbrt"), tmp.path.string());
+  load_images(scene);
+  RenderResult r = render_scene(scene, quick_config(4));
+  Camera cam = make_camera(scene.camera, scene.film);
+  const float edge = 2.0f * std::tan(radians(15.0f)), margin = 0.06f;  // a pixel is 0.055 wide on the plane
+  int checked[2][2] = {{0, 0}, {0, 0}}, dark = 0;
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 32; ++x) {
+      vec3 p = pixel_on_plane(cam, x, y);
+      float ax = std::abs(p.x), az = std::abs(p.z);
+      if (std::abs(ax - edge) < margin || std::abs(az - edge) < margin || ax < margin || az < margin) continue;
+      RGB got = pixel_rgb(r.image, x, y);
+      if (ax > edge || az > edge) {
+        EXPECT_EQ(got, RGB(0.0f)) << x << " " << y;
+        ++dark;
+        continue;
+      }
+      int tx = p.x > 0.0f ? 1 : 0, ty = p.z > 0.0f ? 0 : 1;  // +z is the image's top
+      vec3 d = vec3(0, 2, 0) - p;
+      float d2 = glm::dot(d, d);
+      RGB want = 0.5f / kPi * 3.0f * texel[ty][tx] * (2.0f / std::sqrt(d2)) / d2;
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], 0.01f * want[c]) << x << " " << y << " channel " << c;
+      ++checked[ty][tx];
+    }
+  for (int q = 0; q < 4; ++q) EXPECT_GE(checked[q / 2][q % 2], 8) << "quadrant " << q;
+  EXPECT_GE(dark, 100);
+  EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u);
+}
+
+// A goniometric light with a constant white image is a point light: every
+// pixel of the point light's analytic test (tests/e2e/test_estimators.cpp),
+// L = rho / pi * I * cos / d^2, with the light placed and turned by the CTM;
+// and the same render as that point light's.
+TEST(Analytic, DiffusePlaneUnderConstantGoniometricLight) {
+  test::TempDir tmp;
+  write_exr(tmp.file("white.exr"), ImageBuffer(16, 16, {"R", "G", "B"}, 1.0f));
+  const float rho = 0.8f, I = 10.0f;
+  const vec3 light(0.5f, 2.0f, 0.25f);
+  auto render = [&](const std::string& light_source) {
+    Scene scene = parse_scene_string(R"(
+      Film "rgb" "integer xresolution" [64] "integer yresolution" [64]
+      PixelFilter "box" "float xradius" [0.5] "float yradius" [0.5]
+      LookAt 0 4 0  0 0 0  0 0 1
+      Camera "perspective" "float fov" [40]
+      WorldBegin
+      Material "diffuse" "rgb reflectance" [0.8 0.8 0.8]
+      Shape "trianglemesh" "point3 P" [-10 0 -10  10 0 -10  10 0 10  -10 0 10] "integer indices" [0 1 2 0 2 3]
+    )" + light_source, tmp.file("t.pbrt"), tmp.path.string());
+    load_images(scene);
+    return std::make_pair(render_scene(scene, quick_config(16)).image, make_camera(scene.camera, scene.film));
+  };
+  auto [gonio, cam] = render(R"(Translate 0.5 2 0.25
+    Rotate 35 1 0 1
+    LightSource "goniometric" "rgb I" [10 10 10] "string filename" "white.exr")");
+  ImageBuffer predicted(gonio.width, gonio.height, {"R", "G", "B"});
+  for (int y = 0; y < gonio.height; ++y)
+    for (int x = 0; x < gonio.width; ++x) {
+      vec3 d = light - pixel_on_plane(cam, x, y);
+      float d2 = glm::dot(d, d);
+      for (int c = 0; c < 3; ++c) predicted.at(x, y, c) = rho / kPi * I * (d.y / std::sqrt(d2)) / d2;
+    }
+  // The pixel footprint averages a smooth function: agreement to well under 1%.
+  EXPECT_LT(max_relative_difference(gonio, predicted), 0.01);
+  ImageBuffer point = render(R"(LightSource "point" "rgb I" [10 10 10] "point3 from" [0.5 2 0.25])").first;
+  EXPECT_LT(max_relative_difference(gonio, point), 1e-4);
 }

@@ -2,7 +2,11 @@
 // parameterisations of environment maps, environment-map sampling (both
 // parameterisations, both distributions) by chi-square, importance sampling
 // against uniform sampling, spot and distant lights, light power; and alpha
-// cut-outs in the accel.
+// cut-outs in the accel; goniometric and projection lights (intensity along
+// known directions, their frustum and orientation, "power", bad input).
+#include "checkpoint/fingerprint.h"
+#include "core/color.h"
+#include "core/image.h"
 #include "core/log.h"
 #include "core/sampling.h"
 #include "scene/accel.h"
@@ -359,4 +363,257 @@ Texture "t" "float" "imagemap" "string filename" "cornell-box.exr" "string filte
   EXPECT_THROW(parse_scene_string("WorldBegin\nTexture \"b\" \"float\" \"imagemap\" \"string filename\" "
                                   "\"cornell-box.exr\" \"string filter\" \"cubic\"", "t.pbrt", THEIA_TEST_DATA),
                Error);
+}
+
+// ---------------------------------------------------------------- goniometric and projection
+
+namespace {
+
+// A scene whose lights are declared by `world` (after WorldBegin, from line
+// 2 of t.pbrt), which may name "light.exr": a w x h RGB image of texel(x, y),
+// row 0 at the top.
+struct ImageLightScene {
+  test::TempDir tmp;
+  Scene scene;
+  std::unique_ptr<Accel> accel;
+  std::unique_ptr<LightSet> lights;
+
+  ImageLightScene(const std::string& world, int w, int h, const std::function<RGB(int, int)>& texel) {
+    ImageBuffer img(w, h, {"R", "G", "B"});
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int c = 0; c < 3; ++c) img.at(x, y, c) = texel(x, y)[c];
+    write_exr(tmp.file("light.exr"), img);
+    scene = parse_scene_string("WorldBegin\n" + world + "\n", tmp.file("t.pbrt"), tmp.path.string());
+    load_images(scene);
+    accel = std::make_unique<Accel>(scene);
+    lights = std::make_unique<LightSet>(scene, *accel);
+  }
+  RGB I(const vec3& w, int light = 0) const { return light_intensity(*lights, light, glm::normalize(w)); }
+};
+
+RGB distinct_texel(int x, int y) { return RGB(1.0f + float(x), 0.5f + float(y), 0.25f * float((x * y) % 3)); }
+float mean_of(RGB c) { return (c.x + c.y + c.z) / 3.0f; }
+
+// The error message of building the scene (and its LightSet), or "" if it builds.
+std::string image_light_error(const std::string& world, int w, int h) {
+  try {
+    ImageLightScene s(world, w, h, [](int, int) { return RGB(1.0f); });
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+// Axes by hand: with no transform, pbrt-v4's y/z swap puts the map's pole
+// (the square's centre) at +y; +x is the right edge's middle, +z the bottom
+// edge's, -x the left edge's, -z the top edge's.  The map is one channel, the
+// mean of the file's R, G, B as stored (not converted to the working space).
+TEST(GoniometricLight, AxesHitTheirTexels) {
+  ImageLightScene s(R"(LightSource "goniometric" "rgb I" [2 2 2] "string filename" "light.exr")", 9, 9,
+                    distinct_texel);
+  const std::pair<vec3, ivec2> axes[] = {{vec3(0, 1, 0), {4, 4}}, {vec3(1, 0, 0), {8, 4}}, {vec3(0, 0, 1), {4, 8}},
+                                         {vec3(-1, 0, 0), {0, 4}}, {vec3(0, 0, -1), {4, 0}}};
+  for (const auto& [w, t] : axes) {
+    float want = 2.0f * mean_of(distinct_texel(t.x, t.y));
+    EXPECT_NEAR(glm::length(s.I(w) - RGB(want)), 0.0f, 1e-5f * want) << t.x << " " << t.y;
+  }
+  // Off the poles' ambiguity: a direction a little below the equator on +x is still column 8.
+  EXPECT_NEAR(s.I(vec3(1, -0.05f, 0)).x / (2.0f * mean_of(distinct_texel(8, 4))), 1.0f, 1e-5f);
+}
+
+// Every texel centre, through the equal-area map to a direction and the
+// light's transform (a rotation and pbrt-v4's swap) to render space, comes
+// back as that texel; and random render-space directions see the texel at
+// their equal-area position.
+TEST(GoniometricLight, IntensityIsTheTexelAtItsEqualAreaPositionBothWays) {
+  ImageLightScene s(R"(Translate 1 2 3
+Rotate 40 1 1 0
+LightSource "goniometric" "rgb I" [2 2 2] "float scale" 1.5 "string filename" "light.exr")",
+                    8, 8, distinct_texel);
+  const Light& l = s.scene.lights[0];
+  EXPECT_EQ(l.kind, LightKind::Goniometric);
+  EXPECT_NEAR(glm::length(l.position - vec3(1, 2, 3)), 0.0f, 1e-6f);
+  mat3 rot = mat3(glm::rotate(mat4(1.0f), radians(40.0f), glm::normalize(vec3(1, 1, 0))));
+  auto render_from_map = [&](vec3 d) { return rot * vec3(d.x, d.z, d.y); };
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x) {
+      vec3 w = render_from_map(equal_area_square_to_sphere(vec2((float(x) + 0.5f) / 8.0f, (float(y) + 0.5f) / 8.0f)));
+      EXPECT_NEAR(s.I(w).y / (3.0f * mean_of(distinct_texel(x, y))), 1.0f, 1e-5f) << x << " " << y;
+    }
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int k = 0; k < 200; ++k) {
+    vec3 w = sample_uniform_sphere(vec2(u(rng), u(rng)));
+    vec3 m = glm::transpose(rot) * w;
+    vec2 uv = equal_area_sphere_to_square(vec3(m.x, m.z, m.y));
+    int x = std::min(int(uv.x * 8.0f), 7), y = std::min(int(uv.y * 8.0f), 7);
+    EXPECT_NEAR(s.I(w).y / (3.0f * mean_of(distinct_texel(x, y))), 1.0f, 1e-5f) << k;
+  }
+}
+
+// A constant white image: the same light samples and power as a point light of the same I.
+TEST(GoniometricLight, ConstantWhiteImageIsAPointLight) {
+  ImageLightScene s(R"(AttributeBegin
+Translate 0.5 2 0.25
+Rotate 70 0 0 1
+LightSource "goniometric" "rgb I" [3 2 1] "string filename" "light.exr"
+AttributeEnd
+LightSource "point" "rgb I" [3 2 1] "point3 from" [0.5 2 0.25])",
+                    4, 4, [](int, int) { return RGB(1.0f); });
+  for (vec3 p : {vec3(0.0f), vec3(3, -1, 2), vec3(0.5f, 5, 0.25f), vec3(-2, 2, 0)}) {
+    auto g = sample_li(*s.lights, 0, LightSampleContext{p}, vec2(0.3f), 0.7f);
+    auto pt = sample_li(*s.lights, 1, LightSampleContext{p}, vec2(0.3f), 0.7f);
+    ASSERT_TRUE(g && pt);
+    EXPECT_NEAR(glm::length(g->L - pt->L), 0.0f, 1e-6f * glm::length(pt->L));
+    EXPECT_NEAR(glm::length(g->wi - pt->wi), 0.0f, 1e-6f);
+    EXPECT_NEAR(glm::length(g->p_light - pt->p_light), 0.0f, 1e-6f);
+    EXPECT_TRUE(g->is_delta);
+    EXPECT_FALSE(g->is_infinite);
+    EXPECT_EQ(g->pdf, 1.0f);
+  }
+  EXPECT_NEAR(light_power(*s.lights, 0) / light_power(*s.lights, 1), 1.0f, 1e-5f);
+}
+
+// "power" phi: light_power is phi, and so is the intensity integrated over the
+// sphere (an equal-area grid 4x finer than the map: exact for nearest texels).
+// "scale" still multiplies, as in pbrt-v4.
+TEST(GoniometricLight, PowerIsTheIntegralOfIntensity) {
+  for (float scale : {1.0f, 2.0f}) {
+    ImageLightScene s(R"(Rotate 25 0 1 1
+LightSource "goniometric" "float power" 50 "string filename" "light.exr" "float scale" )" +
+                          std::to_string(scale),
+                      8, 8, distinct_texel);
+    EXPECT_NEAR(light_power(*s.lights, 0), 50.0f * scale, 1e-4f * 50.0f * scale);
+    double sum = 0.0;
+    const int n = 32;
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        vec3 d = equal_area_square_to_sphere(vec2((float(x) + 0.5f) / n, (float(y) + 0.5f) / n));
+        sum += double(luminance(light_intensity(*s.lights, 0, s.scene.lights[0].render_from_light.vector(d))));
+      }
+    EXPECT_NEAR(sum * 4.0 * kPi / (n * n), 50.0 * scale, 1e-4 * 50.0 * scale);
+  }
+}
+
+// A 5 x 3 image (wide: fov spans its height) with no transform: the frustum
+// looks down +z, +y is the image's top and +x its right.
+TEST(ProjectionLight, FrustumCentreCornersAndOutside) {
+  ImageLightScene s(R"(LightSource "projection" "float fov" 60 "float scale" 2 "string filename" "light.exr")", 5, 3,
+                    distinct_texel);
+  EXPECT_EQ(s.scene.lights[0].kind, LightKind::Projection);
+  auto texel = [](int x, int y) { return 2.0f * srgb_to_working(distinct_texel(x, y)); };  // a colour image
+  auto expect_rgb = [](RGB got, RGB want, const char* what) {
+    EXPECT_NEAR(glm::length(got - want), 0.0f, 1e-5f * glm::length(want)) << what;
+  };
+  const float t = std::tan(radians(30.0f)), sx = 5.0f / 3.0f;
+  expect_rgb(s.I(vec3(0, 0, 1)), texel(2, 1), "centre");
+  expect_rgb(s.I(vec3(0.99f * sx * t, 0.99f * t, 1)), texel(4, 0), "top right");
+  expect_rgb(s.I(vec3(-0.99f * sx * t, 0.99f * t, 1)), texel(0, 0), "top left");
+  expect_rgb(s.I(vec3(0.99f * sx * t, -0.99f * t, 1)), texel(4, 2), "bottom right");
+  expect_rgb(s.I(vec3(-0.99f * sx * t, -0.99f * t, 1)), texel(0, 2), "bottom left");
+  for (vec3 w : {vec3(1.01f * sx * t, 0, 1), vec3(0, 1.01f * t, 1), vec3(0, -1.01f * t, 1), vec3(0, 0, -1),
+                 vec3(1, 0, 0), vec3(0.1f, 0.1f, -1)})
+    EXPECT_EQ(s.I(w), RGB(0.0f)) << w.x << " " << w.y << " " << w.z;
+  // A tall image: fov spans the width.
+  ImageLightScene tall(R"(LightSource "projection" "float fov" 60 "string filename" "light.exr")", 3, 5,
+                       distinct_texel);
+  EXPECT_EQ(tall.I(vec3(1.01f * t, 0, 1)), RGB(0.0f));
+  EXPECT_NE(tall.I(vec3(0.99f * t, 0, 1)), RGB(0.0f));
+  EXPECT_NEAR(glm::length(tall.I(vec3(0, 0.99f * sx * t, 1)) - srgb_to_working(distinct_texel(1, 0))), 0.0f, 1e-5f);
+}
+
+// Placed by the CTM: pointing down from (0, 2, 0), the CTM's +y (the image's
+// top) along render +z.  Light samples are delta samples from the light's
+// position with L = I / d^2.
+TEST(ProjectionLight, SamplesFollowTheTransform) {
+  ImageLightScene s(R"(Translate 0 2 0
+Rotate 90 1 0 0
+LightSource "projection" "float fov" 90 "string filename" "light.exr")",
+                    2, 2, distinct_texel);
+  const std::pair<vec3, ivec2> points[] = {
+      {vec3(0.5f, 0, 0.5f), {1, 0}}, {vec3(-0.5f, 0, 0.5f), {0, 0}}, {vec3(0.5f, 0, -0.5f), {1, 1}},
+      {vec3(-0.5f, 0, -0.5f), {0, 1}}};
+  for (const auto& [p, t] : points) {
+    auto ls = sample_li(*s.lights, 0, LightSampleContext{p}, vec2(0.5f), 0.5f);
+    ASSERT_TRUE(ls);
+    EXPECT_TRUE(ls->is_delta);
+    EXPECT_EQ(ls->pdf, 1.0f);
+    EXPECT_NEAR(glm::length(ls->p_light - vec3(0, 2, 0)), 0.0f, 1e-6f);
+    float d2 = glm::dot(vec3(0, 2, 0) - p, vec3(0, 2, 0) - p);
+    RGB want = srgb_to_working(distinct_texel(t.x, t.y)) / d2;
+    EXPECT_NEAR(glm::length(ls->L - want), 0.0f, 1e-5f * glm::length(want)) << p.x << " " << p.z;
+  }
+  EXPECT_FALSE(sample_li(*s.lights, 0, LightSampleContext{vec3(3, 0, 0)}, vec2(0.5f), 0.5f));  // outside
+  EXPECT_FALSE(sample_li(*s.lights, 0, LightSampleContext{vec3(0, 3, 0)}, vec2(0.5f), 0.5f));  // behind
+}
+
+// "power" phi gives light_power phi; the intensity integrated over the
+// frustum (a fine grid on the screen, d omega = tan^2 cos^3 dA) agrees to
+// pbrt-v4's midpoint rule over the 32 x 16 texels.
+TEST(ProjectionLight, PowerIsTheIntegralOfIntensity) {
+  ImageLightScene s(R"(Rotate 30 1 0 0
+LightSource "projection" "float fov" 50 "float power" 20 "string filename" "light.exr")",
+                    32, 16, [](int x, int y) { return RGB(0.2f + 0.02f * float(x), 0.5f, 0.1f + 0.05f * float(y)); });
+  EXPECT_NEAR(light_power(*s.lights, 0), 20.0f, 20.0f * 1e-5f);
+  const Transform& m = s.scene.lights[0].render_from_light;
+  const float t = std::tan(radians(25.0f));
+  const int nx = 1024, ny = 512;
+  double sum = 0.0;
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x) {
+      vec2 ps((2.0f * (float(x) + 0.5f) / nx - 1.0f) * 2.0f, 2.0f * (float(y) + 0.5f) / ny - 1.0f);
+      vec3 w = glm::normalize(vec3(ps * t, 1.0f));
+      sum += double(luminance(light_intensity(*s.lights, 0, glm::normalize(m.vector(w))))) * std::pow(double(w.z), 3.0);
+    }
+  double phi = sum * double(t * t) * (4.0 * 2.0) / (nx * ny);
+  EXPECT_NEAR(phi / 20.0, 1.0, 2e-3);
+}
+
+TEST(ImageLights, BadInputIsAnErrorWithItsLocation) {
+  auto expect_error = [](const std::string& world, int w, int h, const std::string& what) {
+    std::string e = image_light_error(world, w, h);
+    EXPECT_NE(e.find("t.pbrt:2:1: error: "), std::string::npos) << e;
+    EXPECT_NE(e.find(what), std::string::npos) << e;
+  };
+  expect_error(R"(LightSource "goniometric" "string filename" "light.exr")", 8, 4, "is 8x4, expected a square");
+  expect_error(R"(LightSource "goniometric" "rgb I" [1 1 1])", 4, 4,
+               "goniometric light without \"string filename\", expected an image");
+  expect_error(R"(LightSource "projection" "float fov" 30)", 4, 4,
+               "projection light without \"string filename\", expected an image");
+  expect_error(R"(LightSource "projection" "string filename" "light.exr" "float fov" 180)", 4, 4,
+               "projection \"fov\" 180, expected (0, 180) degrees");
+  expect_error(R"(LightSource "projection" "string filename" "light.exr" "float fov" 0)", 4, 4, "expected (0, 180)");
+  // The missing file is reported at the parameter.
+  std::string e = image_light_error(R"(LightSource "goniometric" "string filename" "nope.exr")", 4, 4);
+  EXPECT_NE(e.find("t.pbrt:2:27: error: image \""), std::string::npos) << e;
+  EXPECT_NE(e.find("nope.exr\" not found, expected an existing file"), std::string::npos) << e;
+  // "power" cannot normalise a black image.
+  try {
+    ImageLightScene s(R"(LightSource "projection" "float power" 3 "string filename" "light.exr")", 2, 2,
+                      [](int, int) { return RGB(0.0f); });
+    ADD_FAILURE() << "black image with power accepted";
+  } catch (const Error& err) {
+    EXPECT_NE(std::string(err.what()).find("t.pbrt:2:1: error: \"power\" given for a light whose image"),
+              std::string::npos)
+        << err.what();
+  }
+  EXPECT_EQ(image_light_error(R"(LightSource "projection" "string filename" "light.exr")", 4, 2), "");
+}
+
+TEST(ImageLights, FingerprintSeesTheirParameters) {
+  test::TempDir tmp;
+  write_exr(tmp.file("light.exr"), ImageBuffer(2, 2, {"R", "G", "B"}, 1.0f));
+  auto fp = [&](const std::string& light) {
+    return scene_fingerprint(parse_scene_string("WorldBegin\n" + light, tmp.file("t.pbrt"), tmp.path.string()));
+  };
+  const std::string proj = R"(LightSource "projection" "string filename" "light.exr" "float fov" )";
+  EXPECT_EQ(fp(proj + "40"), fp(proj + "40"));
+  EXPECT_NE(fp(proj + "40"), fp(proj + "41"));
+  EXPECT_NE(fp(proj + "40 \"float power\" 3"), fp(proj + "40"));
+  const std::string gonio = R"(LightSource "goniometric" "string filename" "light.exr")";
+  EXPECT_NE(fp(gonio), fp("Rotate 10 0 0 1\n" + gonio));
+  EXPECT_NE(fp(gonio), fp(proj + "90"));
 }

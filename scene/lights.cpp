@@ -243,8 +243,9 @@ float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compe
 }
 
 LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
-  // Area lights: the image normalisation, the triangles' emission per unit
-  // area (their choice by power) and the integral of it over the shape.
+  // Goniometric and projection lights: k_e and "power".  Area lights: the
+  // image normalisation, the triangles' emission per unit area (their choice
+  // by power) and the integral of it over the shape.
   image_scale.assign(s.lights.size(), 1.0f);
   image_power.assign(s.lights.size(), 0.0);
   area_luminance.assign(s.lights.size(), 0.0);

@@ -572,7 +572,7 @@ LightSource "projection" "float fov" 50 "float power" 20 "string filename" "ligh
   EXPECT_NEAR(phi / 20.0, 1.0, 2e-3);
 }
 
-TEST(ImageLights, BadInputIsAnErrorWithItsLocation) {
+TEST(PointImageLights, BadInputIsAnErrorWithItsLocation) {
   auto expect_error = [](const std::string& world, int w, int h, const std::string& what) {
     std::string e = image_light_error(world, w, h);
     EXPECT_NE(e.find("t.pbrt:2:1: error: "), std::string::npos) << e;
@@ -603,7 +603,7 @@ TEST(ImageLights, BadInputIsAnErrorWithItsLocation) {
   EXPECT_EQ(image_light_error(R"(LightSource "projection" "string filename" "light.exr")", 4, 2), "");
 }
 
-TEST(ImageLights, FingerprintSeesTheirParameters) {
+TEST(PointImageLights, FingerprintSeesTheirParameters) {
   test::TempDir tmp;
   write_exr(tmp.file("light.exr"), ImageBuffer(2, 2, {"R", "G", "B"}, 1.0f));
   auto fp = [&](const std::string& light) {

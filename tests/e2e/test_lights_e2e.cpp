@@ -349,5 +349,5 @@ TEST(Analytic, DiffusePlaneUnderConstantGoniometricLight) {
   // The pixel footprint averages a smooth function: agreement to well under 1%.
   EXPECT_LT(max_relative_difference(gonio, predicted), 0.01);
   ImageBuffer point = render(R"(LightSource "point" "rgb I" [10 10 10] "point3 from" [0.5 2 0.25])").first;
-  EXPECT_LT(max_relative_difference(gonio, point), 1e-4);
+  EXPECT_LT(max_relative_difference(gonio, point), 1e-5);
 }

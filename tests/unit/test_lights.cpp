@@ -569,7 +569,7 @@ LightSource "projection" "float fov" 50 "float power" 20 "string filename" "ligh
       sum += double(luminance(light_intensity(*s.lights, 0, glm::normalize(m.vector(w))))) * std::pow(double(w.z), 3.0);
     }
   double phi = sum * double(t * t) * (4.0 * 2.0) / (nx * ny);
-  EXPECT_NEAR(phi / 20.0, 1.0, 2e-3);
+  EXPECT_NEAR(phi / 20.0, 1.0, 1e-3);
 }
 
 TEST(PointImageLights, BadInputIsAnErrorWithItsLocation) {

@@ -144,15 +144,15 @@ void quadric_occluded(const RTCOccludedFunctionNArguments* args) {
   }
 }
 
-// A triangle mesh with an "alpha" texture: Embree's filter functions turn
-// its hits into cut-outs.
+// A triangle mesh or curve with an "alpha" texture: Embree's filter
+// functions turn its hits into cut-outs.
 struct AlphaGeom {
   const Scene* scene;
-  const TriangleMesh* mesh;
+  const TriangleMesh* mesh;  // nullptr for curves, whose texture uv is the hit's (u, v)
   int alpha;  // float texture index
 };
 
-// Triangles tell their hits apart by primitive.
+// Triangles and curve segments tell their hits apart by primitive.
 void alpha_filter(const RTCFilterFunctionNArguments* args) {
   const auto* g = static_cast<const AlphaGeom*>(args->geometryUserPtr);
   const unsigned n = args->N;
@@ -160,11 +160,14 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
     if (args->valid[i] == 0) continue;
     uint32_t prim = RTCHitN_primID(args->hit, n, i);
     float b1 = RTCHitN_u(args->hit, n, i), b2 = RTCHitN_v(args->hit, n, i);
-    vec2 uv[3];
-    triangle_uvs(*g->mesh, prim, uv);
     vec3 o(RTCRayN_org_x(args->ray, n, i), RTCRayN_org_y(args->ray, n, i), RTCRayN_org_z(args->ray, n, i));
     vec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
-    vec2 hit_uv = (1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
+    vec2 hit_uv(b1, b2);
+    if (g->mesh) {
+      vec2 uv[3];
+      triangle_uvs(*g->mesh, prim, uv);
+      hit_uv = (1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
+    }
     if (!alpha_keeps_hit(*g->scene, g->alpha, hit_uv, o, d, RTCRayN_tfar(args->ray, n, i), prim)) args->valid[i] = 0;
   }
 }
@@ -204,6 +207,8 @@ struct Accel::Impl {
   std::vector<RTCScene> prototypes;
   std::deque<QuadricGeom> quadrics;  // stable addresses: Embree holds pointers to them
   std::deque<AlphaGeom> alpha_geoms; // likewise
+  size_t curve_bytes = 0;            // curve control points (shared from the Scene) and index buffers; Embree's monitor counts the normals
+  std::deque<std::vector<uint32_t>> curve_indices;  // stable: Embree shares them
   std::vector<int> top_shape;        // top-level geometry id -> shape index (-1 for instances)
   std::vector<int> top_instance;     // top-level geometry id -> instance index (-1 for shapes)
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
@@ -237,6 +242,7 @@ struct Accel::Impl {
   // Attaches shape `index` to `scene`; returns the geometry id or kInvalidId
   // when the shape has nothing to trace.
   uint32_t add_shape(RTCScene scene, const Scene& sc, int index);
+  RTCGeometry new_curve_geometry(const Scene& sc, const Shape& s);
 };
 
 static const char* rtc_error_name(RTCError e) {
@@ -249,6 +255,45 @@ static const char* rtc_error_name(RTCError e) {
     case RTC_ERROR_CANCELLED: return "cancelled";
     default: return "unknown error";
   }
+}
+
+// One Embree curve geometry per shape, a primitive per cubic Bezier segment.
+RTCGeometry Accel::Impl::new_curve_geometry(const Scene& sc, const Shape& s) {
+  if (s.curves < 0 || size_t(s.curves) >= sc.curves.size())
+    throw_error("{}:{}: curve shape names curve set {}, which does not exist", s.loc.file, s.loc.line, s.curves);
+  const CurveSet& c = sc.curves[size_t(s.curves)];
+  if (c.segment_count() == 0) return nullptr;
+  RTCGeometryType type = c.type == CurveType::Flat       ? RTC_GEOMETRY_TYPE_FLAT_BEZIER_CURVE
+                         : c.type == CurveType::Cylinder ? RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE
+                                                         : RTC_GEOMETRY_TYPE_NORMAL_ORIENTED_BEZIER_CURVE;
+  RTCGeometry geom = rtcNewGeometry(device, type);
+  // Flat curves are traced as a chain of ray-facing quads, 4 per segment by
+  // default: a strongly bent segment then strays from the curve by more than a
+  // hair's width (a ray through the curve point missed).  16 keeps it on it.
+  if (c.type == CurveType::Flat) rtcSetGeometryTessellationRate(geom, 16.0f);
+  // (x, y, z, r) float4 records: no read past the last one, so the Scene's array is shared.
+  rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, c.cp.data(), 0, sizeof(vec4),
+                             c.cp.size());
+  std::vector<uint32_t>& idx = curve_indices.emplace_back(c.segment_count());
+  for (size_t k = 0; k < idx.size(); ++k) idx[k] = uint32_t(4 * k);
+  curve_bytes += idx.size() * sizeof(uint32_t) + c.cp.size() * sizeof(vec4);
+  rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, idx.data(), 0, sizeof(uint32_t),
+                             idx.size());
+  if (c.type == CurveType::Ribbon) {
+    if (c.n.size() != c.cp.size())
+      throw_error("{}:{}: ribbon curve has {} normals for {} control points", s.loc.file, s.loc.line, c.n.size(),
+                  c.cp.size());
+    // Packed float3 may be read 16 bytes at a time: Embree's own padded buffer.
+    void* dst = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_NORMAL, 0, RTC_FORMAT_FLOAT3, sizeof(vec3), c.n.size());
+    if (dst) std::memcpy(dst, c.n.data(), c.n.size() * sizeof(vec3));
+  }
+  if (s.alpha >= 0) {
+    alpha_geoms.push_back(AlphaGeom{&sc, nullptr, s.alpha});
+    rtcSetGeometryUserData(geom, &alpha_geoms.back());
+    rtcSetGeometryIntersectFilterFunction(geom, alpha_filter);
+    rtcSetGeometryOccludedFilterFunction(geom, alpha_filter);
+  }
+  return geom;
 }
 
 uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
@@ -289,6 +334,10 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     }
     // A virtual light never occludes, cut-out or not.
     if (is_virtual) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
+  } else if (s.kind == ShapeKind::Curve) {
+    // Curves never carry area lights (the parser drops them), so never virtual ones.
+    geom = new_curve_geometry(sc, s);
+    if (!geom) return kInvalidId;
   } else {
     QuadricGeom& q = quadrics.emplace_back();
     q.kind = s.kind;
@@ -394,9 +443,10 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
   I.check("building the scene");
 
   double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  log_info("accel: {} shapes, {} prototypes, {} instances built in {:.1f} ms, {:.2f} MiB (build peak {:.2f} MiB)",
+  log_info("accel: {} shapes, {} prototypes, {} instances built in {:.1f} ms, {:.2f} MiB (build peak {:.2f} MiB){}",
            scene.top_level_shapes.size(), scene.prototypes.size(), scene.instances.size(), ms,
-           double(memory_bytes()) / (1024.0 * 1024.0), double(I.embree_peak.load()) / (1024.0 * 1024.0));
+           double(memory_bytes()) / (1024.0 * 1024.0), double(I.embree_peak.load()) / (1024.0 * 1024.0),
+           I.curve_bytes ? fmt::format(", curves {:.2f} MiB", double(I.curve_bytes) / (1024.0 * 1024.0)) : "");
 }
 
 Accel::~Accel() = default;
@@ -492,7 +542,7 @@ size_t Accel::memory_bytes() const {
   size_t own = impl_->quadrics.size() * sizeof(QuadricGeom) + impl_->alpha_geoms.size() * sizeof(AlphaGeom) +
                (impl_->top_shape.size() + impl_->top_instance.size()) * sizeof(int);
   for (const auto& t : impl_->proto_shape) own += t.size() * sizeof(int);
-  return size_t(embree) + own;
+  return size_t(embree) + own + impl_->curve_bytes;
 }
 
 }  // namespace theia

@@ -1,5 +1,6 @@
 // The traceable scene: every shape of a theia::Scene turned into Embree
-// geometry, object prototypes into instanced sub-scenes.
+// geometry (curves into Embree's native Bezier curves), object prototypes
+// into instanced sub-scenes.
 //
 // The Accel shares the Scene's vertex and index arrays, so the Scene must
 // outlive it and stay unmodified.  Embree headers stay out of this header.
@@ -31,6 +32,8 @@ struct Ray {
 //   spheres:   (u, v) = object-space (phi, theta)
 //   disks:     (u, v) = object-space (x, y)
 //   cylinders: (u, v) = object-space (phi, z)
+//   curves:    (u, v) = Embree's: u along segment `prim` (0..1), v across
+//              (-1..1 flat, 0..1 ribbon, 0 on round "cylinder" curves)
 struct Hit {
   float t = kInfinity;
   float u = 0, v = 0;

@@ -18,12 +18,31 @@ namespace theia {
 
 inline constexpr uint32_t kInvalidId = 0xffffffffu;  // == RTC_INVALID_GEOMETRY_ID
 
+// An Embree primitive: (top-level instance, geometry, primitive), as in Hit.
+struct PrimRef {
+  uint32_t inst = kInvalidId, geom = kInvalidId, prim = kInvalidId;
+};
+
+// `skip`: the curve segment the ray was spawned from (kInvalidId otherwise).
+// Hits on it within kCurveSkipWidths of its width of the origin are ignored:
+// a thin curve's hit point is too imprecise (and a flat curve turns to face
+// every ray) for an origin offset to clear it.  Only curve geometry reads it.
 struct Ray {
   vec3 o;
   float tmin = 0;
   vec3 d;
   float tmax = kInfinity;
+  PrimRef skip;
 };
+inline constexpr float kCurveSkipWidths = 2.0f;
+
+// Flat curves are Embree's chains of ray-facing quads, at most 16 per segment:
+// on a segment whose max |c''| is at most 8 kFlatCurveSag width 16^2 (= 512
+// widths: a curvature radius above ~width / 5 on a unit-length segment) the
+// ribbon lies within kFlatCurveSag * width of the Bezier curve; beyond, within
+// max|c''| / (8 * 16^2).  See scene/README.md.
+inline constexpr float kFlatCurveSag = 0.25f;
+inline constexpr float kFlatCurveMaxRate = 16.0f;
 
 // What tracing returns; geom == kInvalidId means a miss.  geom/prim name the
 // Embree geometry and primitive in the scene that was hit (the prototype's

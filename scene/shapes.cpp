@@ -313,8 +313,6 @@ SurfaceInteraction curve_interaction(const CurveSet& c, const Shape& s, const ve
   vec3 n(0.0f);
   if (c.type == CurveType::Flat) {
     n = across(-d);  // the ribbon faces the ray
-    float r_max = std::max({c.cp[4 * k].w, c.cp[4 * k + 1].w, c.cp[4 * k + 2].w, c.cp[4 * k + 3].w});
-    si.spawn_tmin = 2.0f * r_max;
   } else if (c.type == CurveType::Cylinder) {
     // A sweep of circles: radial, tilted back where the radius changes along the curve.
     vec3 radial = across(si.p - center);
@@ -338,7 +336,8 @@ SurfaceInteraction curve_interaction(const CurveSet& c, const Shape& s, const ve
                gamma_bound(64) * (glm::abs(center) + vec3(r));
   si.ng = si.ns = n;
   si.uv = vec2(hit.u, hit.v);
-  si.dpdu = dpdu;
+  // On a tapered tube n leans back along T: keep dpdu in the tangent plane.
+  si.dpdu = dpdu - glm::dot(dpdu, n) * n;
   si.dpdv = glm::normalize(glm::cross(n, T)) * (2.0f * r);
   return si;
 }
@@ -367,6 +366,7 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
     }
     si = curve_interaction(scene.curves[size_t(s.curves)], s, o, d, hit);
     si.prim = int(hit.prim);
+    si.skip = PrimRef{hit.inst, hit.geom, hit.prim};
   } else {
     si = quadric_interaction(s, disk_local(make_disk_shape(s.disk), hit.u, hit.v));
   }
@@ -385,9 +385,6 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
     si.ns = face_forward(glm::normalize(t.normal(si.ns)), si.ng);
     si.dpdu = t.vector(si.dpdu);
     si.dpdv = t.vector(si.dpdv);
-    // A bound on how far the instance stretches a length (Frobenius norm).
-    mat3 lin(t.m);
-    si.spawn_tmin *= std::sqrt(glm::dot(lin[0], lin[0]) + glm::dot(lin[1], lin[1]) + glm::dot(lin[2], lin[2]));
   }
   si.wo = -glm::normalize(ray.d);
   si.t = hit.t;
@@ -417,21 +414,14 @@ vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const
 // above zero rejects exactly that hit and nothing else.
 constexpr float kSpawnTMin = std::numeric_limits<float>::min();
 
-// si.spawn_tmin is a distance; Ray::tmin is in units of |d|.
-static float spawn_tmin(const SurfaceInteraction& si, const vec3& d) {
-  if (si.spawn_tmin <= 0.0f) return kSpawnTMin;
-  float len = glm::length(d);
-  return len > 0.0f ? std::max(kSpawnTMin, si.spawn_tmin / len) : kSpawnTMin;
-}
-
 Ray spawn_ray(const SurfaceInteraction& si, const vec3& d) {
-  return Ray{offset_ray_origin(si.p, si.p_error, si.ng, d), spawn_tmin(si, d), d, kInfinity};
+  return Ray{offset_ray_origin(si.p, si.p_error, si.ng, d), kSpawnTMin, d, kInfinity, si.skip};
 }
 
 Ray spawn_ray_to(const SurfaceInteraction& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
   vec3 pf = offset_ray_origin(si.p, si.p_error, si.ng, p_to - si.p);
   vec3 pt = offset_ray_origin(p_to, p_to_error, n_to, pf - p_to);
-  return Ray{pf, spawn_tmin(si, pt - pf), pt - pf, 1.0f - kShadowEpsilon};
+  return Ray{pf, kSpawnTMin, pt - pf, 1.0f - kShadowEpsilon, si.skip};
 }
 
 // ---------------------------------------------------------------- sampling

@@ -71,10 +71,9 @@ struct SurfaceInteraction {
   float t = 0.0f;
   int shape = -1, material = -1, area_light = -1, instance = -1;
   int prim = -1;  // triangle meshes: the triangle (per-triangle emission and sampling pdf)
-  // Rays spawned here ignore hits closer than this (render-space distance).
-  // Only flat curves set it: a ray-facing ribbon turns to face every new ray,
-  // so a ray leaving it towards its centre line meets it again within its width.
-  float spawn_tmin = 0.0f;
+  // Curves: the segment hit, which rays spawned here ignore near their origin
+  // (Ray::skip).  Unset (kInvalidId) on every other shape.
+  PrimRef skip;
 };
 
 // Area of triangle `tri`, in double from its stored (float) corners.

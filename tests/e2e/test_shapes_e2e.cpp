@@ -88,7 +88,9 @@ std::string hair_clump(int n, const std::string& type, float width0, float width
     s += fmt::format(R"(Shape "curve" "string basis" "bspline" "string type" "{}" "float width0" [{}] "float width1" [{}] "point3 P" [{}]
 )",
                      type, width0, width1, p);
-    if (type == "ribbon") s.insert(s.size() - 1, fmt::format(R"( "normal N" [1 0 {}  0 0 1  1 0 0  {} 0 1])", z, x));
+    // Ribbons twist along the hair but keep facing the camera (on -z) enough to be seen.
+    if (type == "ribbon")
+      s.insert(s.size() - 1, fmt::format(R"( "normal N" [{} 0 -1  0 {} -1  {} 0 -1  0 0 -1])", z, x, -z));
   }
   return s;
 }
@@ -96,9 +98,14 @@ std::string hair_clump(int n, const std::string& type, float width0, float width
 }  // namespace
 
 // A white furnace around curves: albedo-1 diffuse hairs of every type in a
-// constant environment of radiance 1.  Every path ends in the environment
-// with throughput 1, so every pixel is 1 whatever the geometry: a ray that
-// leaks into or gets stuck on the thin geometry, or a NaN, shows as a pixel off 1.
+// constant environment of radiance 1.  Every path ends in the environment with
+// expected throughput 1, so every pixel's expectation is 1 whatever the
+// geometry; what a pixel shows beyond that is the estimator's noise (light
+// sampling vs BSDF sampling under MIS, Russian roulette), which shrinks as
+// 1/sqrt(spp).  A ray that leaks into or gets stuck on the thin geometry is a
+// bias instead: it moves the mean and does not shrink with spp.  Measured
+// (this clump, 300 hairs): rms |L - 1| over the image 0.022 / 0.010 / 0.005 at
+// 32 / 128 / 512 spp, worst pixel 0.19 / 0.055 / 0.031 (flat): noise.
 TEST(CurveFurnace, AlbedoOneHairsRenderTheEnvironmentRadiance) {
   for (std::string type : {"flat", "cylinder", "ribbon"}) {
     Scene scene = load_test_scene(R"(
@@ -110,26 +117,46 @@ TEST(CurveFurnace, AlbedoOneHairsRenderTheEnvironmentRadiance) {
       WorldBegin
       LightSource "infinite" "rgb L" [1 1 1]
       Material "diffuse" "rgb reflectance" [1 1 1]
-    )" + hair_clump(300, type, 0.03f, 0.005f));
-    RenderResult r = render_scene(scene, quick_config(32));
-    RGB mean = image_mean(r.image);
-    double coverage = 0.0, worst = 0.0;
-    for (int y = 0; y < r.image.height; ++y)
-      for (int x = 0; x < r.image.width; ++x) {
-        coverage += pixel_channel(r.image, x, y, 3);
-        for (int c = 0; c < 3; ++c) {
-          float v = pixel_channel(r.image, x, y, c);
-          ASSERT_TRUE(std::isfinite(v)) << type;
-          worst = std::max(worst, std::abs(double(v) - 1.0));
+    )" + hair_clump(400, type, 0.03f, 0.005f));
+    // Per render: coverage, image mean, rms of L - 1 over the covered pixels
+    // (the pixel noise sigma: the expectation is 1), worst |L - 1|.
+    struct Stats {
+      double coverage = 0, covered = 0, rms = 0, worst = 0;  // mean alpha; pixels with alpha > 0
+      RGB mean;
+    };
+    auto render = [&](int spp) {
+      RenderResult r = render_scene(scene, quick_config(spp));
+      EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u) << type;
+      Stats st;
+      st.mean = image_mean(r.image);
+      double sum2 = 0.0;
+      for (int y = 0; y < r.image.height; ++y)
+        for (int x = 0; x < r.image.width; ++x) {
+          st.coverage += pixel_channel(r.image, x, y, 3);
+          st.covered += pixel_channel(r.image, x, y, 3) > 0.0f;
+          for (int c = 0; c < 3; ++c) {
+            float v = pixel_channel(r.image, x, y, c);
+            EXPECT_TRUE(std::isfinite(v)) << type;
+            sum2 += (double(v) - 1.0) * (double(v) - 1.0);
+            st.worst = std::max(st.worst, std::abs(double(v) - 1.0));
+          }
         }
-      }
-    coverage /= double(r.image.width * r.image.height);
-    fmt::print("{}: mean {:.5f} {:.5f} {:.5f}, worst pixel |L - 1| {:.4f}, coverage {:.3f}\n", type, mean.x, mean.y,
-               mean.z, worst, coverage);
-    EXPECT_GT(coverage, 0.2) << type << ": the hairs must cover a good part of the image";
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], 1.0f, 0.005f) << type << " channel " << c;
-    EXPECT_LT(worst, 0.05) << type;
-    EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u) << type;
+      st.rms = std::sqrt(sum2 / (3.0 * std::max(st.covered, 1.0)));
+      st.coverage /= double(r.image.width * r.image.height);
+      return st;
+    };
+    Stats lo = render(32), hi = render(128);
+    fmt::print("{}: coverage {:.3f}; 32 spp: mean {:.5f}, sigma {:.4f}, worst {:.4f}; 128 spp: mean {:.5f}, sigma "
+               "{:.4f}, worst {:.4f}\n",
+               type, hi.coverage, lo.mean.x, lo.rms, lo.worst, hi.mean.x, hi.rms, hi.worst);
+    EXPECT_GT(hi.coverage, 0.2) << type << ": the hairs must cover a good part of the image";
+    // Noise, not a leak: 4x the samples halve the pixel deviations (0.5; a
+    // bias would keep the ratio near 1).
+    EXPECT_LT(hi.rms / lo.rms, 0.65) << type;
+    // The image mean is 1 within 5 standard errors (pixels are independent).
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(hi.mean[c], 1.0, 5.0 * hi.rms * std::sqrt(hi.covered) / 1024.0) << type;
+    // And no pixel is an outlier of that noise.
+    EXPECT_LT(hi.worst, 6.0 * hi.rms) << type;
   }
 }
 

@@ -154,11 +154,12 @@ struct FilterGeom {
   int alpha;                 // float texture index, or -1
 };
 
-// The context every query passes: rays carry their index in the span (RTCRay::id)
-// so filters can read the theia Ray, whatever packets Embree regroups them into.
+// The context every query passes: rays carry their index in the span
+// (RTCRay::id) so filters can find what travels beside them, whatever packets
+// Embree regroups them into.
 struct TraceContext {
   RTCIntersectContext rtc;
-  const Ray* rays;
+  const PrimRef* skips = nullptr;  // the curve segment each ray left, or none at all
 };
 
 // A hit on the curve segment the ray left, within kCurveSkipWidths of its
@@ -166,7 +167,9 @@ struct TraceContext {
 // reports t with the ray's own direction).
 bool is_spawn_self_hit(const FilterGeom& g, const RTCFilterFunctionNArguments* args, unsigned i, uint32_t prim) {
   const unsigned n = args->N;
-  const PrimRef& skip = reinterpret_cast<const TraceContext*>(args->context)->rays[RTCRayN_id(args->ray, n, i)].skip;
+  const PrimRef* skips = reinterpret_cast<const TraceContext*>(args->context)->skips;
+  if (!skips) return false;
+  const PrimRef& skip = skips[RTCRayN_id(args->ray, n, i)];
   if (skip.prim != prim || skip.geom != RTCHitN_geomID(args->hit, n, i) ||
       skip.inst != RTCHitN_instID(args->hit, n, i, 0))
     return false;
@@ -501,15 +504,16 @@ static void fill_ray(const Ray& r, uint32_t index, RTCRay& out) {
   out.time = 0.0f;
   out.tfar = r.tmax;
   out.mask = 0xffffffffu;
-  out.id = index;  // TraceContext::rays[index] is r
+  out.id = index;  // TraceContext::skips[index] is r's
   out.flags = 0;
 }
 
-void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent) const {
+void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
+                      std::span<const PrimRef> skips) const {
   TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
   ctx.rtc.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  ctx.rays = rays.data();
+  if (!skips.empty()) ctx.skips = skips.data();
   size_t n = std::min(rays.size(), hits.size());
   for (size_t i = 0; i < n; ++i) {
     RTCRayHit rh;
@@ -531,7 +535,7 @@ void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coher
   }
 }
 
-void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked) const {
+void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std::span<const PrimRef> skips) const {
   TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
   constexpr size_t kChunk = 64;
@@ -539,22 +543,22 @@ void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked) cons
   size_t n = std::min(rays.size(), blocked.size());
   for (size_t start = 0; start < n; start += kChunk) {
     size_t m = std::min(kChunk, n - start);
-    ctx.rays = rays.data() + start;
+    if (!skips.empty()) ctx.skips = skips.data() + start;
     for (size_t j = 0; j < m; ++j) fill_ray(rays[start + j], uint32_t(j), buf[j]);
     rtcOccluded1M(impl_->top, &ctx.rtc, buf, unsigned(m), sizeof(RTCRay));
     for (size_t j = 0; j < m; ++j) blocked[start + j] = buf[j].tfar < 0.0f ? 1 : 0;
   }
 }
 
-Hit Accel::intersect1(const Ray& ray) const {
+Hit Accel::intersect1(const Ray& ray, const PrimRef& skip) const {
   Hit h;
-  intersect(std::span<const Ray>(&ray, 1), std::span<Hit>(&h, 1), false);
+  intersect(std::span<const Ray>(&ray, 1), std::span<Hit>(&h, 1), false, std::span<const PrimRef>(&skip, 1));
   return h;
 }
 
-bool Accel::occluded1(const Ray& ray) const {
+bool Accel::occluded1(const Ray& ray, const PrimRef& skip) const {
   uint8_t b = 0;
-  occluded(std::span<const Ray>(&ray, 1), std::span<uint8_t>(&b, 1));
+  occluded(std::span<const Ray>(&ray, 1), std::span<uint8_t>(&b, 1), std::span<const PrimRef>(&skip, 1));
   return b != 0;
 }
 

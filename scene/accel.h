@@ -23,17 +23,19 @@ struct PrimRef {
   uint32_t inst = kInvalidId, geom = kInvalidId, prim = kInvalidId;
 };
 
-// `skip`: the curve segment the ray was spawned from (kInvalidId otherwise).
-// Hits on it within kCurveSkipWidths of its width of the origin are ignored:
-// a thin curve's hit point is too imprecise (and a flat curve turns to face
-// every ray) for an origin offset to clear it.  Only curve geometry reads it.
 struct Ray {
   vec3 o;
   float tmin = 0;
   vec3 d;
   float tmax = kInfinity;
-  PrimRef skip;
 };
+// A ray spawned from a curve skips the segment it left (SurfaceInteraction::skip,
+// passed beside the rays to intersect/occluded): hits on it within
+// kCurveSkipWidths of its width of the origin are ignored, since a thin
+// curve's hit point is too imprecise (and a flat curve turns to face every
+// ray) for an origin offset to clear it.  Only curve geometry reads it, and
+// the skips travel beside the rays, not in them, so scenes without curves keep
+// 32-byte rays and pass none.
 inline constexpr float kCurveSkipWidths = 2.0f;
 
 // Flat curves are Embree's chains of ray-facing quads, at most 16 per segment:
@@ -68,11 +70,13 @@ class Accel {
   Accel& operator=(const Accel&) = delete;
 
   // Closest hits.  Single-threaded over the span; safe to call concurrently.
-  void intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent) const;
+  // `skips`: empty, or the curve segment each ray left (parallel to rays).
+  void intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
+                 std::span<const PrimRef> skips = {}) const;
   // Any hit in [tmin, tmax]: blocked[i] = 1 if ray i is occluded.
-  void occluded(std::span<const Ray> rays, std::span<uint8_t> blocked) const;
-  Hit intersect1(const Ray& ray) const;  // convenience for tests and one-off queries
-  bool occluded1(const Ray& ray) const;
+  void occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std::span<const PrimRef> skips = {}) const;
+  Hit intersect1(const Ray& ray, const PrimRef& skip = {}) const;  // convenience for tests and one-off queries
+  bool occluded1(const Ray& ray, const PrimRef& skip = {}) const;
 
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
   int instance_index(const Hit& hit) const;  // index into Scene::instances, or -1

@@ -415,13 +415,13 @@ vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const
 constexpr float kSpawnTMin = std::numeric_limits<float>::min();
 
 Ray spawn_ray(const SurfaceInteraction& si, const vec3& d) {
-  return Ray{offset_ray_origin(si.p, si.p_error, si.ng, d), kSpawnTMin, d, kInfinity, si.skip};
+  return Ray{offset_ray_origin(si.p, si.p_error, si.ng, d), kSpawnTMin, d, kInfinity};
 }
 
 Ray spawn_ray_to(const SurfaceInteraction& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
   vec3 pf = offset_ray_origin(si.p, si.p_error, si.ng, p_to - si.p);
   vec3 pt = offset_ray_origin(p_to, p_to_error, n_to, pf - p_to);
-  return Ray{pf, kSpawnTMin, pt - pf, 1.0f - kShadowEpsilon, si.skip};
+  return Ray{pf, kSpawnTMin, pt - pf, 1.0f - kShadowEpsilon};
 }
 
 // ---------------------------------------------------------------- sampling

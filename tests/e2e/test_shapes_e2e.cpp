@@ -190,3 +190,30 @@ TEST(CurveScene, HairClumpLoadsWithoutWarningsAndRenders) {
     }
   EXPECT_GT(lit, 0.0);
 }
+
+// One straight flat (ray-facing) hair under a distant light, seen face-on:
+// its normal faces the camera, so every fully covered pixel is
+// rho / pi * E * cos, and nothing about the ribbon shadows itself.
+TEST(CurveScene, FlatHairUnderADistantLightMatchesTheAnalyticRadiance) {
+  Scene scene = load_test_scene(R"(
+    Film "rgb" "integer xresolution" [32] "integer yresolution" [16]
+    PixelFilter "box" "float xradius" [0.5] "float yradius" [0.5]
+    LookAt 0 0 -3  0 0 0  0 1 0
+    Camera "perspective" "float fov" [10]
+    WorldBegin
+    LightSource "distant" "point3 from" [0 1 -1] "point3 to" [0 0 0] "rgb L" [3 3 3]
+    Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+    Shape "curve" "string type" "flat" "point3 P" [-2 0 0  -0.7 0 0  0.7 0 0  2 0 0] "float width" [0.2]
+  )");
+  RenderResult r = render_scene(scene, quick_config(16));
+  // The ribbon faces the camera (normal -z); the light arrives from (0, 1, -1).
+  const double want = 0.5 / kPi * 3.0 * std::sqrt(0.5);
+  int checked = 0;
+  for (int y = 7; y <= 8; ++y)  // the rows the 0.2-wide ribbon covers entirely (about 6 pixels tall)
+    for (int x = 0; x < 32; ++x) {
+      EXPECT_NEAR(pixel_channel(r.image, x, y, 1) / want, 1.0, 0.02) << x << " " << y;
+      ++checked;
+    }
+  EXPECT_EQ(checked, 64);
+  EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u);
+}

@@ -38,9 +38,15 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.vec(m.uv);
     h.vec(m.indices);
   }
+  for (const CurveSet& c : s.curves) {
+    h.pod(c.type);
+    h.vec(c.cp);
+    h.vec(c.n);
+  }
   for (const Shape& sh : s.shapes) {
     h.pod(sh.kind);
     h.pod(sh.mesh);
+    h.pod(sh.curves);
     h.pod(sh.sphere);
     h.pod(sh.disk);
     h.pod(sh.cylinder);

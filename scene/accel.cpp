@@ -144,29 +144,83 @@ void quadric_occluded(const RTCOccludedFunctionNArguments* args) {
   }
 }
 
-// A triangle mesh with an "alpha" texture: Embree's filter functions turn
-// its hits into cut-outs.
-struct AlphaGeom {
+// What Embree's filter functions need: a triangle mesh with an "alpha"
+// texture (cut-outs), or any curve (cut-outs, and skipping the segment a ray
+// was spawned from).  Meshes without alpha get no filter and pay nothing.
+struct FilterGeom {
   const Scene* scene;
-  const TriangleMesh* mesh;
-  int alpha;  // float texture index
+  const TriangleMesh* mesh;  // nullptr for curves, whose texture uv is the hit's (u, v)
+  const CurveSet* curve;     // nullptr for meshes
+  int alpha;                 // float texture index, or -1
 };
 
-// Triangles tell their hits apart by primitive.
-void alpha_filter(const RTCFilterFunctionNArguments* args) {
-  const auto* g = static_cast<const AlphaGeom*>(args->geometryUserPtr);
+// The context every query passes: rays carry their index in the span
+// (RTCRay::id) so filters can find what travels beside them, whatever packets
+// Embree regroups them into.
+struct TraceContext {
+  RTCIntersectContext rtc;
+  const PrimRef* skips = nullptr;  // the curve segment each ray left, or none at all
+};
+
+// A hit on the curve segment the ray left, within kCurveSkipWidths of its
+// widest width of the origin (distances in the curve's space, where Embree
+// reports t with the ray's own direction).
+bool is_spawn_self_hit(const FilterGeom& g, const RTCFilterFunctionNArguments* args, unsigned i, uint32_t prim) {
+  const unsigned n = args->N;
+  const PrimRef* skips = reinterpret_cast<const TraceContext*>(args->context)->skips;
+  if (!skips) return false;
+  const PrimRef& skip = skips[RTCRayN_id(args->ray, n, i)];
+  if (skip.prim != prim || skip.geom != RTCHitN_geomID(args->hit, n, i) ||
+      skip.inst != RTCHitN_instID(args->hit, n, i, 0))
+    return false;
+  const vec4* q = &g.curve->cp[4 * size_t(prim)];
+  float width = 2.0f * std::max({q[0].w, q[1].w, q[2].w, q[3].w});
+  vec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
+  return RTCRayN_tfar(args->ray, n, i) * glm::length(d) < kCurveSkipWidths * width;
+}
+
+// Triangles and curve segments tell their alpha decisions apart by primitive.
+void hit_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* g = static_cast<const FilterGeom*>(args->geometryUserPtr);
   const unsigned n = args->N;
   for (unsigned i = 0; i < n; ++i) {
     if (args->valid[i] == 0) continue;
     uint32_t prim = RTCHitN_primID(args->hit, n, i);
+    if (g->curve && is_spawn_self_hit(*g, args, i, prim)) {
+      args->valid[i] = 0;
+      continue;
+    }
+    if (g->alpha < 0) continue;
     float b1 = RTCHitN_u(args->hit, n, i), b2 = RTCHitN_v(args->hit, n, i);
-    vec2 uv[3];
-    triangle_uvs(*g->mesh, prim, uv);
     vec3 o(RTCRayN_org_x(args->ray, n, i), RTCRayN_org_y(args->ray, n, i), RTCRayN_org_z(args->ray, n, i));
     vec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
-    vec2 hit_uv = (1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
+    vec2 hit_uv(b1, b2);
+    if (g->mesh) {
+      vec2 uv[3];
+      triangle_uvs(*g->mesh, prim, uv);
+      hit_uv = (1.0f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
+    }
     if (!alpha_keeps_hit(*g->scene, g->alpha, hit_uv, o, d, RTCRayN_tfar(args->ray, n, i), prim)) args->valid[i] = 0;
   }
+}
+
+// Embree traces a flat curve as a chain of `rate` ray-facing quads per
+// segment, on chords between curve points at uniform u (documented: flat
+// curves are approximate by design; no flag changes that): a chord of
+// parameter length 1/rate strays from the curve by at most max|c''| / (8 rate^2).
+// The rate keeps that within kFlatCurveSag of each segment's width, from
+// Embree's default 4 (cheapest) up to kFlatCurveMaxRate, where Embree stops:
+// rates 16, 32, 64 and 128 gave bit-identical hits (Embree 3.13.5).
+float flat_curve_tessellation_rate(const CurveSet& c) {
+  float rate = 4.0f;
+  for (size_t k = 0; k < c.segment_count(); ++k) {
+    const vec4* q = &c.cp[4 * k];
+    float width = 2.0f * std::max({q[0].w, q[1].w, q[2].w, q[3].w});
+    vec3 a0 = vec3(q[2]) - 2.0f * vec3(q[1]) + vec3(q[0]), a1 = vec3(q[3]) - 2.0f * vec3(q[2]) + vec3(q[1]);
+    float c2 = 6.0f * std::max(glm::length(a0), glm::length(a1));  // max |c''| (linear in u)
+    if (width > 0.0f) rate = std::max(rate, std::ceil(std::sqrt(c2 / (8.0f * kFlatCurveSag * width))));
+  }
+  return std::min(rate, kFlatCurveMaxRate);
 }
 
 Bounds3 quadric_object_bounds(const Shape& s) {
@@ -203,7 +257,9 @@ struct Accel::Impl {
   RTCScene top = nullptr;
   std::vector<RTCScene> prototypes;
   std::deque<QuadricGeom> quadrics;  // stable addresses: Embree holds pointers to them
-  std::deque<AlphaGeom> alpha_geoms; // likewise
+  std::deque<FilterGeom> filter_geoms; // likewise
+  size_t curve_bytes = 0;            // curve control points (shared from the Scene) and index buffers; Embree's monitor counts the normals
+  std::deque<std::vector<uint32_t>> curve_indices;  // stable: Embree shares them
   std::vector<int> top_shape;        // top-level geometry id -> shape index (-1 for instances)
   std::vector<int> top_instance;     // top-level geometry id -> instance index (-1 for shapes)
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
@@ -237,6 +293,7 @@ struct Accel::Impl {
   // Attaches shape `index` to `scene`; returns the geometry id or kInvalidId
   // when the shape has nothing to trace.
   uint32_t add_shape(RTCScene scene, const Scene& sc, int index);
+  RTCGeometry new_curve_geometry(const Scene& sc, const Shape& s);
 };
 
 static const char* rtc_error_name(RTCError e) {
@@ -249,6 +306,40 @@ static const char* rtc_error_name(RTCError e) {
     case RTC_ERROR_CANCELLED: return "cancelled";
     default: return "unknown error";
   }
+}
+
+// One Embree curve geometry per shape, a primitive per cubic Bezier segment.
+RTCGeometry Accel::Impl::new_curve_geometry(const Scene& sc, const Shape& s) {
+  if (s.curves < 0 || size_t(s.curves) >= sc.curves.size())
+    throw_error("{}:{}: curve shape names curve set {}, which does not exist", s.loc.file, s.loc.line, s.curves);
+  const CurveSet& c = sc.curves[size_t(s.curves)];
+  if (c.segment_count() == 0) return nullptr;
+  RTCGeometryType type = c.type == CurveType::Flat       ? RTC_GEOMETRY_TYPE_FLAT_BEZIER_CURVE
+                         : c.type == CurveType::Cylinder ? RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE
+                                                         : RTC_GEOMETRY_TYPE_NORMAL_ORIENTED_BEZIER_CURVE;
+  RTCGeometry geom = rtcNewGeometry(device, type);
+  if (c.type == CurveType::Flat) rtcSetGeometryTessellationRate(geom, flat_curve_tessellation_rate(c));
+  // (x, y, z, r) float4 records: no read past the last one, so the Scene's array is shared.
+  rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, c.cp.data(), 0, sizeof(vec4),
+                             c.cp.size());
+  std::vector<uint32_t>& idx = curve_indices.emplace_back(c.segment_count());
+  for (size_t k = 0; k < idx.size(); ++k) idx[k] = uint32_t(4 * k);
+  curve_bytes += idx.size() * sizeof(uint32_t) + c.cp.size() * sizeof(vec4);
+  rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, idx.data(), 0, sizeof(uint32_t),
+                             idx.size());
+  if (c.type == CurveType::Ribbon) {
+    if (c.n.size() != c.cp.size())
+      throw_error("{}:{}: ribbon curve has {} normals for {} control points", s.loc.file, s.loc.line, c.n.size(),
+                  c.cp.size());
+    // Packed float3 may be read 16 bytes at a time: Embree's own padded buffer.
+    void* dst = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_NORMAL, 0, RTC_FORMAT_FLOAT3, sizeof(vec3), c.n.size());
+    if (dst) std::memcpy(dst, c.n.data(), c.n.size() * sizeof(vec3));
+  }
+  filter_geoms.push_back(FilterGeom{&sc, nullptr, &c, s.alpha});
+  rtcSetGeometryUserData(geom, &filter_geoms.back());
+  rtcSetGeometryIntersectFilterFunction(geom, hit_filter);
+  rtcSetGeometryOccludedFilterFunction(geom, hit_filter);
+  return geom;
 }
 
 uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
@@ -282,13 +373,17 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
                                3 * sizeof(uint32_t), m.triangle_count());
     if (s.alpha >= 0) {
       // Only meshes that have an alpha texture pay for the filter calls.
-      alpha_geoms.push_back(AlphaGeom{&sc, &m, s.alpha});
-      rtcSetGeometryUserData(geom, &alpha_geoms.back());
-      rtcSetGeometryIntersectFilterFunction(geom, alpha_filter);
-      if (!is_virtual) rtcSetGeometryOccludedFilterFunction(geom, alpha_filter);
+      filter_geoms.push_back(FilterGeom{&sc, &m, nullptr, s.alpha});
+      rtcSetGeometryUserData(geom, &filter_geoms.back());
+      rtcSetGeometryIntersectFilterFunction(geom, hit_filter);
+      if (!is_virtual) rtcSetGeometryOccludedFilterFunction(geom, hit_filter);
     }
     // A virtual light never occludes, cut-out or not.
     if (is_virtual) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
+  } else if (s.kind == ShapeKind::Curve) {
+    // Curves never carry area lights (the parser drops them), so never virtual ones.
+    geom = new_curve_geometry(sc, s);
+    if (!geom) return kInvalidId;
   } else {
     QuadricGeom& q = quadrics.emplace_back();
     q.kind = s.kind;
@@ -394,35 +489,38 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
   I.check("building the scene");
 
   double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  log_info("accel: {} shapes, {} prototypes, {} instances built in {:.1f} ms, {:.2f} MiB (build peak {:.2f} MiB)",
+  log_info("accel: {} shapes, {} prototypes, {} instances built in {:.1f} ms, {:.2f} MiB (build peak {:.2f} MiB){}",
            scene.top_level_shapes.size(), scene.prototypes.size(), scene.instances.size(), ms,
-           double(memory_bytes()) / (1024.0 * 1024.0), double(I.embree_peak.load()) / (1024.0 * 1024.0));
+           double(memory_bytes()) / (1024.0 * 1024.0), double(I.embree_peak.load()) / (1024.0 * 1024.0),
+           I.curve_bytes ? fmt::format(", curves {:.2f} MiB", double(I.curve_bytes) / (1024.0 * 1024.0)) : "");
 }
 
 Accel::~Accel() = default;
 
-static void fill_ray(const Ray& r, RTCRay& out) {
+static void fill_ray(const Ray& r, uint32_t index, RTCRay& out) {
   out.org_x = r.o.x, out.org_y = r.o.y, out.org_z = r.o.z;
   out.tnear = r.tmin;
   out.dir_x = r.d.x, out.dir_y = r.d.y, out.dir_z = r.d.z;
   out.time = 0.0f;
   out.tfar = r.tmax;
   out.mask = 0xffffffffu;
-  out.id = 0;
+  out.id = index;  // TraceContext::skips[index] is r's
   out.flags = 0;
 }
 
-void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
+                      std::span<const PrimRef> skips) const {
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.rtc.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  if (!skips.empty()) ctx.skips = skips.data();
   size_t n = std::min(rays.size(), hits.size());
   for (size_t i = 0; i < n; ++i) {
     RTCRayHit rh;
-    fill_ray(rays[i], rh.ray);
+    fill_ray(rays[i], uint32_t(i), rh.ray);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(impl_->top, &ctx, &rh);
+    rtcIntersect1(impl_->top, &ctx.rtc, &rh);
     Hit& h = hits[i];
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
       h = Hit{};
@@ -437,29 +535,30 @@ void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coher
   }
 }
 
-void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std::span<const PrimRef> skips) const {
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
   constexpr size_t kChunk = 64;
   RTCRay buf[kChunk];
   size_t n = std::min(rays.size(), blocked.size());
   for (size_t start = 0; start < n; start += kChunk) {
     size_t m = std::min(kChunk, n - start);
-    for (size_t j = 0; j < m; ++j) fill_ray(rays[start + j], buf[j]);
-    rtcOccluded1M(impl_->top, &ctx, buf, unsigned(m), sizeof(RTCRay));
+    if (!skips.empty()) ctx.skips = skips.data() + start;
+    for (size_t j = 0; j < m; ++j) fill_ray(rays[start + j], uint32_t(j), buf[j]);
+    rtcOccluded1M(impl_->top, &ctx.rtc, buf, unsigned(m), sizeof(RTCRay));
     for (size_t j = 0; j < m; ++j) blocked[start + j] = buf[j].tfar < 0.0f ? 1 : 0;
   }
 }
 
-Hit Accel::intersect1(const Ray& ray) const {
+Hit Accel::intersect1(const Ray& ray, const PrimRef& skip) const {
   Hit h;
-  intersect(std::span<const Ray>(&ray, 1), std::span<Hit>(&h, 1), false);
+  intersect(std::span<const Ray>(&ray, 1), std::span<Hit>(&h, 1), false, std::span<const PrimRef>(&skip, 1));
   return h;
 }
 
-bool Accel::occluded1(const Ray& ray) const {
+bool Accel::occluded1(const Ray& ray, const PrimRef& skip) const {
   uint8_t b = 0;
-  occluded(std::span<const Ray>(&ray, 1), std::span<uint8_t>(&b, 1));
+  occluded(std::span<const Ray>(&ray, 1), std::span<uint8_t>(&b, 1), std::span<const PrimRef>(&skip, 1));
   return b != 0;
 }
 
@@ -489,10 +588,10 @@ Bounds3 Accel::bounds() const {
 
 size_t Accel::memory_bytes() const {
   int64_t embree = std::max<int64_t>(impl_->embree_bytes.load(), 0);
-  size_t own = impl_->quadrics.size() * sizeof(QuadricGeom) + impl_->alpha_geoms.size() * sizeof(AlphaGeom) +
+  size_t own = impl_->quadrics.size() * sizeof(QuadricGeom) + impl_->filter_geoms.size() * sizeof(FilterGeom) +
                (impl_->top_shape.size() + impl_->top_instance.size()) * sizeof(int);
   for (const auto& t : impl_->proto_shape) own += t.size() * sizeof(int);
-  return size_t(embree) + own;
+  return size_t(embree) + own + impl_->curve_bytes;
 }
 
 }  // namespace theia

@@ -1,5 +1,6 @@
 // The traceable scene: every shape of a theia::Scene turned into Embree
-// geometry, object prototypes into instanced sub-scenes.
+// geometry (curves into Embree's native Bezier curves), object prototypes
+// into instanced sub-scenes.
 //
 // The Accel shares the Scene's vertex and index arrays, so the Scene must
 // outlive it and stay unmodified.  Embree headers stay out of this header.
@@ -17,12 +18,33 @@ namespace theia {
 
 inline constexpr uint32_t kInvalidId = 0xffffffffu;  // == RTC_INVALID_GEOMETRY_ID
 
+// An Embree primitive: (top-level instance, geometry, primitive), as in Hit.
+struct PrimRef {
+  uint32_t inst = kInvalidId, geom = kInvalidId, prim = kInvalidId;
+};
+
 struct Ray {
   vec3 o;
   float tmin = 0;
   vec3 d;
   float tmax = kInfinity;
 };
+// A ray spawned from a curve skips the segment it left (SurfaceInteraction::skip,
+// passed beside the rays to intersect/occluded): hits on it within
+// kCurveSkipWidths of its width of the origin are ignored, since a thin
+// curve's hit point is too imprecise (and a flat curve turns to face every
+// ray) for an origin offset to clear it.  Only curve geometry reads it, and
+// the skips travel beside the rays, not in them, so scenes without curves keep
+// 32-byte rays and pass none.
+inline constexpr float kCurveSkipWidths = 2.0f;
+
+// Flat curves are Embree's chains of ray-facing quads, at most 16 per segment:
+// on a segment whose max |c''| is at most 8 kFlatCurveSag width 16^2 (= 512
+// widths: a curvature radius above ~width / 5 on a unit-length segment) the
+// ribbon lies within kFlatCurveSag * width of the Bezier curve; beyond, within
+// max|c''| / (8 * 16^2).  See scene/README.md.
+inline constexpr float kFlatCurveSag = 0.25f;
+inline constexpr float kFlatCurveMaxRate = 16.0f;
 
 // What tracing returns; geom == kInvalidId means a miss.  geom/prim name the
 // Embree geometry and primitive in the scene that was hit (the prototype's
@@ -31,6 +53,8 @@ struct Ray {
 //   spheres:   (u, v) = object-space (phi, theta)
 //   disks:     (u, v) = object-space (x, y)
 //   cylinders: (u, v) = object-space (phi, z)
+//   curves:    (u, v) = Embree's: u along segment `prim` (0..1), v across
+//              (-1..1 flat, 0..1 ribbon, 0 on round "cylinder" curves)
 struct Hit {
   float t = kInfinity;
   float u = 0, v = 0;
@@ -46,11 +70,13 @@ class Accel {
   Accel& operator=(const Accel&) = delete;
 
   // Closest hits.  Single-threaded over the span; safe to call concurrently.
-  void intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent) const;
+  // `skips`: empty, or the curve segment each ray left (parallel to rays).
+  void intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
+                 std::span<const PrimRef> skips = {}) const;
   // Any hit in [tmin, tmax]: blocked[i] = 1 if ray i is occluded.
-  void occluded(std::span<const Ray> rays, std::span<uint8_t> blocked) const;
-  Hit intersect1(const Ray& ray) const;  // convenience for tests and one-off queries
-  bool occluded1(const Ray& ray) const;
+  void occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std::span<const PrimRef> skips = {}) const;
+  Hit intersect1(const Ray& ray, const PrimRef& skip = {}) const;  // convenience for tests and one-off queries
+  bool occluded1(const Ray& ray, const PrimRef& skip = {}) const;
 
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
   int instance_index(const Hit& hit) const;  // index into Scene::instances, or -1

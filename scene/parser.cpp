@@ -2,6 +2,7 @@
 
 #include "core/log.h"
 #include "scene/camera_params.h"
+#include "scene/curve_params.h"
 #include "scene/light_params.h"
 #include "scene/loop_subdiv.h"
 #include "scene/material_params.h"
@@ -114,6 +115,7 @@ class SceneParser {
   std::map<std::tuple<float, float, float, bool>, int> constants_;
   std::map<std::tuple<std::string, std::string, bool>, int> images_;
   int default_material_ = -1;
+  bool warned_curve_light_ = false;
 };
 
 // ---------------------------------------------------------------- arguments
@@ -765,6 +767,21 @@ void SceneParser::shape(const std::string& type, ParamList& params, const Source
     s.disk = {params.get_float("height", 0.0f), params.get_float("radius", 1.0f), params.get_float("innerradius", 0.0f),
               params.get_float("phimax", 360.0f)};
     s.render_from_object = gs_.ctm;
+  } else if (type == "curve") {
+    CurveSet c = curves_from_params(params, loc, gs_.ctm);
+    s.kind = ShapeKind::Curve;
+    s.curves = int(scene_.curves.size());
+    scene_.curves.push_back(std::move(c));
+    // pbrt-v4 cannot sample curve area lights either: the curve is added
+    // without the emission.
+    if (gs_.area_light) {
+      if (!warned_curve_light_) warn_at(loc, "area lights on curves are not supported (pbrt-v4 neither); emission ignored");
+      warned_curve_light_ = true;
+      gs_.area_light = false;
+      add_shape(std::move(s), params);
+      gs_.area_light = true;
+      return;
+    }
   } else {
     warn_at(loc, "shape \"{}\" is not supported; ignored", type);
     params.mark_all_used();

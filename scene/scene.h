@@ -113,7 +113,7 @@ struct Material {
 
 // ---------------------------------------------------------------- shapes
 
-enum class ShapeKind { TriangleMesh, Sphere, Disk, Cylinder };
+enum class ShapeKind { TriangleMesh, Sphere, Disk, Cylinder, Curve };
 
 // Indexed triangles.  Top-level meshes are stored in render space; meshes of
 // an object prototype are stored in the prototype's object space.
@@ -127,6 +127,22 @@ struct TriangleMesh {
   // patch, so emission needs to know which triangles make one.
   std::vector<uint32_t> patch_start;
   size_t triangle_count() const { return indices.size() / 3; }
+};
+
+// pbrt-v4's "curve" types, traced as Embree's flat (ray-facing), round (a
+// real tube, where pbrt-v4 bends the shading normal of a flat ribbon) and
+// normal-oriented curves.
+enum class CurveType { Flat, Cylinder, Ribbon };
+
+// A "curve" shape's segments, every one converted to a cubic Bezier (degree 2
+// elevated, b-splines converted) and baked with the CTM like a mesh: segment k
+// is cp[4k .. 4k+3] = (x, y, z, radius), radius = width / 2 interpolated
+// linearly along the shape; ribbons carry one normal per control point, n[4k ..].
+struct CurveSet {
+  CurveType type = CurveType::Flat;
+  std::vector<vec4> cp;
+  std::vector<vec3> n;              // ribbon only
+  size_t segment_count() const { return cp.size() / 4; }
 };
 
 struct SphereParams {
@@ -143,6 +159,7 @@ struct CylinderParams {
 struct Shape {
   ShapeKind kind = ShapeKind::TriangleMesh;
   int mesh = -1;                    // TriangleMesh: index into Scene::meshes
+  int curves = -1;                  // Curve: index into Scene::curves
   SphereParams sphere;
   DiskParams disk;
   CylinderParams cylinder;
@@ -269,6 +286,7 @@ struct Scene {
   RenderSettings settings;
 
   std::vector<TriangleMesh> meshes;
+  std::vector<CurveSet> curves;
   std::vector<Shape> shapes;                 // every shape, top-level and prototype
   std::vector<int> top_level_shapes;         // indices into shapes that are in the world directly
   std::vector<ObjectPrototype> prototypes;

@@ -1,6 +1,7 @@
 #include "scene/shapes.h"
 
 #include "core/log.h"
+#include "scene/curve_params.h"
 
 #include <cmath>
 
@@ -281,6 +282,66 @@ SurfaceInteraction quadric_interaction(const Shape& s, const LocalGeom& g) {
   return si;
 }
 
+// Embree's curve hits carry only (t, u, v): p comes from the ray, the frame
+// from the segment at u.  o, d in the curve's space.  Embree's own Ng is not
+// kept (it is the tangent on flat curves, and Hit stays small).
+SurfaceInteraction curve_interaction(const CurveSet& c, const Shape& s, const vec3& o, const vec3& d, const Hit& hit) {
+  size_t k = std::min<size_t>(hit.prim, c.segment_count() - 1);
+  float u = std::clamp(hit.u, 0.0f, 1.0f);
+  CubicBezier b = curve_segment(c, k);
+  vec3 p = o + hit.t * d;
+  // Embree's u is approximate (on tubes the centre point at u was measured up
+  // to 75% of the radius off): Newton steps to the centre-line point closest
+  // to p, whose tangent is perpendicular to p - centre.
+  for (int it = 0; it < 4; ++it) {
+    vec3 e = bezier_point(b, u) - p, d1 = bezier_derivative(b, u);
+    vec3 d2 = 6.0f * ((1.0f - u) * (b[2] - 2.0f * b[1] + b[0]) + u * (b[3] - 2.0f * b[2] + b[1]));
+    float f1 = glm::dot(d1, d1) + glm::dot(e, d2);
+    if (!(f1 > 0.0f)) break;
+    u = std::clamp(u - glm::dot(e, d1) / f1, 0.0f, 1.0f);
+  }
+  vec3 center = bezier_point(b, u);
+  vec3 dpdu = bezier_derivative(b, u);
+  // Coincident end control points leave a zero derivative at the end itself.
+  if (!(glm::dot(dpdu, dpdu) > 0.0f)) dpdu = b[3] - b[0];
+  if (!(glm::dot(dpdu, dpdu) > 0.0f)) dpdu = vec3(1.0f, 0.0f, 0.0f);
+  vec3 T = glm::normalize(dpdu);
+  auto across = [&](vec3 v) { return v - glm::dot(v, T) * T; };
+  SurfaceInteraction si;
+  si.p = p;
+  float r = curve_radius(c, k, u);
+  vec3 n(0.0f);
+  if (c.type == CurveType::Flat) {
+    n = across(-d);  // the ribbon faces the ray
+  } else if (c.type == CurveType::Cylinder) {
+    // A sweep of circles: radial, tilted back where the radius changes along the curve.
+    vec3 radial = across(si.p - center);
+    if (glm::dot(radial, radial) > 0.0f) {
+      float s1 = 1.0f - u;
+      const vec4* q = &c.cp[4 * k];
+      float dr = 3.0f * (s1 * s1 * (q[1].w - q[0].w) + 2.0f * s1 * u * (q[2].w - q[1].w) + u * u * (q[3].w - q[2].w));
+      n = glm::normalize(radial) - (dr / glm::length(dpdu)) * T;
+    }
+  } else {
+    float s1 = 1.0f - u;
+    const vec3* q = &c.n[4 * k];
+    n = across(s1 * s1 * s1 * q[0] + 3.0f * s1 * s1 * u * q[1] + 3.0f * s1 * u * u * q[2] + u * u * u * q[3]);
+  }
+  if (!(glm::dot(n, n) > 0.0f) || !std::isfinite(glm::dot(n, n))) n = Frame::from_z(T).s;
+  n = glm::normalize(n);
+  if (c.type != CurveType::Flat && s.reverse_orientation != s.transform_swaps_handedness) n = -n;
+  // Float p = o + t d, plus what Embree's iterative solve leaves of t: a few
+  // ulps of the curve's coordinates (measured in tests/unit/test_curves.cpp).
+  si.p_error = gamma_bound(3) * (glm::abs(o) + glm::abs(hit.t * d)) +
+               gamma_bound(64) * (glm::abs(center) + vec3(r));
+  si.ng = si.ns = n;
+  si.uv = vec2(hit.u, hit.v);
+  // On a tapered tube n leans back along T: keep dpdu in the tangent plane.
+  si.dpdu = dpdu - glm::dot(dpdu, n) * n;
+  si.dpdv = glm::normalize(glm::cross(n, T)) * (2.0f * r);
+  return si;
+}
+
 }  // namespace
 
 SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit) {
@@ -295,6 +356,17 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
     si = quadric_interaction(s, sphere_local(make_sphere_shape(s.sphere), hit.u, hit.v));
   } else if (s.kind == ShapeKind::Cylinder) {
     si = quadric_interaction(s, cylinder_local(make_cylinder_shape(s.cylinder), hit.u, hit.v));
+  } else if (s.kind == ShapeKind::Curve) {
+    vec3 o = ray.o, d = ray.d;
+    if (int inst = accel.instance_index(hit); inst >= 0) {
+      // Embree found the hit with the ray in instance space, where t is the same.
+      dmat4 inv = glm::inverse(dmat4(scene.instances[size_t(inst)].render_from_instance.m));
+      o = vec3(dvec3(inv * dvec4(dvec3(ray.o), 1.0)));
+      d = vec3(dmat3(inv) * dvec3(ray.d));
+    }
+    si = curve_interaction(scene.curves[size_t(s.curves)], s, o, d, hit);
+    si.prim = int(hit.prim);
+    si.skip = PrimRef{hit.inst, hit.geom, hit.prim};
   } else {
     si = quadric_interaction(s, disk_local(make_disk_shape(s.disk), hit.u, hit.v));
   }

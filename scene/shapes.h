@@ -71,6 +71,9 @@ struct SurfaceInteraction {
   float t = 0.0f;
   int shape = -1, material = -1, area_light = -1, instance = -1;
   int prim = -1;  // triangle meshes: the triangle (per-triangle emission and sampling pdf)
+  // Curves: the segment hit, which rays spawned here ignore near their origin
+  // (the skips beside rays, scene/accel.h).  Unset (kInvalidId) on every other shape.
+  PrimRef skip;
 };
 
 // Area of triangle `tri`, in double from its stored (float) corners.

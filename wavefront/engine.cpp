@@ -40,6 +40,7 @@ struct Batch {
 
 struct ShadowBatch {
   std::vector<Ray> rays;
+  std::vector<PrimRef> skip;      // the curve segment each ray left (only when the scene has curves)
   std::vector<RGB> contribution;  // beta * f * L * w / pdf * filter weight: what reaches the film if unoccluded
   std::vector<float> mis_weight;  // the MIS weight inside the contribution (only when observed)
   std::vector<uint32_t> pixel;
@@ -48,6 +49,7 @@ struct ShadowBatch {
   size_t size() const { return rays.size(); }
   void clear() {
     rays.clear();
+    skip.clear();
     contribution.clear();
     mis_weight.clear();
     pixel.clear();
@@ -56,6 +58,7 @@ struct ShadowBatch {
   }
   void append(const ShadowBatch& o) {
     rays.insert(rays.end(), o.rays.begin(), o.rays.end());
+    skip.insert(skip.end(), o.skip.begin(), o.skip.end());
     contribution.insert(contribution.end(), o.contribution.begin(), o.contribution.end());
     mis_weight.insert(mis_weight.end(), o.mis_weight.begin(), o.mis_weight.end());
     pixel.insert(pixel.end(), o.pixel.begin(), o.pixel.end());
@@ -92,6 +95,10 @@ struct WavefrontEngine::Impl {
   PathObserver* observer;
 
   PathStatePool pool;
+  // Per path slot, the curve segment its queued ray left; allocated only
+  // when the scene has curves (scene/accel.h: the skips beside rays).
+  std::vector<PrimRef> path_skip;
+  std::vector<PrimRef> batch_skips;  // path_skip gathered in a batch's ray order
   std::array<Batch, 6> filling;     // the batch being filled, per direction bin
   std::vector<Batch> full;          // filled batches, processed last-in first-out
   std::vector<Batch> spare;         // emptied batches, reused to keep allocations flat
@@ -119,6 +126,7 @@ struct WavefrontEngine::Impl {
        Film& fi, const EngineOptions& o, PathObserver* obs)
       : scene(s), accel(a), lights(l), light_sampler(ls), camera(c), filter(f), film(fi), opt(o), observer(obs),
         pool(std::max<size_t>(o.max_paths, 1)) {
+    if (!s.curves.empty()) path_skip.resize(std::max<size_t>(o.max_paths, 1));
     Bounds3 b = accel.bounds();
     if (b.min.x <= b.max.x) {
       bounds_min = b.min;
@@ -217,6 +225,7 @@ struct WavefrontEngine::Impl {
         ps.prev_specular = 1;
         ps.alpha_only = alpha_only ? 1 : 0;
         ps.eta_scale = 1.0f;
+        if (!path_skip.empty()) path_skip[slots[i]] = PrimRef{};
         all.rays[i] = ray;
       }
     });
@@ -281,11 +290,16 @@ struct WavefrontEngine::Impl {
 
     if (opt.capture_rays) opt.capture_rays->insert(opt.capture_rays->end(), b.rays.begin(), b.rays.end());
     hits.resize(n);
+    batch_skips.clear();
+    if (!path_skip.empty())
+      for (uint32_t slot : b.paths) batch_skips.push_back(path_skip[slot]);
     {
       ScopedTimer timer(stats.phases[Phase::Trace]);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
+        std::span<const PrimRef> skips;
+        if (!batch_skips.empty()) skips = std::span<const PrimRef>(batch_skips.data() + r.begin(), r.size());
         accel.intersect(std::span<const Ray>(b.rays.data() + r.begin(), r.size()),
-                        std::span<Hit>(hits.data() + r.begin(), r.size()), b.camera);
+                        std::span<Hit>(hits.data() + r.begin(), r.size()), b.camera, skips);
       });
     }
 
@@ -424,6 +438,7 @@ struct WavefrontEngine::Impl {
         }
         out.rays.rays.push_back(spawn_ray(si, ray.d));
         out.rays.paths.push_back(slot);
+        if (!path_skip.empty()) path_skip[slot] = si.skip;
         return;
       }
     }
@@ -434,6 +449,7 @@ struct WavefrontEngine::Impl {
     if (bsdf_is_passthrough(bsdf)) {
       out.rays.rays.push_back(spawn_ray(si, -wo));
       out.rays.paths.push_back(slot);
+      if (!path_skip.empty()) path_skip[slot] = si.skip;
       return;
     }
     const vec3 ns = bsdf.shading.n;  // bump- or normal-mapped
@@ -465,6 +481,7 @@ struct WavefrontEngine::Impl {
             if (is_finite(contribution) && !is_black(contribution)) {
               ShadowBatch& sb = out.shadows;
               sb.rays.push_back(spawn_ray_to(si, ls->p_light, ls->p_light_error, ls->n_light));
+              if (!path_skip.empty()) sb.skip.push_back(si.skip);
               sb.contribution.push_back(contribution);
               sb.pixel.push_back(pixel);
               sb.sample.push_back(sample);
@@ -552,6 +569,7 @@ struct WavefrontEngine::Impl {
     ps.prev_ng = si.ng;
     out.rays.rays.push_back(spawn_ray(si, bs->wi));
     out.rays.paths.push_back(slot);
+    if (!path_skip.empty()) path_skip[slot] = si.skip;
   }
 
   // ---------------------------------------------------------------- shadow rays
@@ -573,6 +591,11 @@ struct WavefrontEngine::Impl {
       std::vector<Ray> rays(n);
       for (size_t i = 0; i < n; ++i) rays[i] = s.rays[keys[i].index];
       s.rays.swap(rays);
+      if (!s.skip.empty()) {
+        std::vector<PrimRef> skip(n);
+        for (size_t i = 0; i < n; ++i) skip[i] = s.skip[keys[i].index];
+        s.skip.swap(skip);
+      }
       order.resize(n);
       for (size_t i = 0; i < n; ++i) order[i] = keys[i].index;
     }
@@ -582,8 +605,10 @@ struct WavefrontEngine::Impl {
     {
       ScopedTimer timer(stats.phases[Phase::TraceShadow]);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
+        std::span<const PrimRef> skips;
+        if (!s.skip.empty()) skips = std::span<const PrimRef>(s.skip.data() + r.begin(), r.size());
         accel.occluded(std::span<const Ray>(s.rays.data() + r.begin(), r.size()),
-                       std::span<uint8_t>(blocked.data() + r.begin(), r.size()));
+                       std::span<uint8_t>(blocked.data() + r.begin(), r.size()), skips);
       });
     }
     {

@@ -293,8 +293,8 @@ TEST(Parser, SphereDiskAndUnsupportedShapes) {
 Shape "sphere" "float radius" 2 "float zmin" -1 "float zmax" 1.5 "float phimax" 180
 Shape "disk" "float height" 0.5 "float radius" 3 "float innerradius" 1 "float phimax" 90
 Shape "cylinder" "float radius" 0.5 "float zmax" 2 "float phimax" 270
-Shape "curve" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3])");
-  EXPECT_EQ(warning_count() - before, 1);  // the curve only
+Shape "nurbs" "point3 P" [0 0 0 1 1 1 2 2 2 3 3 3])");
+  EXPECT_EQ(warning_count() - before, 1);  // the unknown shape only
   ASSERT_EQ(s.shapes.size(), 3u);
   EXPECT_EQ(s.shapes[2].kind, ShapeKind::Cylinder);
   EXPECT_FLOAT_EQ(s.shapes[2].cylinder.radius, 0.5f);

@@ -1,0 +1,39 @@
+// Path guiding as the wavefront engine sees it: a directional distribution
+// per region of space, learned from earlier iterations, that the engine mixes
+// with BSDF sampling (one-sample MIS, seeds/000 ch. 1 section 3.2).
+//
+// The interface lives in core/ (like PathObserver) so that guiding/, which
+// may use only core, implements it and the engine calls it without knowing
+// what an SD-tree is.  A region is looked up once per vertex; sample() and
+// pdf() then take it, so a vertex pays one spatial descent however many
+// directions it asks about (its own sample, the NEE ray's MIS weight).
+#pragma once
+
+#include "core/math.h"
+
+#include <cstdint>
+
+namespace theia {
+
+inline constexpr uint32_t kNoGuideRegion = 0xffffffffu;
+
+struct GuideSample {
+  vec3 wi{0.0f};     // world space, unit
+  float pdf = 0.0f;  // solid angle
+};
+
+class DirectionalGuide {
+ public:
+  virtual ~DirectionalGuide() = default;
+  // The region whose distribution applies at p, or kNoGuideRegion where the
+  // field has learned nothing (the engine then samples the BSDF alone).
+  virtual uint32_t region(const vec3& p) const = 0;
+  // A direction drawn from the region's distribution, u in [0,1)^2.
+  virtual GuideSample sample(uint32_t region, vec2 u) const = 0;
+  // Solid-angle density of sample() producing wi (world space, unit).
+  virtual float pdf(uint32_t region, const vec3& wi) const = 0;
+  // Probability of drawing from the guide rather than the BSDF in this region.
+  virtual float selection_probability(uint32_t region) const = 0;
+};
+
+}  // namespace theia

@@ -277,6 +277,32 @@ std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, fl
   return s;
 }
 
+std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
+  vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
+  if (wo.z == 0.0f || wi.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
+  BSDFSample s;
+  s.f = bxdf_f(bsdf.bxdf, wo, wi);
+  s.pdf = bxdf_pdf(bsdf.bxdf, wo, wi);
+  s.wi = wi_world;
+  s.lobe = lobe_of(bsdf, wo, wi);
+  s.flags = bsdf.lobes[s.lobe].flags;
+  s.roughness = bsdf.lobes[s.lobe].roughness;
+  // A refraction crosses the index from wo's side to wi's (pbrt-v4's etap).
+  if (s.is_transmission() && bsdf.bxdf.kind == BxDFKind::Dielectric)
+    s.eta = wo.z > 0.0f ? bsdf.bxdf.dielectric.eta : 1.0f / bsdf.bxdf.dielectric.eta;
+  if (!is_finite(s.f) || is_black(s.f)) return std::nullopt;
+  return s;
+}
+
+bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness) {
+  if (bsdf.lobe_count == 0 || bsdf.kind == MaterialKind::CoatedDiffuse || bsdf.kind == MaterialKind::CoatedConductor)
+    return false;
+  if (bxdf_flags(bsdf.bxdf) & kLobeSpecular) return false;
+  for (int i = 0; i < bsdf.lobe_count; ++i)
+    if (bsdf.lobes[i].roughness > min_roughness) return true;
+  return false;
+}
+
 RGB bsdf_albedo(const BSDF& bsdf) {
   RGB a(0.0f);
   for (int i = 0; i < bsdf.lobe_count; ++i) a += bsdf.lobes[i].albedo;

@@ -75,6 +75,16 @@ float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
 // as its pdf (what MIS needs) and f rescaled so that f / pdf is the random
 // walk's own weight, as pbrt-v4's pdfIsProportional handling amounts to.
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u);
+// The scattering event of a direction chosen elsewhere (by a path-guiding
+// distribution): f, bsdf_pdf, and the lobe the direction belongs to with its
+// flags, roughness and eta, as bsdf_sample would report them.  nullopt where
+// f is zero.  Not for the layered kinds (their f is a stochastic estimate).
+std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo, const vec3& wi);
+// True where a guide may share sampling with the BSDF (seeds/000 ch. 1
+// section 3): no delta lobe (a delta has no density to mix), an exact pdf
+// (not the layered kinds), and some lobe rougher than `min_roughness`, since
+// directions a guide proposes rarely matter to a near-specular lobe.
+bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness);
 // Joint pdf of choosing `lobe` and sampling wi (the lobes' pdfs sum to
 // bsdf_pdf), for guiding's per-lobe decisions.
 float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);

@@ -463,6 +463,18 @@ struct WavefrontEngine::Impl {
     const uint32_t dim = kBounceBase + kDimsPerBounce * depth;
     if (int(depth) == reset_depth) beta = RGB(1.0f);
 
+    // The guide's region, where this vertex samples directions from the
+    // mixture of guide and BSDF; every pdf MIS needs at this vertex is then
+    // the mixture's.
+    const uint32_t region =
+        opt.guide && bsdf_is_guidable(bsdf, opt.guiding_min_roughness) ? opt.guide->region(si.p) : kNoGuideRegion;
+    const float guide_fraction = region != kNoGuideRegion ? opt.guide->selection_probability(region) : 0.0f;
+    auto scattering_pdf = [&](const vec3& wi) {
+      float p = bsdf_pdf(bsdf, wo, wi);
+      if (guide_fraction > 0.0f) p = guide_fraction * opt.guide->pdf(region, wi) + (1.0f - guide_fraction) * p;
+      return p;
+    };
+
     // Next-event estimation: queue a shadow ray carrying its unoccluded contribution.
     if (!bsdf_is_specular(bsdf) && int(depth) >= reset_depth) {
       LightSampleContext ctx{si.p, si.p_error, si.ng, ns};
@@ -475,7 +487,7 @@ struct WavefrontEngine::Impl {
         if (ls && light_pdf > 0.0f && std::isfinite(light_pdf)) {
           RGB f = bsdf_f(bsdf, wo, ls->wi) * std::abs(glm::dot(ls->wi, ns));
           if (!is_black(f)) {
-            float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, bsdf_pdf(bsdf, wo, ls->wi));
+            float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, scattering_pdf(ls->wi));
             RGB radiance = ls->L * (w / light_pdf);
             RGB contribution = fw * beta * f * radiance;
             if (is_finite(contribution) && !is_black(contribution)) {
@@ -509,9 +521,26 @@ struct WavefrontEngine::Impl {
       }
     }
 
-    // Continue the path by sampling the BSDF.
-    auto bs = bsdf_sample(bsdf, wo, sample1(pixel, sample, dim + kDimBsdfLobe),
-                          sample2(pixel, sample, dim + kDimBsdfDir));
+    // Continue the path by sampling the BSDF, or the guide's mixture with it.
+    // The mixture splits the lobe-choice dimension, so that an unguided
+    // render draws exactly the numbers it drew before guiding existed.
+    const float u_lobe = sample1(pixel, sample, dim + kDimBsdfLobe);
+    const vec2 u_dir = sample2(pixel, sample, dim + kDimBsdfDir);
+    std::optional<BSDFSample> bs;
+    if (guide_fraction <= 0.0f) {
+      bs = bsdf_sample(bsdf, wo, u_lobe, u_dir);
+    } else {
+      float guide_pdf = 0.0f;
+      if (u_lobe < guide_fraction) {
+        GuideSample gs = opt.guide->sample(region, u_dir);
+        guide_pdf = gs.pdf;
+        bs = bsdf_event(bsdf, wo, gs.wi);
+      } else {
+        bs = bsdf_sample(bsdf, wo, std::min((u_lobe - guide_fraction) / (1.0f - guide_fraction), kOneMinusEpsilon), u_dir);
+        if (bs) guide_pdf = opt.guide->pdf(region, bs->wi);
+      }
+      if (bs) bs->pdf = guide_fraction * guide_pdf + (1.0f - guide_fraction) * bs->pdf;
+    }
     // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
     if (!bs || !(bs->pdf > 0.0f)) {
       finish_path<kObserve>(slot, out);

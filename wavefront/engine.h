@@ -11,6 +11,7 @@
 #pragma once
 
 #include "cachepoints/light_sampler.h"
+#include "core/directional_guide.h"
 #include "core/stats.h"
 #include "scene/accel.h"
 #include "scene/camera.h"
@@ -50,6 +51,12 @@ struct EngineOptions {
   // Samples per pixel of the whole render: sets pbrt-v4's texture-footprint
   // scale max(1/8, 1/sqrt(spp)) for trilinear imagemaps (scene/camera.h).
   int footprint_spp = 1;
+  // Path guiding: at vertices whose BSDF is guidable (bsdf_is_guidable with
+  // this roughness threshold), directions come from the guide with its
+  // selection probability and from the BSDF otherwise, weighted as one
+  // sample of the mixture (seeds/000 ch. 1 section 3.2).  Null: no guiding.
+  const DirectionalGuide* guide = nullptr;
+  float guiding_min_roughness = 0.05f;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;

@@ -166,40 +166,27 @@ double SDTree::spatial_threshold() const { return options_.spatial_threshold * s
 SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
   vec3 q = (p - root_.min) / root_size_;
   for (int a = 0; a < 3; ++a) q[a] = std::clamp(q[a], 0.0f, kOneMinusEpsilon);
-  vec3 size = root_size_;
+  Lookup at{0, root_.min, root_size_};
   uint32_t n = 0;
   while (nodes_[n].first_child != 0) {
     int a = nodes_[n].axis;
-    size[a] *= 0.5f;
+    at.size[a] *= 0.5f;
     if (q[a] < 0.5f) {
       q[a] *= 2.0f;
       n = nodes_[n].first_child;
     } else {
       q[a] = 2.0f * q[a] - 1.0f;
+      at.lo[a] += at.size[a];
       n = nodes_[n].first_child + 1;
     }
   }
-  return {nodes_[n].leaf, size};
+  at.leaf = nodes_[n].leaf;
+  return at;
 }
 
 Bounds3 SDTree::leaf_bounds(const vec3& p) const {
-  vec3 q = (p - root_.min) / root_size_;
-  for (int a = 0; a < 3; ++a) q[a] = std::clamp(q[a], 0.0f, kOneMinusEpsilon);
-  vec3 lo = root_.min, size = root_size_;
-  uint32_t n = 0;
-  while (nodes_[n].first_child != 0) {
-    int a = nodes_[n].axis;
-    size[a] *= 0.5f;
-    if (q[a] < 0.5f) {
-      q[a] *= 2.0f;
-      n = nodes_[n].first_child;
-    } else {
-      q[a] = 2.0f * q[a] - 1.0f;
-      lo[a] += size[a];
-      n = nodes_[n].first_child + 1;
-    }
-  }
-  return {lo, lo + size};
+  Lookup at = find_leaf(p);
+  return {at.lo, at.lo + at.size};
 }
 
 void SDTree::deposit(BuildingQuadNode* nodes, vec2 c, double value) const {

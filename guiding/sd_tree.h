@@ -123,7 +123,7 @@ class SDTree final : public DirectionalGuide {
   static void check_options(const SDTreeOptions& options);
   struct Lookup {
     uint32_t leaf;
-    vec3 size;  // the leaf box's extent
+    vec3 lo, size;  // the leaf box
   };
   Lookup find_leaf(const vec3& p) const;
   void refine_spatial();

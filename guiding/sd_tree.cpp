@@ -1,0 +1,412 @@
+#include "guiding/sd_tree.h"
+
+#include "core/hash.h"
+#include "core/log.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace theia {
+
+vec2 sd_direction_to_square(const vec3& wi) {
+  float x = std::clamp(0.5f * (wi.z + 1.0f), 0.0f, kOneMinusEpsilon);
+  float phi = std::atan2(wi.y, wi.x);
+  if (phi < 0.0f) phi += 2.0f * kPi;
+  float y = std::clamp(phi * kInv2Pi, 0.0f, kOneMinusEpsilon);
+  return {x, y};
+}
+
+vec3 sd_square_to_direction(vec2 c) {
+  float cos_theta = 2.0f * c.x - 1.0f;
+  float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
+  float phi = 2.0f * kPi * c.y;
+  return {sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta};
+}
+
+namespace {
+
+using glm::dvec2;
+
+constexpr uint32_t kMaxNodes = std::numeric_limits<uint32_t>::max() - 2;
+
+// Picks the quadrant of c in a node and rescales c to the quadrant's own
+// [0,1)^2; exact in binary floating point.
+inline int descend(vec2& c) {
+  int i = 0;
+  if (c.x >= 0.5f) {
+    i |= 1;
+    c.x = 2.0f * c.x - 1.0f;
+  } else {
+    c.x *= 2.0f;
+  }
+  if (c.y >= 0.5f) {
+    i |= 2;
+    c.y = 2.0f * c.y - 1.0f;
+  } else {
+    c.y *= 2.0f;
+  }
+  return i;
+}
+
+template <typename T>
+T node_total(const QuadNode<T>& n) {
+  return n.flux[0] + n.flux[1] + n.flux[2] + n.flux[3];
+}
+
+// The building quadtree for the next iteration: the previous tree's topology
+// refined by its flux (Müller 2017 DTree::reset).  A quad holding more than
+// rho of the leaf's flux is subdivided (down to max_depth), one holding less
+// becomes a leaf; where the previous tree has no finer structure its flux is
+// split evenly, so refinement can go several levels at once.  A tree with no
+// flux refines uniformly to the depth where a quad holds at most rho.
+// `prev` carries inner sums (sum_flux_bottom_up); the result is all zeros.
+std::vector<BuildingQuadNode> refine_quadtree(const std::vector<BuildingQuadNode>& prev, double rho,
+                                              int max_depth) {
+  constexpr uint32_t kNone = 0xffffffffu;
+  struct Item {
+    uint32_t index, src;  // src: node of prev, or kNone (split node_flux evenly)
+    double node_flux;
+    int depth;            // depth of this node's quadrants (the root's are 1)
+  };
+  const double total = prev.empty() ? 0.0 : node_total(prev[0]);
+  std::vector<BuildingQuadNode> out(1);
+  std::vector<Item> stack{{0, prev.empty() ? kNone : 0u, total, 1}};
+  while (!stack.empty()) {
+    Item it = stack.back();
+    stack.pop_back();
+    for (int i = 0; i < 4; ++i) {
+      double quad_flux = it.src != kNone ? prev[it.src].flux[i] : 0.25 * it.node_flux;
+      double fraction = total > 0.0 ? quad_flux / total : std::pow(0.25, it.depth);
+      if (it.depth >= max_depth || !(fraction > rho) || out.size() >= kMaxNodes) continue;
+      uint32_t src = it.src != kNone && prev[it.src].child[i] != 0 ? prev[it.src].child[i] : kNone;
+      uint32_t child = uint32_t(out.size());
+      out[it.index].child[i] = child;
+      out.emplace_back();
+      stack.push_back({child, src, quad_flux, it.depth + 1});
+    }
+  }
+  return out;
+}
+
+// Inner quadrants get the sum of their subtree; children follow parents, so
+// one reverse pass suffices.
+void sum_flux_bottom_up(std::vector<BuildingQuadNode>& nodes) {
+  for (size_t n = nodes.size(); n-- > 0;)
+    for (int i = 0; i < 4; ++i)
+      if (nodes[n].child[i] != 0) nodes[n].flux[i] = node_total(nodes[nodes[n].child[i]]);
+}
+
+// Area-weighted deposit of density * overlap into the leaf quads that the box
+// [b0, b1) overlaps, in a node spanning [origin, origin + size)^2.
+void deposit_box(BuildingQuadNode* nodes, uint32_t index, dvec2 origin, double size, dvec2 b0, dvec2 b1,
+                 double density) {
+  const double half = 0.5 * size;
+  for (int i = 0; i < 4; ++i) {
+    dvec2 o = origin + dvec2((i & 1) ? half : 0.0, (i & 2) ? half : 0.0);
+    double wx = std::min(b1.x, o.x + half) - std::max(b0.x, o.x);
+    double wy = std::min(b1.y, o.y + half) - std::max(b0.y, o.y);
+    if (!(wx > 0.0 && wy > 0.0)) continue;
+    if (nodes[index].child[i] == 0) nodes[index].flux[i] += density * wx * wy;
+    else deposit_box(nodes, nodes[index].child[i], o, half, b0, b1, density);
+  }
+}
+
+// Flux of a sampling node, in the order sample() splits it: columns first.
+inline double sampling_total(const SamplingQuadNode& n) {
+  return (double(n.flux[0]) + double(n.flux[2])) + (double(n.flux[1]) + double(n.flux[3]));
+}
+
+// A uniform float in [0,1) from 21 bits of h, `slot` 0..2.
+inline float hash_unit(uint64_t h, int slot) { return float((h >> (21 * slot)) & 0x1fffffu) * 0x1p-21f; }
+
+bool finite3(const vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+}  // namespace
+
+void SDTree::check_options(const SDTreeOptions& options) {
+  if (!(options.spatial_threshold > 0.0) || !std::isfinite(options.spatial_threshold))
+    throw_error("SD-tree: spatial threshold must be positive and finite, got {}", options.spatial_threshold);
+  if (!(options.flux_threshold > 0.0 && options.flux_threshold < 1.0))
+    throw_error("SD-tree: flux threshold must be in (0, 1), got {}", options.flux_threshold);
+  if (options.max_quadtree_depth < 1 || options.max_quadtree_depth > 24)
+    throw_error("SD-tree: max quadtree depth must be in [1, 24], got {}", options.max_quadtree_depth);
+  if (!(options.selection_probability >= 0.0f && options.selection_probability <= 1.0f))
+    throw_error("SD-tree: selection probability must be in [0, 1], got {}", options.selection_probability);
+}
+
+SDTree::SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options) : options_(options) {
+  check_options(options);
+
+  // A cube around the scene, 1% larger (Müller makes the box cubic so that
+  // halving along x, y, z in turn keeps leaves near cubes), with an absolute
+  // margin so that a flat or point-like scene still gets a box with volume.
+  vec3 centre(0.0f);
+  float half = 0.0f;
+  if (!scene_bounds.empty()) {
+    if (!finite3(scene_bounds.min) || !finite3(scene_bounds.max))
+      throw_error("SD-tree: scene bounds are not finite");
+    centre = scene_bounds.centroid();
+    vec3 d = scene_bounds.diagonal();
+    half = 0.5f * std::max(d.x, std::max(d.y, d.z));
+  }
+  float scale = std::max({std::abs(centre.x), std::abs(centre.y), std::abs(centre.z), half});
+  half = 1.01f * half + std::max(1e-4f * scale, 1e-6f);
+  root_ = Bounds3(centre - vec3(half), centre + vec3(half));
+  root_size_ = root_.max - root_.min;
+
+  nodes_.push_back(SpatialNode{0, 0, 0});
+  leaves_.emplace_back();
+  leaves_[0].sampling.resize(1);
+  leaves_[0].building = refine_quadtree({}, options_.flux_threshold, options_.max_quadtree_depth);
+}
+
+double SDTree::spatial_threshold() const { return options_.spatial_threshold * std::pow(2.0, 0.5 * updates_); }
+
+SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
+  vec3 q = (p - root_.min) / root_size_;
+  for (int a = 0; a < 3; ++a) q[a] = std::clamp(q[a], 0.0f, kOneMinusEpsilon);
+  Lookup at{0, root_.min, root_size_};
+  uint32_t n = 0;
+  while (nodes_[n].first_child != 0) {
+    int a = nodes_[n].axis;
+    at.size[a] *= 0.5f;
+    if (q[a] < 0.5f) {
+      q[a] *= 2.0f;
+      n = nodes_[n].first_child;
+    } else {
+      q[a] = 2.0f * q[a] - 1.0f;
+      at.lo[a] += at.size[a];
+      n = nodes_[n].first_child + 1;
+    }
+  }
+  at.leaf = nodes_[n].leaf;
+  return at;
+}
+
+Bounds3 SDTree::leaf_bounds(const vec3& p) const {
+  Lookup at = find_leaf(p);
+  return {at.lo, at.lo + at.size};
+}
+
+void SDTree::deposit(BuildingQuadNode* nodes, vec2 c, double value) const {
+  if (!options_.directional_filter) {
+    uint32_t n = 0;
+    for (;;) {
+      int i = descend(c);
+      if (nodes[n].child[i] == 0) {
+        nodes[n].flux[i] += value;
+        return;
+      }
+      n = nodes[n].child[i];
+    }
+  }
+  // The footprint is the quad holding c, centred on c (seeds/001 10.4).
+  double size = 1.0;
+  {
+    vec2 d = c;
+    uint32_t n = 0;
+    for (;;) {
+      int i = descend(d);
+      size *= 0.5;
+      if (nodes[n].child[i] == 0) break;
+      n = nodes[n].child[i];
+    }
+  }
+  const double density = value / (size * size);
+  // phi is periodic, so the box wraps; cos theta is not, so a box reaching
+  // past a pole is shifted back inside (Müller drops the part outside, which
+  // would darken the quads at the poles).  Either way all of `value` lands.
+  double x0 = std::clamp(double(c.x) - 0.5 * size, 0.0, 1.0 - size);
+  double y0 = double(c.y) - 0.5 * size, y1 = y0 + size;
+  dvec2 zero(0.0);
+  if (y0 < 0.0) {
+    deposit_box(nodes, 0, zero, 1.0, {x0, y0 + 1.0}, {x0 + size, 1.0}, density);
+    deposit_box(nodes, 0, zero, 1.0, {x0, 0.0}, {x0 + size, y1}, density);
+  } else if (y1 > 1.0) {
+    deposit_box(nodes, 0, zero, 1.0, {x0, y0}, {x0 + size, 1.0}, density);
+    deposit_box(nodes, 0, zero, 1.0, {x0, 0.0}, {x0 + size, y1 - 1.0}, density);
+  } else {
+    deposit_box(nodes, 0, zero, 1.0, {x0, y0}, {x0 + size, y1}, density);
+  }
+}
+
+void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) {
+  float len = glm::length(wi);
+  if (!finite3(p) || !finite3(wi) || !(len > 0.0f) || !std::isfinite(radiance) || !(radiance >= 0.0f) ||
+      !(pdf > 0.0f) || !std::isfinite(pdf)) {
+    ++dropped_;
+    return;
+  }
+  Lookup at = find_leaf(p);
+  if (options_.spatial_filter) {
+    // Stochastic box filter: jitter p uniformly over a box the size of its
+    // leaf, centred on p; a jitter leaving the root box is reflected back in
+    // (clamping would pile samples onto the boundary leaves).
+    uint64_t h = hash(key);
+    vec3 q = p;
+    for (int a = 0; a < 3; ++a) {
+      q[a] += (hash_unit(h, a) - 0.5f) * at.size[a];
+      if (q[a] < root_.min[a]) q[a] = 2.0f * root_.min[a] - q[a];
+      if (q[a] > root_.max[a]) q[a] = 2.0f * root_.max[a] - q[a];
+    }
+    at = find_leaf(q);
+  }
+  SpatialLeaf& leaf = leaves_[at.leaf];
+  ++leaf.sample_count;
+  ++recorded_;
+  double value = double(radiance) / double(pdf);
+  if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(wi / len), value);
+}
+
+void SDTree::update() {
+  // Building becomes sampling, as fractions of the leaf's flux.
+  for (SpatialLeaf& leaf : leaves_) {
+    sum_flux_bottom_up(leaf.building);
+    double total = node_total(leaf.building[0]);
+    leaf.has_energy = total > 0.0 && std::isfinite(total);
+    leaf.sampling.resize(leaf.building.size());
+    for (size_t n = 0; n < leaf.building.size(); ++n)
+      for (int i = 0; i < 4; ++i) {
+        leaf.sampling[n].child[i] = leaf.building[n].child[i];
+        leaf.sampling[n].flux[i] = leaf.has_energy ? float(leaf.building[n].flux[i] / total) : 0.0f;
+      }
+  }
+  refine_spatial();
+  for (SpatialLeaf& leaf : leaves_) {
+    leaf.building = refine_quadtree(leaf.building, options_.flux_threshold, options_.max_quadtree_depth);
+    leaf.sample_count = 0;
+  }
+  last_recorded_ = recorded_;
+  last_dropped_ = dropped_;
+  recorded_ = dropped_ = 0;
+  ++updates_;
+}
+
+// Splits every leaf that recorded more than c * 2^(k/2) samples; the halves
+// inherit the leaf's quadtrees and half its count, and split again while that
+// is still above the threshold (Müller 2017 STree::refine).
+void SDTree::refine_spatial() {
+  const double threshold = spatial_threshold();
+  std::vector<uint32_t> stack{0};
+  while (!stack.empty()) {
+    uint32_t n = stack.back();
+    stack.pop_back();
+    if (nodes_[n].first_child == 0) {
+      uint32_t leaf = nodes_[n].leaf;
+      if (!(double(leaves_[leaf].sample_count) > threshold) || nodes_.size() >= kMaxNodes) continue;
+      uint8_t axis = nodes_[n].axis;
+      uint8_t next = uint8_t((axis + 1) % 3);
+      uint32_t first = uint32_t(nodes_.size());
+      leaves_[leaf].sample_count /= 2;
+      leaves_.push_back(leaves_[leaf]);
+      nodes_.push_back(SpatialNode{0, leaf, next});
+      nodes_.push_back(SpatialNode{0, uint32_t(leaves_.size() - 1), next});
+      nodes_[n].first_child = first;
+      nodes_[n].leaf = 0;
+    }
+    stack.push_back(nodes_[n].first_child + 1);
+    stack.push_back(nodes_[n].first_child);
+  }
+}
+
+uint32_t SDTree::region(const vec3& p) const {
+  if (updates_ == 0 || !finite3(p)) return kNoGuideRegion;
+  uint32_t leaf = find_leaf(p).leaf;
+  return leaves_[leaf].has_energy ? leaf : kNoGuideRegion;
+}
+
+float SDTree::selection_probability(uint32_t) const { return options_.selection_probability; }
+
+// Algorithm 2 of seeds/001: each level scales the density by
+// 4 * flux(quad) / flux(node).  A node whose flux underflowed to 0 counts as
+// a uniform leaf, in sample() too.
+float SDTree::pdf(uint32_t region, const vec3& wi) const {
+  if (region >= leaves_.size() || !leaves_[region].has_energy) return 0.0f;
+  const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
+  vec2 c = sd_direction_to_square(wi);
+  double density = 1.0;
+  uint32_t n = 0;
+  for (;;) {
+    double total = sampling_total(nodes[n]);
+    if (!(total > 0.0)) break;
+    int i = descend(c);
+    density *= 4.0 * double(nodes[n].flux[i]) / total;
+    if (nodes[n].child[i] == 0 || density == 0.0) break;
+    n = nodes[n].child[i];
+  }
+  return float(density * (1.0 / (4.0 * 3.14159265358979323846)));
+}
+
+GuideSample SDTree::sample(uint32_t region, vec2 u) const {
+  if (region >= leaves_.size() || !leaves_[region].has_energy) return {};
+  const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
+  // u is rescaled at every level (hierarchical warping, McCool and Harwood
+  // 1997), in double so that a depth-20 descent keeps bits for the leaf.
+  constexpr double kBelowOne = 0x1.fffffffffffffp-1;
+  double ux = std::min(double(u.x), kBelowOne), uy = std::min(double(u.y), kBelowOne);
+  double ox = 0.0, oy = 0.0, size = 1.0;
+  uint32_t n = 0;
+  for (;;) {
+    const SamplingQuadNode& node = nodes[n];
+    // Column first (x: quadrants 0,2 vs 1,3), then the row within it.  The
+    // total is summed as in pdf(), so an empty column gets b = 0 or 1 exactly.
+    double left = double(node.flux[0]) + double(node.flux[2]);
+    double right = double(node.flux[1]) + double(node.flux[3]);
+    double total = left + right;
+    if (!(total > 0.0)) break;
+    double b = left / total;
+    int i = 0;
+    double col;
+    if (ux < b) {
+      ux /= b;
+      col = left;
+    } else {
+      ux = (ux - b) / (1.0 - b);
+      i |= 1;
+      col = right;
+    }
+    b = double(node.flux[i]) / col;
+    if (uy < b) {
+      uy /= b;
+    } else {
+      uy = (uy - b) / (1.0 - b);
+      i |= 2;
+    }
+    ux = std::min(ux, kBelowOne);
+    uy = std::min(uy, kBelowOne);
+    size *= 0.5;
+    if (i & 1) ox += size;
+    if (i & 2) oy += size;
+    if (node.child[i] == 0) break;
+    n = node.child[i];
+  }
+  vec2 c(float(ox + ux * size), float(oy + uy * size));
+  c = glm::min(c, vec2(kOneMinusEpsilon));
+  GuideSample s;
+  s.wi = sd_square_to_direction(c);
+  s.pdf = pdf(region, s.wi);
+  return s;
+}
+
+SDTreeStats SDTree::stats() const {
+  SDTreeStats s;
+  s.spatial_leaves = leaves_.size();
+  for (const SpatialLeaf& leaf : leaves_) s.quadtree_nodes += leaf.sampling.size() + leaf.building.size();
+  s.bytes = memory_bytes();
+  s.updates = updates_;
+  s.samples_recorded = last_recorded_;
+  s.samples_dropped = last_dropped_;
+  s.pending_recorded = recorded_;
+  s.pending_dropped = dropped_;
+  return s;
+}
+
+size_t SDTree::memory_bytes() const {
+  size_t bytes = sizeof(*this) + nodes_.capacity() * sizeof(SpatialNode) + leaves_.capacity() * sizeof(SpatialLeaf);
+  for (const SpatialLeaf& leaf : leaves_)
+    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.building.capacity() * sizeof(BuildingQuadNode);
+  return bytes;
+}
+
+}  // namespace theia

@@ -1,0 +1,148 @@
+// The SD-tree (Müller et al. 2017, with the production extensions of
+// seeds/001 ch. 10): a spatial binary tree whose leaves each hold a
+// directional quadtree over Müller's world-space cylindrical map
+// ((cos theta + 1) / 2, phi / 2 pi).  That map is equal-area, so a quadtree
+// that is piecewise constant over the square is piecewise constant per unit
+// solid angle and pdf(w) = pdf_square / (4 pi).
+//
+// Every leaf keeps two quadtrees: the *sampling* one (what the previous
+// iterations learned; region/sample/pdf read it) and the *building* one (the
+// current iteration's deposits, on a topology refined from the sampling one).
+// update() turns building into sampling, splits busy spatial leaves, and
+// refines and clears building.  Trees are flat vectors of plain nodes linked
+// by index; a child's index is always greater than its parent's, which lets
+// update() sum flux bottom-up in one reverse pass and lets deserialize()
+// reject cycles.
+#pragma once
+
+#include "core/bounds.h"
+#include "core/directional_guide.h"
+#include "core/math.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace theia {
+
+struct SDTreeOptions {
+  // Spatial leaves split when they recorded more than c * 2^(k/2) samples at
+  // update k (seeds/001 10.4: 4000 thanks to the filtering, down from 12000).
+  double spatial_threshold = 4000.0;
+  // A quad is subdivided while it holds more than rho of its leaf's flux.
+  double flux_threshold = 0.01;
+  int max_quadtree_depth = 20;
+  // Fixed one-sample-MIS share of guided directions (learning it is later work).
+  float selection_probability = 0.5f;
+  // Stochastic box over the containing leaf's footprint (seeds/001 10.4).
+  bool spatial_filter = true;
+  // Deterministic box over the containing quad's footprint, weighted by area
+  // overlap in the cylindrical domain (seeds/001 10.4).
+  bool directional_filter = true;
+};
+
+struct SDTreeStats {
+  size_t spatial_leaves = 0;
+  size_t quadtree_nodes = 0;  // sampling + building, all leaves
+  size_t bytes = 0;           // memory_bytes()
+  int updates = 0;            // k
+  // The last finished iteration (the one the last update() consumed).
+  uint64_t samples_recorded = 0;
+  uint64_t samples_dropped = 0;
+  // The iteration being recorded now.
+  uint64_t pending_recorded = 0;
+  uint64_t pending_dropped = 0;
+};
+
+// One quadtree node: four quadrants (index = x_high | y_high << 1), each a
+// leaf (child 0: the root is never anyone's child) or an inner node.
+template <typename T>
+struct QuadNode {
+  T flux[4] = {0, 0, 0, 0};
+  uint32_t child[4] = {0, 0, 0, 0};
+};
+// Sampling flux is stored as a fraction of the leaf's total; deposits are
+// double because one sample can be 1e30 / 1e-20 and millions are summed.
+using SamplingQuadNode = QuadNode<float>;
+using BuildingQuadNode = QuadNode<double>;
+
+struct SpatialNode {
+  uint32_t first_child = 0;  // children at first_child and first_child + 1; 0: a leaf
+  uint32_t leaf = 0;         // index into the leaves, for a leaf
+  uint8_t axis = 0;          // split axis of an inner node (x, y, z by depth)
+};
+
+struct SpatialLeaf {
+  std::vector<SamplingQuadNode> sampling;
+  std::vector<BuildingQuadNode> building;
+  uint64_t sample_count = 0;  // samples recorded into building (zero-valued ones too)
+  bool has_energy = false;    // sampling holds positive flux
+};
+
+class SDTree final : public DirectionalGuide {
+ public:
+  SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options);
+
+  // One training sample: luminance `radiance` arriving at p from the unit
+  // world direction wi, drawn with solid-angle density `pdf`.  Records
+  // radiance / pdf; the spatial jitter is a pure function of `key`.  Samples
+  // with non-finite or negative radiance, pdf <= 0 or non-finite p / wi are
+  // dropped and counted; zero radiance is recorded (it counts).
+  void add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key);
+  // End of an iteration (see the file comment).
+  void update();
+
+  uint32_t region(const vec3& p) const override;
+  // The returned pdf is pdf(region, wi) evaluated on the returned direction,
+  // so the two agree exactly.  Rounding in the map back from the direction
+  // can move it into a neighbouring quad; should that quad have no flux the
+  // pdf is 0 and the caller must treat the sample as failed.
+  GuideSample sample(uint32_t region, vec2 u) const override;
+  float pdf(uint32_t region, const vec3& wi) const override;
+  float selection_probability(uint32_t region) const override;
+
+  std::vector<uint8_t> serialize() const;
+  // Throws theia::Error naming what is wrong (truncation, checksum, version, structure).
+  static SDTree deserialize(std::span<const uint8_t> bytes);
+
+  SDTreeStats stats() const;
+  size_t memory_bytes() const;
+
+  const SDTreeOptions& options() const { return options_; }
+  const Bounds3& root_bounds() const { return root_; }
+  int updates() const { return updates_; }
+  // Spatial subdivision threshold at the next update(): c * 2^(k/2).
+  double spatial_threshold() const;
+  // The leaf box holding p (p clamped into the root box).
+  Bounds3 leaf_bounds(const vec3& p) const;
+
+ private:
+  SDTree() = default;
+  // Throws theia::Error for an option outside its range.
+  static void check_options(const SDTreeOptions& options);
+  struct Lookup {
+    uint32_t leaf;
+    vec3 lo, size;  // the leaf box
+  };
+  Lookup find_leaf(const vec3& p) const;
+  void refine_spatial();
+  void deposit(BuildingQuadNode* nodes, vec2 c, double value) const;
+
+  SDTreeOptions options_;
+  Bounds3 root_;
+  vec3 root_size_{0.0f};
+  int updates_ = 0;
+  std::vector<SpatialNode> nodes_;
+  std::vector<SpatialLeaf> leaves_;
+  uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
+  uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration
+
+  friend struct SDTreeSerializer;
+};
+
+// Müller's cylindrical map and its inverse, exposed for tests.
+vec2 sd_direction_to_square(const vec3& wi);
+vec3 sd_square_to_direction(vec2 c);
+
+}  // namespace theia

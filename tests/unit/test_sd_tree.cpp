@@ -1,0 +1,573 @@
+// The SD-tree guiding field (guiding/sd_tree.h): sampling against its own
+// pdf (chi-square) on fields learned from analytic incident radiance,
+// convergence to L / integral(L), unbiased deposits under a non-uniform
+// training pdf, spatial subdivision and its growing threshold, the
+// stochastic spatial filter, region() where nothing was learned,
+// serialisation, and extreme inputs.
+#include "guiding/sd_tree.h"
+
+#include "core/hash.h"
+#include "core/log.h"
+#include "core/sampling.h"
+#include "tests/unit/chi2.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <functional>
+
+using namespace theia;
+
+namespace {
+
+using Field = std::function<float(const vec3&)>;
+
+float lobe(const vec3& w, const vec3& axis, float kappa) {
+  return std::exp(kappa * (glm::dot(w, glm::normalize(axis)) - 1.0f));
+}
+
+// A narrow vMF-like lobe over a small constant.
+float field_lobe(const vec3& w) { return 0.02f + 10.0f * lobe(w, vec3(0.3f, -0.5f, 0.8f), 100.0f); }
+// A wide lobe and a narrow one on the phi = 0 seam.
+float field_two_lobes(const vec3& w) {
+  return lobe(w, vec3(-0.4f, 0.7f, 0.2f), 30.0f) + 0.5f * lobe(w, vec3(0.8f, 0.0f, 0.6f), 200.0f);
+}
+// Light from below only.
+float field_lower(const vec3& w) {
+  return w.z < 0.0f ? 1.0f + 3.0f * lobe(w, vec3(0.2f, 0.4f, -0.6f), 20.0f) : 0.0f;
+}
+
+vec2 u2(uint64_t h) { return {to_unit_float(uint32_t(h)), to_unit_float(uint32_t(h >> 32))}; }
+
+const Bounds3 kUnitBox(vec3(0.0f), vec3(1.0f));
+const vec3 kCentre(0.3f, 0.6f, 0.4f);
+
+// Directional tests use one spatial leaf: the threshold is never reached.
+SDTreeOptions one_leaf() {
+  SDTreeOptions o;
+  o.spatial_threshold = 1e15;
+  return o;
+}
+
+enum class Training { Uniform, Cosine };
+
+// `iterations` iterations of n directions each at p, each followed by update().
+void train(SDTree& t, const Field& L, int n, int iterations, uint64_t seed, const vec3& p = kCentre,
+           Training how = Training::Uniform) {
+  for (int it = 0; it < iterations; ++it) {
+    for (int i = 0; i < n; ++i) {
+      uint64_t key = hash(seed, uint64_t(it), uint64_t(i));
+      vec2 u = u2(hash(key, 1));
+      vec3 w;
+      float pdf;
+      if (how == Training::Uniform) {
+        w = sample_uniform_sphere(u);
+        pdf = uniform_sphere_pdf();
+      } else {
+        w = sample_cosine_hemisphere(u);
+        pdf = cosine_hemisphere_pdf(w.z);
+      }
+      t.add_sample(p, w, L(w), pdf, key);
+    }
+    t.update();
+  }
+}
+
+// Integral over the sphere of f, by the midpoint rule on an n x n grid of the
+// equal-area square (d omega = 4 pi dx dy).
+double integrate_sphere(const std::function<double(const vec3&)>& f, int n = 1024) {
+  double sum = 0.0;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) sum += f(sd_square_to_direction(vec2((x + 0.5f) / n, (y + 0.5f) / n)));
+  return sum * 4.0 * double(kPi) / (double(n) * n);
+}
+
+// L1 distance between the learned pdf at p and L / integral(L).
+double l1_to_field(const SDTree& t, const vec3& p, const Field& L) {
+  double norm = integrate_sphere([&](const vec3& w) { return double(L(w)); });
+  uint32_t r = t.region(p);
+  return integrate_sphere([&](const vec3& w) { return std::abs(double(t.pdf(r, w)) - double(L(w)) / norm); }, 512);
+}
+
+double l1_between(const SDTree& a, const SDTree& b, const vec3& p) {
+  uint32_t ra = a.region(p), rb = b.region(p);
+  return integrate_sphere([&](const vec3& w) { return std::abs(double(a.pdf(ra, w)) - double(b.pdf(rb, w))); },
+                          512);
+}
+
+// Probability mass of the learned pdf over directions with w.z > 0 (< 0).
+double hemisphere_mass(const SDTree& t, const vec3& p, bool upper) {
+  uint32_t r = t.region(p);
+  return integrate_sphere([&](const vec3& w) { return (w.z > 0.0f) == upper ? double(t.pdf(r, w)) : 0.0; }, 256);
+}
+double upper_mass(const SDTree& t, const vec3& p) { return hemisphere_mass(t, p, true); }
+double lower_mass(const SDTree& t, const vec3& p) { return hemisphere_mass(t, p, false); }
+
+Chi2Result chi2(const SDTree& t, uint32_t r, const std::string& name, int n_tests) {
+  return chi2_test_sphere(
+      [&](vec2 u, float) -> std::optional<vec3> {
+        GuideSample s = t.sample(r, u);
+        if (!(s.pdf > 0.0f)) return std::nullopt;
+        return s.wi;
+      },
+      [&](vec3 w) { return t.pdf(r, w); }, 100'000, 32, 64, 0.01, n_tests, name);
+}
+
+}  // namespace
+
+TEST(SDTreeChi2, SampleMatchesPdfOnLearnedFields) {
+  const std::vector<std::pair<std::string, Field>> fields = {
+      {"lobe+constant", field_lobe}, {"two lobes", field_two_lobes}, {"lower hemisphere", field_lower}};
+  for (const auto& [name, L] : fields) {
+    SDTree t(kUnitBox, one_leaf());
+    train(t, L, 50'000, 3, 7);
+    uint32_t r = t.region(kCentre);
+    ASSERT_NE(r, kNoGuideRegion) << name;
+    Chi2Result res = chi2(t, r, name, int(fields.size()));
+    EXPECT_TRUE(res.passed) << res.report;
+    double integral = integrate_sphere([&](const vec3& w) { return double(t.pdf(r, w)); });
+    EXPECT_NEAR(integral, 1.0, 2e-3) << name;
+    // sample()'s pdf is pdf() at the sampled direction, bit for bit.
+    int mismatches = 0;
+    for (int i = 0; i < 10'000; ++i) {
+      GuideSample s = t.sample(r, u2(hash(uint64_t(i), 99)));
+      if (s.pdf != t.pdf(r, s.wi) || !(s.pdf > 0.0f)) ++mismatches;
+    }
+    EXPECT_EQ(mismatches, 0) << name;
+  }
+}
+
+// Without the directional filter nothing is learned above the horizon; with
+// it, a sample just below the horizon puts part of itself into the quad
+// above, which may be a large one (quads without flux collapse), so a little
+// mass spreads over the upper hemisphere.
+TEST(SDTreeChi2, LowerHemisphereFieldLearnsLittleAbove) {
+  SDTree filtered(kUnitBox, one_leaf());
+  train(filtered, field_lower, 50'000, 3, 11);
+  double leak = upper_mass(filtered, kCentre);
+  std::printf("upper-hemisphere mass with the directional filter: %.4f\n", leak);
+  EXPECT_LT(leak, 0.02);
+  SDTreeOptions o = one_leaf();
+  o.directional_filter = false;
+  SDTree t(kUnitBox, o);
+  train(t, field_lower, 50'000, 3, 11);
+  uint32_t r = t.region(kCentre);
+  for (int i = 0; i < 10'000; ++i) ASSERT_LT(t.sample(r, u2(hash(uint64_t(i), 6))).wi.z, 0.0f);
+  for (int i = 0; i < 2000; ++i) {
+    vec2 u = u2(hash(uint64_t(i), 5));
+    vec3 w = sd_square_to_direction(vec2(0.5f + 0.5f * u.x, u.y));
+    ASSERT_EQ(t.pdf(r, w), 0.0f) << w.z;
+  }
+}
+
+// Learned from N uniform directions per iteration, the pdf approaches
+// L / integral(L) as N grows, down to the floor of a piecewise-constant fit
+// at rho = 1% (L1 ~ 0.04 for this lobe at 2M samples; ~0.24, 0.09, 0.05 at
+// the counts below).
+TEST(SDTreeConvergence, LearnedPdfApproachesNormalisedRadiance) {
+  auto L = [](const vec3& w) { return 0.1f + lobe(w, vec3(0.3f, -0.5f, 0.8f), 30.0f); };
+  std::vector<double> l1;
+  for (int n : {2'000, 20'000, 200'000}) {
+    SDTree t(kUnitBox, one_leaf());
+    train(t, L, n, 4, 3);
+    l1.push_back(l1_to_field(t, kCentre, L));
+  }
+  std::printf("L1 distance to L / integral(L): %.4f %.4f %.4f\n", l1[0], l1[1], l1[2]);
+  EXPECT_LT(l1[1], 0.7 * l1[0]);
+  EXPECT_LT(l1[2], 0.7 * l1[1]);
+  EXPECT_LT(l1[2], 0.07);
+}
+
+// Deposits are radiance / pdf, so cosine-weighted training directions learn
+// the same field as uniform ones; recording radiance alone would learn
+// L cos instead, which is far from it.
+TEST(SDTreeUnbiased, CosineTrainingLearnsTheUniformTrainingField) {
+  auto L = [](const vec3& w) {
+    return w.z > 0.0f ? w.z * (1.0f + 20.0f * lobe(w, vec3(0.5f, 0.3f, 0.4f), 40.0f)) : 0.0f;
+  };
+  SDTree uniform(kUnitBox, one_leaf()), uniform2(kUnitBox, one_leaf()), cosine(kUnitBox, one_leaf());
+  train(uniform, L, 200'000, 4, 21, kCentre, Training::Uniform);
+  train(uniform2, L, 200'000, 4, 23, kCentre, Training::Uniform);
+  train(cosine, L, 200'000, 4, 22, kCentre, Training::Cosine);
+  // Two uniform trainings differ by their noise; the cosine one must be no
+  // further from either than that, and far from L cos.
+  double noise = l1_between(uniform, uniform2, kCentre);
+  double d = l1_between(uniform, cosine, kCentre);
+  auto biased = [&](const vec3& w) { return L(w) * std::max(w.z, 0.0f); };
+  double d_biased = l1_to_field(cosine, kCentre, biased);
+  std::printf("uniform vs uniform %.4f, uniform vs cosine %.4f, cosine vs L cos %.4f\n", noise, d, d_biased);
+  EXPECT_LT(d, 1.5 * noise);
+  EXPECT_GT(d_biased, 3.0 * noise);
+}
+
+// Samples in one octant: after the first update (one leaf, split blindly by
+// halved counts), only leaves in that octant keep splitting.
+TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
+  SDTreeOptions o;
+  SDTree t(kUnitBox, o);
+  std::vector<size_t> leaves;
+  std::vector<double> inside, outside;
+  // Samples double per iteration, as in PPG, while the threshold grows by
+  // sqrt(2): busy leaves keep splitting.
+  for (int it = 0; it < 4; ++it) {
+    for (int i = 0; i < (16'000 << it); ++i) {
+      uint64_t key = hash(uint64_t(it), uint64_t(i));
+      vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+      vec3 p = 0.5f * vec3(a.x, a.y, b.x);  // [0, 0.5)^3
+      vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
+      t.add_sample(p, w, 1.0f, uniform_sphere_pdf(), key);
+    }
+    t.update();
+    leaves.push_back(t.stats().spatial_leaves);
+    auto volume = [&](const vec3& p) {
+      vec3 d = t.leaf_bounds(p).diagonal();
+      return double(d.x) * d.y * d.z;
+    };
+    inside.push_back(volume(vec3(0.25f, 0.25f, 0.25f)));
+    outside.push_back(volume(vec3(0.75f, 0.75f, 0.75f)));
+  }
+  // Update 1 splits the root to 16000 / 2^d <= 4000 (d = 2) everywhere.
+  EXPECT_EQ(leaves[0], 4u);
+  for (int it = 1; it < 4; ++it) {
+    EXPECT_GT(leaves[it], leaves[it - 1]);
+    EXPECT_EQ(outside[it], outside[0]);
+  }
+  EXPECT_LT(inside[3], inside[0] / 8.0);
+}
+
+// A leaf splits when it recorded more than c * 2^(k/2) samples at update k.
+TEST(SDTreeSpatial, ThresholdGrowsWithUpdates) {
+  SDTreeOptions o;
+  o.spatial_filter = false;  // every sample lands in the one leaf
+  auto leaves_after = [&](int empty_updates, int n) {
+    SDTree t(kUnitBox, o);
+    for (int k = 0; k < empty_updates; ++k) t.update();
+    for (int i = 0; i < n; ++i) t.add_sample(kCentre, vec3(0, 0, 1), 1.0f, 1.0f, uint64_t(i));
+    t.update();
+    return t.stats().spatial_leaves;
+  };
+  SDTree t(kUnitBox, o);
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_DOUBLE_EQ(t.spatial_threshold(), 4000.0 * std::pow(2.0, 0.5 * k));
+    t.update();
+  }
+  EXPECT_EQ(leaves_after(0, 4000), 1u);
+  EXPECT_EQ(leaves_after(0, 4001), 2u);
+  EXPECT_EQ(leaves_after(0, 8000), 2u);
+  EXPECT_EQ(leaves_after(2, 8000), 1u);  // threshold 8000 at k = 2
+  EXPECT_EQ(leaves_after(2, 8001), 2u);
+  EXPECT_EQ(leaves_after(4, 16'001), 2u);
+  EXPECT_EQ(leaves_after(4, 16'000), 1u);
+}
+
+// Directions depend on the side of x = 0.5: from above (z > 0) left of it,
+// from below right of it.  The tree is split 4 x 4 x 4 by the first update,
+// so x = 0.5 is a leaf boundary; the second iteration's learned field is then
+// pure in leaves beyond the filter's reach and mixed in the leaves beside the
+// edge, where a uniform jitter of one leaf width brings 1/8 of the samples
+// from across the edge.
+namespace {
+SDTree train_edge(bool spatial_filter, uint64_t seed) {
+  SDTreeOptions o;
+  o.spatial_threshold = 2000.0;
+  o.spatial_filter = spatial_filter;
+  o.directional_filter = false;  // keeps the hemispheres apart
+  SDTree t(kUnitBox, o);
+  for (int it = 0; it < 2; ++it) {
+    for (int i = 0; i < 128'000; ++i) {
+      uint64_t key = hash(seed, uint64_t(it), uint64_t(i));
+      vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+      vec3 p(a.x, a.y, b.x);
+      vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
+      bool lit = p.x < 0.5f ? w.z > 0.0f : w.z < 0.0f;
+      t.add_sample(p, w, lit ? 1.0f : 0.0f, uniform_sphere_pdf(), key);
+    }
+    t.update();
+  }
+  return t;
+}
+}  // namespace
+
+TEST(SDTreeSpatialFilter, SharpEdgeBlursAboutOneLeafDeterministically) {
+  SDTree sharp = train_edge(false, 1), blurred = train_edge(true, 1);
+  ASSERT_EQ(sharp.stats().spatial_leaves, 64u);
+  ASSERT_EQ(blurred.stats().spatial_leaves, 64u);
+  float h = blurred.leaf_bounds(kCentre).diagonal().x;  // about 1/4
+  ASSERT_NEAR(h, 0.25f, 0.01f);
+  for (float yz : {0.4f, 0.9f}) {
+    auto at = [&](float x) { return vec3(x, yz, 1.0f - yz); };
+    // Without the filter the edge stays sharp.
+    EXPECT_EQ(upper_mass(sharp, at(0.5f + 0.5f * h)), 0.0);
+    EXPECT_EQ(lower_mass(sharp, at(0.5f - 0.5f * h)), 0.0);
+    // With it, the leaves beside the edge take ~1/8 from across it ...
+    EXPECT_NEAR(upper_mass(blurred, at(0.5f + 0.5f * h)), 0.125, 0.04);
+    EXPECT_NEAR(lower_mass(blurred, at(0.5f - 0.5f * h)), 0.125, 0.04);
+    // ... and the next ones nothing.
+    EXPECT_EQ(upper_mass(blurred, at(0.5f + 1.5f * h)), 0.0);
+    EXPECT_EQ(lower_mass(blurred, at(0.5f - 1.5f * h)), 0.0);
+  }
+  // The jitter is a function of the keys alone.
+  EXPECT_EQ(blurred.serialize(), train_edge(true, 1).serialize());
+  EXPECT_NE(blurred.serialize(), train_edge(true, 2).serialize());
+}
+
+TEST(SDTreeRegion, NoRegionBeforeTheFirstUpdateOrWithoutEnergy) {
+  SDTreeOptions o;
+  o.spatial_threshold = 1000.0;
+  o.spatial_filter = false;
+  SDTree t(kUnitBox, o);
+  auto feed = [&](int it) {
+    for (int i = 0; i < 8000; ++i) {
+      uint64_t key = hash(uint64_t(it), uint64_t(i));
+      vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+      vec3 p(a.x, a.y, b.x);
+      vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
+      t.add_sample(p, w, p.x < 0.5f ? 1.0f : 0.0f, uniform_sphere_pdf(), key);
+    }
+  };
+  feed(0);
+  for (float x : {0.1f, 0.9f}) EXPECT_EQ(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
+  t.update();
+  // The first iteration's single leaf had energy; its halves inherit it.
+  for (float x : {0.1f, 0.9f}) EXPECT_NE(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
+  feed(1);
+  t.update();
+  EXPECT_NE(t.region(vec3(0.1f, 0.5f, 0.5f)), kNoGuideRegion);
+  EXPECT_EQ(t.region(vec3(0.9f, 0.5f, 0.5f)), kNoGuideRegion);  // zero-valued samples only
+  t.update();  // an iteration without samples: nothing anywhere
+  EXPECT_EQ(t.region(vec3(0.1f, 0.5f, 0.5f)), kNoGuideRegion);
+  EXPECT_EQ(t.pdf(kNoGuideRegion, vec3(0, 0, 1)), 0.0f);
+  EXPECT_EQ(t.sample(kNoGuideRegion, vec2(0.5f)).pdf, 0.0f);
+  EXPECT_EQ(t.selection_probability(0), 0.5f);
+}
+
+namespace {
+// Two iterations learned, a third half recorded (pending deposits and counts).
+SDTree trained_for_serialisation() {
+  SDTreeOptions o;
+  o.spatial_threshold = 1000.0;
+  SDTree t(kUnitBox, o);
+  for (int it = 0; it < 3; ++it) {
+    for (int i = 0; i < 12'000; ++i) {
+      uint64_t key = hash(uint64_t(40 + it), uint64_t(i));
+      vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+      vec3 p(a.x, a.y, b.x);
+      vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
+      t.add_sample(p, w, field_two_lobes(w) * (0.5f + p.x), uniform_sphere_pdf(), key);
+    }
+    t.add_sample(kCentre, vec3(0, 0, 1), std::nanf(""), 1.0f, 0);  // a dropped one
+    if (it < 2) t.update();
+  }
+  return t;
+}
+
+void continue_training(SDTree& t) {
+  for (int i = 0; i < 20'000; ++i) {
+    uint64_t key = hash(uint64_t(77), uint64_t(i));
+    vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+    vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
+    t.add_sample(vec3(a.x, a.y, b.x), w, field_lobe(w), uniform_sphere_pdf(), key);
+  }
+  t.update();
+}
+
+std::string error_of(const std::vector<uint8_t>& bytes) {
+  try {
+    SDTree::deserialize(bytes);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(SDTreeSerialize, RoundTripIsExactAndTrainingContinuesIdentically) {
+  SDTree a = trained_for_serialisation();
+  std::vector<uint8_t> bytes = a.serialize();
+  SDTree b = SDTree::deserialize(bytes);
+  EXPECT_EQ(b.serialize(), bytes);
+  SDTreeStats sa = a.stats(), sb = b.stats();
+  EXPECT_EQ(sa.spatial_leaves, sb.spatial_leaves);
+  EXPECT_EQ(sa.pending_recorded, sb.pending_recorded);
+  EXPECT_EQ(sa.pending_dropped, 1u);
+  EXPECT_EQ(sb.pending_dropped, 1u);
+  ASSERT_GT(sa.spatial_leaves, 8u);
+  int guided = 0;
+  for (int i = 0; i < 20'000; ++i) {
+    uint64_t h = hash(uint64_t(i), 123);
+    vec3 p(to_unit_float(uint32_t(h)), to_unit_float(uint32_t(h >> 32)), to_unit_float(uint32_t(hash(h))));
+    uint32_t r = a.region(p);
+    ASSERT_EQ(r, b.region(p));
+    if (r == kNoGuideRegion) continue;
+    ++guided;
+    vec2 u = u2(hash(h, 1));
+    GuideSample ga = a.sample(r, u), gb = b.sample(r, u);
+    ASSERT_EQ(ga.wi, gb.wi);
+    ASSERT_EQ(ga.pdf, gb.pdf);
+    vec3 w = sample_uniform_sphere(u2(hash(h, 2)));
+    ASSERT_EQ(a.pdf(r, w), b.pdf(r, w));
+  }
+  EXPECT_GT(guided, 10'000);
+  // The building state came along: finishing the iteration and training on
+  // gives the same tree as never having stopped.
+  a.update();
+  b.update();
+  continue_training(a);
+  continue_training(b);
+  EXPECT_EQ(a.serialize(), b.serialize());
+}
+
+TEST(SDTreeSerialize, TruncatedOrCorruptInputThrows) {
+  std::vector<uint8_t> bytes = trained_for_serialisation().serialize();
+  for (size_t len : {size_t(0), size_t(5), size_t(12), size_t(19), bytes.size() / 2, bytes.size() - 1}) {
+    std::string msg = error_of(std::vector<uint8_t>(bytes.begin(), bytes.begin() + std::ptrdiff_t(len)));
+    EXPECT_NE(msg.find("SD-tree data"), std::string::npos) << len << ": " << msg;
+  }
+  // One flipped bit anywhere, at 400 spread positions.
+  for (int k = 0; k < 400; ++k) {
+    size_t bit = size_t(hash(uint64_t(k)) % (bytes.size() * 8));
+    std::vector<uint8_t> flipped = bytes;
+    flipped[bit / 8] ^= uint8_t(1u << (bit % 8));
+    std::string msg = error_of(flipped);
+    ASSERT_NE(msg.find("SD-tree data"), std::string::npos) << "bit " << bit << ": " << msg;
+  }
+  std::vector<uint8_t> longer = bytes;
+  longer.push_back(0);
+  EXPECT_FALSE(error_of(longer).empty());
+}
+
+TEST(SDTreeExtreme, HugeTinyAndBadValues) {
+  SDTree t(kUnitBox, one_leaf());
+  uint64_t dropped = 0, recorded = 0;
+  for (int i = 0; i < 20'000; ++i) {
+    uint64_t key = hash(uint64_t(i), 9);
+    vec3 w = sample_uniform_sphere(u2(key));
+    // 1e30 / 1e-20 = 1e50 overflows float; 1e-30 next to it underflows
+    // relative to it.
+    float L = w.z > 0.5f ? 1e30f : 1e-30f;
+    t.add_sample(kCentre, w, L, i % 2 ? 1e-20f : uniform_sphere_pdf(), key);
+    ++recorded;
+  }
+  const float nan = std::nanf(""), inf = kInfinity;
+  for (auto [L, pdf] : std::vector<std::pair<float, float>>{
+           {nan, 1.0f}, {inf, 1.0f}, {-inf, 1.0f}, {1.0f, nan}, {1.0f, inf}, {1.0f, 0.0f}, {1.0f, -1.0f}, {-1.0f, 1.0f}}) {
+    t.add_sample(kCentre, vec3(0, 0, 1), L, pdf, 1);
+    ++dropped;
+  }
+  t.add_sample(vec3(nan), vec3(0, 0, 1), 1.0f, 1.0f, 1);
+  t.add_sample(kCentre, vec3(0.0f), 1.0f, 1.0f, 1);
+  t.add_sample(kCentre, vec3(inf, 0, 0), 1.0f, 1.0f, 1);
+  dropped += 3;
+  EXPECT_EQ(t.stats().pending_dropped, dropped);
+  EXPECT_EQ(t.stats().pending_recorded, recorded);
+  t.update();
+  EXPECT_EQ(t.stats().samples_dropped, dropped);
+  EXPECT_EQ(t.stats().samples_recorded, recorded);
+  uint32_t r = t.region(kCentre);
+  ASSERT_NE(r, kNoGuideRegion);
+  EXPECT_NEAR(integrate_sphere([&](const vec3& w) { return double(t.pdf(r, w)); }), 1.0, 2e-3);
+  // The energy is in the 1e30 cap (z > 0.5) but for what the directional
+  // filter spreads across its rim; the 1e-30 side is 1e-80 of it: nothing.
+  int below_rim = 0;
+  for (int i = 0; i < 10'000; ++i) {
+    GuideSample s = t.sample(r, u2(hash(uint64_t(i), 10)));
+    ASSERT_TRUE(std::isfinite(s.pdf) && s.pdf > 0.0f);
+    ASSERT_GT(s.wi.z, 0.0f);
+    below_rim += s.wi.z < 0.45f;
+  }
+  EXPECT_LT(below_rim, 500);
+  EXPECT_EQ(t.region(vec3(nan)), kNoGuideRegion);
+}
+
+TEST(SDTreeExtreme, CornersOutsidePointsAndFlatScenes) {
+  const std::vector<Bounds3> boxes = {kUnitBox, Bounds3(vec3(-1, -2, 3), vec3(4, 5, 3)),  // flat in z
+                                      Bounds3(vec3(2.0f), vec3(2.0f)),                     // a point
+                                      Bounds3(vec3(1e6f), vec3(1e6f + 1e-3f)), Bounds3()};
+  for (const Bounds3& box : boxes) {
+    SDTreeOptions o;
+    o.spatial_threshold = 100.0;
+    SDTree t(box, o);
+    Bounds3 root = t.root_bounds();
+    ASSERT_TRUE(root.contains(box.empty() ? vec3(0.0f) : box.min) && (box.empty() || root.contains(box.max)));
+    vec3 d = root.diagonal();
+    ASSERT_GT(d.x, 0.0f);
+    ASSERT_EQ(d.x, d.y);
+    ASSERT_EQ(d.x, d.z);
+    std::vector<vec3> points;
+    for (int c = 0; c < 8; ++c) {
+      for (const Bounds3& b : {root, box.empty() ? root : box})
+        points.push_back(vec3(c & 1 ? b.max.x : b.min.x, c & 2 ? b.max.y : b.min.y, c & 4 ? b.max.z : b.min.z));
+    }
+    points.push_back(root.max + d);  // outside: clamped in
+    points.push_back(vec3(-1e30f));
+    for (int it = 0; it < 3; ++it) {
+      for (size_t k = 0; k < points.size(); ++k)
+        for (int i = 0; i < 300; ++i) {
+          uint64_t key = hash(uint64_t(it), k, uint64_t(i));
+          vec3 w = sample_uniform_sphere(u2(key));
+          t.add_sample(points[k], w, 1.0f + w.x, uniform_sphere_pdf(), key);
+        }
+      t.update();
+    }
+    EXPECT_EQ(t.stats().samples_dropped, 0u);
+    EXPECT_GT(t.stats().spatial_leaves, 8u);
+    for (const vec3& p : points) {
+      uint32_t r = t.region(p);
+      ASSERT_NE(r, kNoGuideRegion);
+      GuideSample s = t.sample(r, vec2(0.3f, 0.7f));
+      ASSERT_TRUE(std::isfinite(s.pdf) && s.pdf > 0.0f);
+      ASSERT_TRUE(root.contains(t.leaf_bounds(p).centroid()));
+    }
+  }
+}
+
+TEST(SDTreeOptionChecks, BadOptionsThrow) {
+  auto throws = [](auto change) {
+    SDTreeOptions o;
+    change(o);
+    try {
+      SDTree t(kUnitBox, o);
+    } catch (const Error&) {
+      return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(throws([](SDTreeOptions& o) { o.spatial_threshold = 0.0; }));
+  EXPECT_TRUE(throws([](SDTreeOptions& o) { o.flux_threshold = 1.0; }));
+  EXPECT_TRUE(throws([](SDTreeOptions& o) { o.max_quadtree_depth = 0; }));
+  EXPECT_TRUE(throws([](SDTreeOptions& o) { o.selection_probability = 1.5f; }));
+  EXPECT_FALSE(throws([](SDTreeOptions&) {}));
+  EXPECT_THROW(SDTree(Bounds3(vec3(0.0f), vec3(kInfinity)), SDTreeOptions{}), Error);
+}
+
+// Not run by default: add_sample throughput and update() time for the report
+// (--gtest_also_run_disabled_tests --gtest_filter=SDTreeTiming*).
+TEST(SDTreeTiming, DISABLED_Throughput) {
+  using clock = std::chrono::steady_clock;
+  SDTree t(kUnitBox, SDTreeOptions{});
+  for (int it = 0; it < 6; ++it) {
+    const int n = 1'000'000;
+    std::vector<vec3> ps(n), ws(n);
+    std::vector<float> ls(n);
+    for (int i = 0; i < n; ++i) {
+      uint64_t key = hash(uint64_t(it), uint64_t(i));
+      vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+      ps[i] = vec3(a.x, a.y, b.x * b.x);
+      ws[i] = sample_uniform_sphere(u2(hash(key, 3)));
+      ls[i] = field_two_lobes(ws[i]) * (ps[i].x + 0.1f);
+    }
+    auto t0 = clock::now();
+    for (int i = 0; i < n; ++i) t.add_sample(ps[i], ws[i], ls[i], uniform_sphere_pdf(), hash(uint64_t(it), uint64_t(i)));
+    auto t1 = clock::now();
+    t.update();
+    auto t2 = clock::now();
+    SDTreeStats s = t.stats();
+    std::printf("iteration %d: add_sample %.1f ns/sample (%.3f s per million), update %.1f ms; %zu leaves, %zu "
+                "quad nodes, %.1f MB, %.0f bytes/leaf\n",
+                it, std::chrono::duration<double, std::nano>(t1 - t0).count() / n,
+                std::chrono::duration<double>(t1 - t0).count() * 1e6 / n,
+                std::chrono::duration<double, std::milli>(t2 - t1).count(), s.spatial_leaves, s.quadtree_nodes,
+                double(s.bytes) / 1e6, double(s.bytes) / double(s.spatial_leaves));
+  }
+}

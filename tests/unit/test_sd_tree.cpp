@@ -240,10 +240,10 @@ TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
 TEST(SDTreeSpatial, ThresholdGrowsWithUpdates) {
   SDTreeOptions o;
   o.spatial_filter = false;  // every sample lands in the one leaf
-  auto leaves_after = [&](int empty_updates, int n) {
+  auto leaves_after = [&](int empty_updates, int n, float radiance = 1.0f) {
     SDTree t(kUnitBox, o);
     for (int k = 0; k < empty_updates; ++k) t.update();
-    for (int i = 0; i < n; ++i) t.add_sample(kCentre, vec3(0, 0, 1), 1.0f, 1.0f, uint64_t(i));
+    for (int i = 0; i < n; ++i) t.add_sample(kCentre, vec3(0, 0, 1), radiance, 1.0f, uint64_t(i));
     t.update();
     return t.stats().spatial_leaves;
   };
@@ -254,6 +254,7 @@ TEST(SDTreeSpatial, ThresholdGrowsWithUpdates) {
   }
   EXPECT_EQ(leaves_after(0, 4000), 1u);
   EXPECT_EQ(leaves_after(0, 4001), 2u);
+  EXPECT_EQ(leaves_after(0, 4001, 0.0f), 2u);  // zero-valued samples count too
   EXPECT_EQ(leaves_after(0, 8000), 2u);
   EXPECT_EQ(leaves_after(2, 8000), 1u);  // threshold 8000 at k = 2
   EXPECT_EQ(leaves_after(2, 8001), 2u);

@@ -55,9 +55,20 @@ int main(int argc, char** argv) {
   render->add_option("--reference", rc.reference_path,
                      "Reference image (linear sRGB EXR): log time, spp and relMSE/RMSE/MAPE at every iteration");
   render->add_flag("-q,--quiet", quiet, "Print only warnings and errors");
-  render->add_option("--schedule", rc.schedule, "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16)")
-      ->check(CLI::IsMember({"regular", "guiding"}))
+  render->add_flag("--guiding", rc.guiding,
+                   "Path guiding: an SD-tree learned every iteration from the radiance recorder, mixed with BSDF sampling");
+  render->add_option("--guiding-fraction", rc.guiding_fraction, "Probability of sampling the guide where it applies, in [0, 1)")
       ->capture_default_str();
+  render->add_option("--guiding-min-roughness", rc.guiding_min_roughness,
+                     "Guide only where a BSDF lobe is rougher than this")
+      ->capture_default_str();
+  render->add_option("--guiding-spatial-threshold", rc.guiding_spatial_threshold,
+                     "SD-tree: split a spatial leaf after this many samples times sqrt(spp of the iteration)")
+      ->capture_default_str();
+  render->add_option("--schedule", rc.schedule,
+                     "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16); default: guiding with "
+                     "--guiding, else regular")
+      ->check(CLI::IsMember({"regular", "guiding"}));
   render->add_option("--iteration-first", rc.iteration_first, "First iteration size in spp (default: the schedule's)");
   render->add_option("--iteration-repeat", rc.iteration_repeat, "Iterations of the first size (default: the schedule's)");
   render->add_option("--iteration-growth", rc.iteration_growth, "Growth factor of iteration sizes (default: the schedule's)");

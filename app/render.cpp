@@ -5,6 +5,7 @@
 #include "core/log.h"
 #include "core/metrics.h"
 #include "core/stats.h"
+#include "guiding/sd_tree.h"
 #include "radiance_recorder/recorder.h"
 #include "scene/parser.h"
 #include "scene/mipmap.h"
@@ -18,6 +19,7 @@
 #include <tbb/info.h>
 
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -42,14 +44,26 @@ static void check_config(const RenderConfig& c) {
     throw_error("--recorder-min-distance must be zero or positive, got {}", c.recorder_min_distance);
   if ((c.recorder_debug || c.recorder_debug_bounce >= 0) && !c.checkpoint_dir.empty())
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
-  if (c.schedule != "regular" && c.schedule != "guiding")
+  if (!(c.guiding_fraction >= 0.0f && c.guiding_fraction < 1.0f))
+    throw_error("--guiding-fraction must be in [0, 1) (the BSDF must keep some share, or directions the guide "
+                "has not learned would never be sampled), got {}", c.guiding_fraction);
+  if (!(c.guiding_min_roughness >= 0.0f))
+    throw_error("--guiding-min-roughness must be zero or positive, got {}", c.guiding_min_roughness);
+  if (!(c.guiding_spatial_threshold > 0.0f && std::isfinite(c.guiding_spatial_threshold)))
+    throw_error("--guiding-spatial-threshold must be positive, got {}", c.guiding_spatial_threshold);
+  if (!c.schedule.empty() && c.schedule != "regular" && c.schedule != "guiding")
     throw_error("--schedule {}: expected regular or guiding", c.schedule);
   if (c.checkpoint_first_ideal <= 0)
     throw_error("--checkpoint-first must be positive, got {}", c.checkpoint_first_ideal);
 }
 
+// Guiding learns between iterations, so it wants its small early iterations.
+static std::string schedule_name(const RenderConfig& c) {
+  return !c.schedule.empty() ? c.schedule : c.guiding ? "guiding" : "regular";
+}
+
 static ScheduleOptions schedule_options(const RenderConfig& c) {
-  ScheduleOptions o = c.schedule == "guiding" ? guiding_schedule() : regular_schedule();
+  ScheduleOptions o = schedule_name(c) == "guiding" ? guiding_schedule() : regular_schedule();
   if (c.iteration_first >= 0) o.first_size = c.iteration_first;
   if (c.iteration_repeat >= 0) o.repeat_first = c.iteration_repeat;
   if (c.iteration_max >= 0) o.max_size = c.iteration_max;
@@ -63,8 +77,29 @@ static uint64_t options_fingerprint(const RenderConfig& c, int spp, int max_dept
   std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
                                  s.first_size, s.repeat_first, s.growth, s.max_size, c.combine,
                                  c.checkpoint_first_ideal, c.adaptive);
+  if (c.guiding)
+    text += fmt::format(" guiding {} {} {} {} {} {}", c.guiding_fraction, c.guiding_min_roughness,
+                        c.guiding_spatial_threshold, c.recorder_budget, c.recorder_vertex_skip, c.recorder_min_distance);
   return hash_bytes(text.data(), text.size());
 }
+
+// The recorder's training samples, as the SD-tree takes them: scalar
+// (luminance) radiance, only from directions that had a density (a delta
+// lobe's sample says nothing about a directional distribution).  The key
+// names the vertex, so the field's spatial jitter is a function of the path.
+class SDTreeTrainer final : public TrainingSampleSink {
+ public:
+  explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
+  void consume(std::span<const TrainingSample> samples) override {
+    for (const TrainingSample& s : samples) {
+      if (s.flags & kVertexDelta) continue;
+      tree_.add_sample(s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags));
+    }
+  }
+
+ private:
+  SDTree& tree_;
+};
 
 RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   check_config(config);
@@ -101,9 +136,21 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.sort = config.sort;
   opt.throughput_reset_depth = config.throughput_reset_bounce;
 
-  // The recorder costs nothing unless a debug buffer (or, later, guiding) consumes it.
+  // Guiding: the field the engine samples, trained from the recorder's samples.
+  std::unique_ptr<SDTree> sd_tree;
+  std::unique_ptr<SDTreeTrainer> trainer;
+  if (config.guiding) {
+    SDTreeOptions go;
+    go.selection_probability = config.guiding_fraction;
+    go.spatial_threshold = config.guiding_spatial_threshold;
+    sd_tree = std::make_unique<SDTree>(rs.accel.bounds(), go);
+    trainer = std::make_unique<SDTreeTrainer>(*sd_tree);
+    opt.guide = sd_tree.get();
+    opt.guiding_min_roughness = config.guiding_min_roughness;
+  }
+  // The recorder costs nothing unless a debug buffer or guiding consumes it.
   std::unique_ptr<RadianceRecorder> recorder;
-  if (config.recorder_debug || config.recorder_debug_bounce >= 0) {
+  if (config.recorder_debug || config.recorder_debug_bounce >= 0 || config.guiding) {
     RecorderOptions ro;
     ro.vertex_budget = config.recorder_budget;
     ro.vertex_skip_probability = config.recorder_vertex_skip;
@@ -113,7 +160,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     ro.height = scene.film.height;
     ro.debug_primary = config.recorder_debug;
     ro.debug_bounce = config.recorder_debug_bounce;
-    recorder = std::make_unique<RadianceRecorder>(ro);
+    recorder = std::make_unique<RadianceRecorder>(ro, trainer.get());
   }
   opt.stop = config.stop;
   // Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
@@ -155,6 +202,36 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     tasks.on_end([&](const IterationInfo&) { recorder->end_iteration(); });
     tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [&](const IterationInfo&) { recorder->update_skip_rate(); });
   }
+  // The field learns from each iteration's samples (handed over by the
+  // recorder at the iteration's end); the next iteration samples it.
+  if (sd_tree) {
+    tasks.add(BetweenIterationSlot::GuidingUpdate,
+              [&](const IterationInfo& it) { sd_tree->update(double(it.spp_end - it.spp_begin)); });
+    // A resumed render continues the field and the skip rate exactly where
+    // the interrupted one left them, so it trains and guides the same.
+    ic.participants.push_back({"guiding", 1,
+                               [&] {
+                                 ByteWriter w;
+                                 w.put_vector(sd_tree->serialize());
+                                 RadianceRecorder::ResumeState st = recorder->resume_state();
+                                 w.put(st.skip_rate);
+                                 w.put(st.iteration_paths);
+                                 w.put(st.iteration_events);
+                                 w.put_vector(st.samples);
+                                 return w.bytes;
+                               },
+                               [&](const CheckpointSection& section) {
+                                 ByteReader r(section.bytes, "checkpoint section 'guiding'");
+                                 std::vector<uint8_t> tree = r.get_vector<uint8_t>();
+                                 *sd_tree = SDTree::deserialize(tree);
+                                 RadianceRecorder::ResumeState st;
+                                 st.skip_rate = r.get<double>();
+                                 st.iteration_paths = r.get<uint64_t>();
+                                 st.iteration_events = r.get<uint64_t>();
+                                 st.samples = r.get_vector<TrainingSample>();
+                                 recorder->restore(st);
+                               }});
+  }
   // Error against run time: the render clock (accel build onwards, scene loading
   // excluded) does not count the time spent here measuring the error.
   double evaluation_seconds = 0.0;
@@ -174,7 +251,6 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
       return e;
     };
   IterationResult iterations = render_iterations(engine, film, tasks, ic);
-  bar.finish();
   RenderResult result;
   result.image = std::move(iterations.image);
   // The recorder's debug buffers sum over every iteration: they share the
@@ -198,7 +274,8 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                     {"max_paths", config.max_paths},
                     {"sort", config.sort},
                     {"light_sampler", rs.light_sampler->name()},
-                    {"schedule", config.schedule},
+                    {"schedule", schedule_name(config)},
+                    {"guiding", config.guiding},
                     {"combine", config.combine},
                     {"adaptive", config.adaptive}};
   nlohmann::json phases;
@@ -242,6 +319,16 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                        {"merged_vertices", rs.merged_vertices},
                        {"dropped", rs.dropped}};
     log["memory"]["recorder"] = recorder->peak_bytes();
+  }
+  if (sd_tree) {
+    SDTreeStats gs = sd_tree->stats();
+    log["guiding"] = {{"fraction", config.guiding_fraction},
+                      {"min_roughness", config.guiding_min_roughness},
+                      {"spatial_threshold", config.guiding_spatial_threshold},
+                      {"spatial_leaves", gs.spatial_leaves},
+                      {"quadtree_nodes", gs.quadtree_nodes},
+                      {"bytes", sd_tree->memory_bytes()}};
+    log["memory"]["guiding"] = sd_tree->memory_bytes();
   }
   if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;
   if (!config.reference_path.empty()) log["reference"] = config.reference_path;

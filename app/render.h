@@ -43,9 +43,16 @@ struct RenderConfig {
   float recorder_min_distance = 0.0f;
   int throughput_reset_bounce = -1; // >= 0: the beauty is the "throughput reset at bounce N" image
 
+  // Path guiding (guiding/): an SD-tree trained from the recorder after every
+  // iteration and sampled, mixed with the BSDF, in the next.
+  bool guiding = false;
+  float guiding_fraction = 0.5f;            // probability of sampling the guide where it applies
+  float guiding_min_roughness = 0.05f;      // guide only BSDFs with a lobe rougher than this
+  float guiding_spatial_threshold = 4000.0f;// SD-tree leaf split: this many samples times 2^(k/2)
+
   // Iterations (scheduler/schedule.h): a named schedule, then any of its
   // numbers overridden (-1 / 0: keep the schedule's).
-  std::string schedule = "regular";  // regular | guiding
+  std::string schedule;              // regular | guiding; empty: guiding with --guiding, else regular
   int iteration_first = -1, iteration_repeat = -1, iteration_max = -1;
   double iteration_growth = 0.0;
   std::string combine = "equal";     // equal | inverse-variance

@@ -40,6 +40,7 @@ struct PathVertexInfo {
   uint8_t lobe_flags = 0;  // scene/bsdf.h LobeFlags of the sampled lobe (0 for NEE)
   float roughness = 1.0f;
   bool is_nee = false;
+  bool delta_light = false;  // an NEE ray to a point-like light: its direction has no density
   bool in_medium = false;
 };
 

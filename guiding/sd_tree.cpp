@@ -161,7 +161,9 @@ SDTree::SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options) : opti
   leaves_[0].building = refine_quadtree({}, options_.flux_threshold, options_.max_quadtree_depth);
 }
 
-double SDTree::spatial_threshold() const { return options_.spatial_threshold * std::pow(2.0, 0.5 * updates_); }
+double SDTree::spatial_threshold(double samples_per_pixel) const {
+  return options_.spatial_threshold * std::sqrt(std::max(samples_per_pixel, 1.0));
+}
 
 SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
   vec3 q = (p - root_.min) / root_size_;
@@ -259,7 +261,7 @@ void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf
   if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(wi / len), value);
 }
 
-void SDTree::update() {
+void SDTree::update(double samples_per_pixel) {
   // Building becomes sampling, as fractions of the leaf's flux.
   for (SpatialLeaf& leaf : leaves_) {
     sum_flux_bottom_up(leaf.building);
@@ -272,7 +274,7 @@ void SDTree::update() {
         leaf.sampling[n].flux[i] = leaf.has_energy ? float(leaf.building[n].flux[i] / total) : 0.0f;
       }
   }
-  refine_spatial();
+  refine_spatial(spatial_threshold(samples_per_pixel));
   for (SpatialLeaf& leaf : leaves_) {
     leaf.building = refine_quadtree(leaf.building, options_.flux_threshold, options_.max_quadtree_depth);
     leaf.sample_count = 0;
@@ -283,11 +285,10 @@ void SDTree::update() {
   ++updates_;
 }
 
-// Splits every leaf that recorded more than c * 2^(k/2) samples; the halves
+// Splits every leaf that recorded more than `threshold` samples; the halves
 // inherit the leaf's quadtrees and half its count, and split again while that
 // is still above the threshold (Müller 2017 STree::refine).
-void SDTree::refine_spatial() {
-  const double threshold = spatial_threshold();
+void SDTree::refine_spatial(double threshold) {
   std::vector<uint32_t> stack{0};
   while (!stack.empty()) {
     uint32_t n = stack.back();

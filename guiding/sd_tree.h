@@ -27,8 +27,9 @@
 namespace theia {
 
 struct SDTreeOptions {
-  // Spatial leaves split when they recorded more than c * 2^(k/2) samples at
-  // update k (seeds/001 10.4: 4000 thanks to the filtering, down from 12000).
+  // Spatial leaves split when they recorded more than c * sqrt(spp) samples in
+  // an iteration of spp samples per pixel (seeds/001 10.4: c = 4000 thanks to
+  // the filtering, down from 12000).
   double spatial_threshold = 4000.0;
   // A quad is subdivided while it holds more than rho of its leaf's flux.
   double flux_threshold = 0.01;
@@ -90,8 +91,12 @@ class SDTree final : public DirectionalGuide {
   // with non-finite or negative radiance, pdf <= 0 or non-finite p / wi are
   // dropped and counted; zero radiance is recorded (it counts).
   void add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key);
-  // End of an iteration (see the file comment).
-  void update();
+  // End of an iteration of `samples_per_pixel` (see the file comment).  Müller
+  // writes the split threshold c * 2^(k/2) for his k-th iteration, which has
+  // 2^k spp: it is c * sqrt(spp).  Written per spp it also suits schedules
+  // that repeat small iterations (Hyperion's 1 spp x 8), where counting
+  // updates would let the threshold outgrow what each iteration records.
+  void update(double samples_per_pixel);
 
   uint32_t region(const vec3& p) const override;
   // The returned pdf is pdf(region, wi) evaluated on the returned direction,
@@ -112,8 +117,8 @@ class SDTree final : public DirectionalGuide {
   const SDTreeOptions& options() const { return options_; }
   const Bounds3& root_bounds() const { return root_; }
   int updates() const { return updates_; }
-  // Spatial subdivision threshold at the next update(): c * 2^(k/2).
-  double spatial_threshold() const;
+  // Spatial subdivision threshold of an iteration of that many spp: c * sqrt(spp).
+  double spatial_threshold(double samples_per_pixel) const;
   // The leaf box holding p (p clamped into the root box).
   Bounds3 leaf_bounds(const vec3& p) const;
 
@@ -126,7 +131,7 @@ class SDTree final : public DirectionalGuide {
     vec3 lo, size;  // the leaf box
   };
   Lookup find_leaf(const vec3& p) const;
-  void refine_spatial();
+  void refine_spatial(double threshold);
   void deposit(BuildingQuadNode* nodes, vec2 c, double value) const;
 
   SDTreeOptions options_;

@@ -213,7 +213,7 @@ uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo&
   v.parent = real_parent;
   v.depth = uint16_t(std::clamp(info.depth, 0, 0xffff));
   v.flags = uint8_t((info.is_nee ? kVertexNEE : 0) | (info.in_medium ? kVertexInMedium : 0) |
-                    ((info.lobe_flags & (1 << 4)) ? kVertexDelta : 0) | ((info.lobe_flags & (1 << 3)) ? kVertexGlossy : 0));
+                    ((info.lobe_flags & (1 << 4)) || info.delta_light ? kVertexDelta : 0) | ((info.lobe_flags & (1 << 3)) ? kVertexGlossy : 0));
   v.roughness = uint8_t(std::round(std::clamp(info.roughness, 0.0f, 1.0f) * 255.0f));
   // Publish the initialised vertex before anyone can reach it through the handle.
   v.refs.store(1, std::memory_order_release);
@@ -328,8 +328,11 @@ void RadianceRecorder::begin_iteration() {
 
 void RadianceRecorder::end_iteration() {
   RecorderStats s = stats();
-  last_paths_ = s.paths - iteration_begin_paths_;
-  last_events_ = s.vertex_events - iteration_begin_events_;
+  last_paths_ = s.paths - iteration_begin_paths_ + carried_paths_;
+  last_events_ = s.vertex_events - iteration_begin_events_ + carried_events_;
+  carried_paths_ = carried_events_ = 0;
+  iteration_begin_paths_ = s.paths;  // nothing is in progress until the next begin
+  iteration_begin_events_ = s.vertex_events;
   if (live_.load() != 0)
     throw std::logic_error("radiance recorder: " + std::to_string(live_.load()) +
                            " path vertices still allocated at the end of an iteration (an event was lost)");
@@ -351,6 +354,26 @@ void RadianceRecorder::end_iteration() {
     return a.flags < b.flags;
   });
   sink_->consume(all);
+}
+
+RadianceRecorder::ResumeState RadianceRecorder::resume_state() const {
+  if (live_.load() != 0)
+    throw std::logic_error("radiance recorder: checkpoint requested with path vertices still allocated");
+  ResumeState st;
+  st.skip_rate = skip_rate_;
+  RecorderStats s = stats();
+  st.iteration_paths = s.paths - iteration_begin_paths_ + carried_paths_;
+  st.iteration_events = s.vertex_events - iteration_begin_events_ + carried_events_;
+  for (const ThreadCache& tc : *caches_) st.samples.insert(st.samples.end(), tc.samples.begin(), tc.samples.end());
+  return st;
+}
+
+void RadianceRecorder::restore(const ResumeState& st) {
+  skip_rate_ = st.skip_rate;
+  carried_paths_ = st.iteration_paths;
+  carried_events_ = st.iteration_events;
+  for (ThreadCache& tc : *caches_) tc.samples.clear();
+  caches_->local().samples = st.samples;
 }
 
 RecorderStats RadianceRecorder::stats() const {

@@ -43,7 +43,7 @@ inline constexpr uint32_t kPVMaxBlocks = (kPVMergedBit / kPVBlockSize);
 enum VertexFlags : uint8_t {
   kVertexNEE = 1 << 0,      // created for an NEE ray
   kVertexInMedium = 1 << 1, // created inside a medium
-  kVertexDelta = 1 << 2,    // sampled from a delta (specular) lobe
+  kVertexDelta = 1 << 2,    // a direction without a density: a delta (specular) lobe or an NEE ray to a delta light
   kVertexGlossy = 1 << 3,   // sampled from a glossy lobe
 };
 
@@ -139,6 +139,18 @@ class RadianceRecorder final : public PathObserver {
   void vertex_continued(uint32_t vertex) override;
   void vertex_done(uint32_t vertex) override;
 
+  // Resuming (checkpoint/).  The engine finishes every path before a
+  // checkpoint, so no vertex is live then; what the iteration in progress has
+  // recorded and counted is carried over, so that a resumed render trains
+  // on the same samples and sets the same skip rate as an uninterrupted one.
+  struct ResumeState {
+    double skip_rate = 0.0;
+    uint64_t iteration_paths = 0, iteration_events = 0;
+    std::vector<TrainingSample> samples;
+  };
+  ResumeState resume_state() const;
+  void restore(const ResumeState& state);
+
   RecorderStats stats() const;
   uint64_t live_vertices() const { return live_.load(std::memory_order_relaxed); }
   size_t peak_bytes() const;           // vertex blocks at their peak + buffered samples at theirs
@@ -172,6 +184,7 @@ class RadianceRecorder final : public PathObserver {
   double skip_rate_ = 0.0;
   uint64_t last_paths_ = 0, last_events_ = 0;                    // the previous iteration's
   uint64_t iteration_begin_paths_ = 0, iteration_begin_events_ = 0;
+  uint64_t carried_paths_ = 0, carried_events_ = 0;              // restored from a checkpoint
   std::vector<float> debug_primary_, debug_bounce_;
 };
 

@@ -324,11 +324,13 @@ def main():
     sp.add_argument("--spp", type=int, default=256)
     sp.add_argument("--seeds", type=int, default=12)
     sp.add_argument("--out", default="out/seeds")
-    sp.add_argument("extra", nargs="*", help="more theia render arguments (after --)")
-    a = ap.parse_args()
+    # Everything after "--" goes to `theia render` (argparse's subparsers would take it as theirs).
+    argv = sys.argv[1:]
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    a = ap.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
 
     if a.command == "seeds":
-        seeds(a.theia, a.scene, a.spp, a.seeds, a.out, a.extra)
+        seeds(a.theia, a.scene, a.spp, a.seeds, a.out, extra)
         return
     if a.command == "report":
         report([load_curve(p) for p in a.logs], a.baseline, a.out)

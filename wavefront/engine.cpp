@@ -512,6 +512,7 @@ struct WavefrontEngine::Impl {
                 info.sample = sample;
                 info.depth = int(depth);
                 info.is_nee = true;
+                info.delta_light = ls->is_delta;
                 v = observer->vertex_created(ps.vertex, info);
               }
               sb.vertex.push_back(v);
@@ -532,9 +533,11 @@ struct WavefrontEngine::Impl {
     } else {
       float guide_pdf = 0.0f;
       if (u_lobe < guide_fraction) {
+        // A direction the guide reports a zero density for (rounding at a
+        // quad's edge) cannot be weighted: the path ends, as for pdf 0 below.
         GuideSample gs = opt.guide->sample(region, u_dir);
         guide_pdf = gs.pdf;
-        bs = bsdf_event(bsdf, wo, gs.wi);
+        if (gs.pdf > 0.0f) bs = bsdf_event(bsdf, wo, gs.wi);
       } else {
         bs = bsdf_sample(bsdf, wo, std::min((u_lobe - guide_fraction) / (1.0f - guide_fraction), kOneMinusEpsilon), u_dir);
         if (bs) guide_pdf = opt.guide->pdf(region, bs->wi);

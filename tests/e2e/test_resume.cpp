@@ -204,3 +204,30 @@ TEST(Resume, SigtermFromAnotherProcess) {
   EXPECT_GT(log["scheduler"]["resumed_at_iteration"].get<int>(), 0);
   EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), read_image_file(f.out("ref.exr"))), 1e-5);
 }
+
+// With path guiding the checkpoint carries the SD-tree, the recorder's skip
+// rate and what an interrupted iteration had recorded, so that a resumed
+// render trains, guides and renders exactly as an uninterrupted one.
+TEST(Resume, PathGuidingResumesExactly) {
+  Fixture f("pathguiding", " --guiding --spp 24");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  // Guiding schedule for 24 spp: 1 x8, 2 4 8 2.  Stop at a boundary after
+  // training began, and inside the 4-spp iteration (index 9) twice over.
+  const std::vector<std::vector<std::string>> stops = {{"3:0"}, {"9:0.5"}, {"8:0.4", "9:0.7"}};
+  for (size_t k = 0; k < stops.size(); ++k) {
+    std::string ck = f.out("ck" + std::to_string(k));
+    for (const std::string& at : stops[k])
+      ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at).exit_code, kInterrupted)
+          << at;
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --resume");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5) << "stopped at " << stops[k][0];
+    fs::remove(f.out("out.exr"));
+  }
+  // Guiding changed the image (the field was used, not only trained).
+  ASSERT_EQ(run("render " + f.scene + " -o " + f.out("plain.exr") + " --max-paths 1024 -q --spp 24 --schedule guiding")
+                .exit_code,
+            0);
+  EXPECT_GT(test::max_relative_difference(read_image_file(f.out("plain.exr")), ref), 1e-3);
+}

@@ -70,7 +70,7 @@ void train(SDTree& t, const Field& L, int n, int iterations, uint64_t seed, cons
       }
       t.add_sample(p, w, L(w), pdf, key);
     }
-    t.update();
+    t.update(1.0);
   }
 }
 
@@ -218,7 +218,7 @@ TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
       vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
       t.add_sample(p, w, 1.0f, uniform_sphere_pdf(), key);
     }
-    t.update();
+    t.update(1.0);
     leaves.push_back(t.stats().spatial_leaves);
     auto volume = [&](const vec3& p) {
       vec3 d = t.leaf_bounds(p).diagonal();
@@ -236,30 +236,30 @@ TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
   EXPECT_LT(inside[3], inside[0] / 8.0);
 }
 
-// A leaf splits when it recorded more than c * 2^(k/2) samples at update k.
-TEST(SDTreeSpatial, ThresholdGrowsWithUpdates) {
+// A leaf splits when an iteration of spp samples per pixel recorded more
+// than c * sqrt(spp) samples in it, however many updates came before.
+TEST(SDTreeSpatial, ThresholdGrowsWithIterationSize) {
   SDTreeOptions o;
   o.spatial_filter = false;  // every sample lands in the one leaf
-  auto leaves_after = [&](int empty_updates, int n, float radiance = 1.0f) {
+  auto leaves_after = [&](int earlier_updates, double spp, int n, float radiance = 1.0f) {
     SDTree t(kUnitBox, o);
-    for (int k = 0; k < empty_updates; ++k) t.update();
+    for (int k = 0; k < earlier_updates; ++k) t.update(1.0);
     for (int i = 0; i < n; ++i) t.add_sample(kCentre, vec3(0, 0, 1), radiance, 1.0f, uint64_t(i));
-    t.update();
+    t.update(spp);
     return t.stats().spatial_leaves;
   };
   SDTree t(kUnitBox, o);
-  for (int k = 0; k < 5; ++k) {
-    EXPECT_DOUBLE_EQ(t.spatial_threshold(), 4000.0 * std::pow(2.0, 0.5 * k));
-    t.update();
-  }
-  EXPECT_EQ(leaves_after(0, 4000), 1u);
-  EXPECT_EQ(leaves_after(0, 4001), 2u);
-  EXPECT_EQ(leaves_after(0, 4001, 0.0f), 2u);  // zero-valued samples count too
-  EXPECT_EQ(leaves_after(0, 8000), 2u);
-  EXPECT_EQ(leaves_after(2, 8000), 1u);  // threshold 8000 at k = 2
-  EXPECT_EQ(leaves_after(2, 8001), 2u);
-  EXPECT_EQ(leaves_after(4, 16'001), 2u);
-  EXPECT_EQ(leaves_after(4, 16'000), 1u);
+  for (int k = 0; k < 5; ++k) EXPECT_DOUBLE_EQ(t.spatial_threshold(std::pow(2.0, k)), 4000.0 * std::pow(2.0, 0.5 * k));
+  EXPECT_EQ(leaves_after(0, 1, 4000), 1u);
+  EXPECT_EQ(leaves_after(0, 1, 4001), 2u);
+  EXPECT_EQ(leaves_after(0, 1, 4001, 0.0f), 2u);  // zero-valued samples count too
+  EXPECT_EQ(leaves_after(0, 1, 8000), 2u);
+  EXPECT_EQ(leaves_after(0, 4, 8000), 1u);  // threshold 8000 at 4 spp
+  EXPECT_EQ(leaves_after(0, 4, 8001), 2u);
+  EXPECT_EQ(leaves_after(0, 16, 16'001), 2u);
+  EXPECT_EQ(leaves_after(0, 16, 16'000), 1u);
+  // Repeated 1-spp iterations keep the 1-spp threshold.
+  EXPECT_EQ(leaves_after(8, 1, 4001), 2u);
 }
 
 // Directions depend on the side of x = 0.5: from above (z > 0) left of it,
@@ -284,7 +284,7 @@ SDTree train_edge(bool spatial_filter, uint64_t seed) {
       bool lit = p.x < 0.5f ? w.z > 0.0f : w.z < 0.0f;
       t.add_sample(p, w, lit ? 1.0f : 0.0f, uniform_sphere_pdf(), key);
     }
-    t.update();
+    t.update(it == 0 ? 1.0 : 2.0);  // Müller's doubling: iterations of 1 and 2 spp
   }
   return t;
 }
@@ -329,14 +329,14 @@ TEST(SDTreeRegion, NoRegionBeforeTheFirstUpdateOrWithoutEnergy) {
   };
   feed(0);
   for (float x : {0.1f, 0.9f}) EXPECT_EQ(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
-  t.update();
+  t.update(1.0);
   // The first iteration's single leaf had energy; its halves inherit it.
   for (float x : {0.1f, 0.9f}) EXPECT_NE(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
   feed(1);
-  t.update();
+  t.update(1.0);
   EXPECT_NE(t.region(vec3(0.1f, 0.5f, 0.5f)), kNoGuideRegion);
   EXPECT_EQ(t.region(vec3(0.9f, 0.5f, 0.5f)), kNoGuideRegion);  // zero-valued samples only
-  t.update();  // an iteration without samples: nothing anywhere
+  t.update(1.0);  // an iteration without samples: nothing anywhere
   EXPECT_EQ(t.region(vec3(0.1f, 0.5f, 0.5f)), kNoGuideRegion);
   EXPECT_EQ(t.pdf(kNoGuideRegion, vec3(0, 0, 1)), 0.0f);
   EXPECT_EQ(t.sample(kNoGuideRegion, vec2(0.5f)).pdf, 0.0f);
@@ -358,7 +358,7 @@ SDTree trained_for_serialisation() {
       t.add_sample(p, w, field_two_lobes(w) * (0.5f + p.x), uniform_sphere_pdf(), key);
     }
     t.add_sample(kCentre, vec3(0, 0, 1), std::nanf(""), 1.0f, 0);  // a dropped one
-    if (it < 2) t.update();
+    if (it < 2) t.update(1.0);
   }
   return t;
 }
@@ -370,7 +370,7 @@ void continue_training(SDTree& t) {
     vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
     t.add_sample(vec3(a.x, a.y, b.x), w, field_lobe(w), uniform_sphere_pdf(), key);
   }
-  t.update();
+  t.update(1.0);
 }
 
 std::string error_of(const std::vector<uint8_t>& bytes) {
@@ -412,8 +412,8 @@ TEST(SDTreeSerialize, RoundTripIsExactAndTrainingContinuesIdentically) {
   EXPECT_GT(guided, 10'000);
   // The building state came along: finishing the iteration and training on
   // gives the same tree as never having stopped.
-  a.update();
-  b.update();
+  a.update(1.0);
+  b.update(1.0);
   continue_training(a);
   continue_training(b);
   EXPECT_EQ(a.serialize(), b.serialize());
@@ -462,7 +462,7 @@ TEST(SDTreeExtreme, HugeTinyAndBadValues) {
   dropped += 3;
   EXPECT_EQ(t.stats().pending_dropped, dropped);
   EXPECT_EQ(t.stats().pending_recorded, recorded);
-  t.update();
+  t.update(1.0);
   EXPECT_EQ(t.stats().samples_dropped, dropped);
   EXPECT_EQ(t.stats().samples_recorded, recorded);
   uint32_t r = t.region(kCentre);
@@ -509,7 +509,7 @@ TEST(SDTreeExtreme, CornersOutsidePointsAndFlatScenes) {
           vec3 w = sample_uniform_sphere(u2(key));
           t.add_sample(points[k], w, 1.0f + w.x, uniform_sphere_pdf(), key);
         }
-      t.update();
+      t.update(1.0);
     }
     EXPECT_EQ(t.stats().samples_dropped, 0u);
     EXPECT_GT(t.stats().spatial_leaves, 8u);
@@ -561,7 +561,7 @@ TEST(SDTreeTiming, DISABLED_Throughput) {
     auto t0 = clock::now();
     for (int i = 0; i < n; ++i) t.add_sample(ps[i], ws[i], ls[i], uniform_sphere_pdf(), hash(uint64_t(it), uint64_t(i)));
     auto t1 = clock::now();
-    t.update();
+    t.update(1.0);
     auto t2 = clock::now();
     SDTreeStats s = t.stats();
     std::printf("iteration %d: add_sample %.1f ns/sample (%.3f s per million), update %.1f ms; %zu leaves, %zu "

@@ -101,6 +101,18 @@ Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteract
   return Frame{s, glm::cross(ns, s), ns};
 }
 
+// The hair frame keeps x exactly along the fibre (pbrt-v4 builds it from
+// dpdu and the normal): sin(theta) = w.x only holds if x is the tangent, so
+// here the normal is made perpendicular to dpdu rather than dpdu to the normal.
+Frame hair_frame(const Frame& shading, const vec3& dpdu) {
+  if (!(glm::dot(dpdu, dpdu) > 0.0f) || !std::isfinite(dpdu.x + dpdu.y + dpdu.z)) return shading;
+  vec3 x = glm::normalize(dpdu);
+  vec3 z = shading.n - x * glm::dot(x, shading.n);
+  if (!(glm::dot(z, z) > 1e-12f)) return shading;
+  z = glm::normalize(z);
+  return Frame{x, glm::cross(z, x), z};
+}
+
 void set_lobes(BSDF& b) {
   const BxDF& x = b.bxdf;
   uint8_t flags = bxdf_flags(x);
@@ -140,6 +152,12 @@ void set_lobes(BSDF& b) {
       b.lobe_count = 1;
       b.lobes[0] = {flags, std::max(x.dielectric.distrib.roughness(), x.conductor.distrib.roughness()),
                     conductor_fresnel(1.0f, x.conductor)};
+      break;
+    case BxDFKind::Hair:
+      // One glossy lobe over the whole sphere; its albedo is the colour the
+      // absorption stands for (the inverse of pbrt-v4's SigmaAFromReflectance).
+      b.lobe_count = 1;
+      b.lobes[0] = {flags, x.hair.beta_m, srgb_to_working(hair_reflectance_from_sigma_a(x.hair.sigma_a, x.hair.beta_n))};
       break;
     case BxDFKind::None: b.lobe_count = 0; break;
   }
@@ -222,6 +240,25 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
       x.layer.albedo = glm::clamp(tex_rgb(scene, m->albedo, tc, RGB(0.0f)), RGB(0.0f), RGB(1.0f));
       x.layer.max_depth = m->max_depth;
       x.layer.n_samples = m->n_samples;
+      break;
+    }
+    case MaterialKind::Hair: {
+      // pbrt-v4's HairMaterial.  The shading frame's x is dpdu, along the
+      // fibre, as the hair frame needs; v runs across the curve, so the
+      // offset from the fibre's axis is h = -1 + 2 v.
+      float beta_n = std::clamp(tex_float(scene, m->beta_n, tc, 0.3f), 0.0f, 1.0f);
+      RGB sigma_a;
+      if (m->sigma_a >= 0) sigma_a = glm::max(eval_texture(scene, m->sigma_a, tc), RGB(0.0f));
+      else if (m->reflectance >= 0)  // a colour: to the sRGB bands sigma_a lives in
+        sigma_a = hair_sigma_a_from_reflectance(
+            glm::clamp(working_to_srgb(eval_texture(scene, m->reflectance, tc)), RGB(0.0f), RGB(1.0f)), beta_n);
+      else
+        sigma_a = hair_sigma_a_from_concentration(std::max(tex_float(scene, m->eumelanin, tc, 0.0f), 0.0f),
+                                                  std::max(tex_float(scene, m->pheomelanin, tc, 0.0f), 0.0f));
+      x.kind = BxDFKind::Hair;
+      bsdf.shading = hair_frame(bsdf.shading, si.dpdu);
+      x.hair = make_hair_bxdf(-1.0f + 2.0f * si.uv.y, m->eta, sigma_a, tex_float(scene, m->beta_m, tc, 0.3f), beta_n,
+                              tex_float(scene, m->hair_alpha, tc, 2.0f));
       break;
     }
     case MaterialKind::Mix:

@@ -5,6 +5,7 @@
 #include "core/color.h"
 #include "core/log.h"
 #include "core/sampling.h"
+#include "scene/accel.h"
 #include "scene/bsdf.h"
 #include "scene/parser.h"
 #include "tests/unit/chi2.h"
@@ -285,4 +286,86 @@ TEST(HairMaterial, BsdfFrameAndOffset) {
   EXPECT_FLOAT_EQ(b.lobes[0].roughness, 0.3f);
   // A direction along the fibre has sin(theta) = 1 in the BxDF's frame.
   EXPECT_NEAR(b.shading.to_local(vec3(0, 1, 0)).x, 1.0f, 1e-6f);
+}
+
+namespace {
+// A straight hair along x from (0, 0, 0) to (1, 0, 0), width 0.2, of the
+// given curve type; ribbons face +z.  Variants: 1 runs it backwards, 2 under
+// ReverseOrientation, 3 mirrored in z (Scale 1 1 -1, baked), 4 an instance
+// mirrored in z.  None moves the fibre.
+Scene straight_hair(const std::string& type, const std::string& material, int variant = 0) {
+  std::string p = variant == 1 ? "1 0 0  0.666667 0 0  0.333333 0 0  0 0 0" : "0 0 0  0.333333 0 0  0.666667 0 0  1 0 0";
+  std::string n = type == "ribbon" ? R"("normal N" [0 0 1  0 0 1])" : "";
+  std::string shape = fmt::format(R"(Shape "curve" "string type" "{}" "float width" [0.2] "point3 P" [{}] {})", type, p, n);
+  if (variant == 2) shape = "ReverseOrientation " + shape;
+  if (variant == 3) shape = "Scale 1 1 -1 " + shape;
+  if (variant == 4) shape = "ObjectBegin \"h\" " + shape + " ObjectEnd Scale 1 1 -1 ObjectInstance \"h\"";
+  return parse_scene_string(fmt::format("WorldBegin\nMaterial \"hair\" {}\n{}\n", material, shape), "test.pbrt");
+}
+
+BSDF hair_bsdf_at(const Scene& s, const Accel& a, const Ray& ray) {
+  Hit hit = a.intersect1(ray);
+  EXPECT_TRUE(hit.hit());
+  if (!hit.hit()) return {};
+  return make_bsdf(s, compute_interaction(s, a, ray, hit));
+}
+}  // namespace
+
+// The offset h that reaches the BxDF on each curve type is the ray's distance
+// from the fibre's axis over the radius, signed along y = z x x of a frame
+// whose z faces the ray, whichever way the curve runs, from either side,
+// with the normal reversed and under mirrors.
+// (On round curves Embree's v is 0: reading h = -1 + 2v there made every hit
+// grazing, Fresnel 1, and absorbing hair lossless.)
+TEST(HairMaterial, OffsetAcrossTheFibreOnEveryCurveType) {
+  const float r = 0.1f;
+  for (std::string type : {"cylinder", "flat", "ribbon"})
+    for (int variant = 0; variant < 5; ++variant)
+      for (float side : {1.0f, -1.0f})
+        for (float tilt : {0.0f, 0.4f})
+          for (float y0 : {-0.085f, -0.04f, 0.0f, 0.03f, 0.075f}) {
+            Scene s = straight_hair(type, R"("rgb sigma_a" [1 1 1])", variant);
+            Accel a(s);
+            vec3 d = glm::normalize(vec3(tilt, 0.0f, -side));
+            vec3 o = vec3(0.5f, y0, 0.0f) - 5.0f * d;
+            BSDF b = hair_bsdf_at(s, a, Ray{o, 0.0f, d, kInfinity});
+            ASSERT_EQ(b.bxdf.kind, BxDFKind::Hair) << type;
+            vec3 x = b.shading.s, wo = -d;
+            EXPECT_NEAR(std::abs(x.x), 1.0f, 1e-4f) << type;
+            vec3 wo_perp = glm::normalize(wo - glm::dot(wo, x) * x);
+            float want = glm::dot(o - vec3(0.5f, 0.0f, 0.0f), glm::normalize(glm::cross(wo_perp, x))) / r;
+            // Tubes: Embree's hit point is within ~2% of the radius; flat: its chord.
+            EXPECT_NEAR(b.bxdf.hair.h, want, 0.03f)
+                << type << " variant " << variant << " side " << side << " tilt " << tilt << " y0 " << y0;
+          }
+}
+
+// The whole chain, from the hit to the BxDF's azimuths: on a tube with only
+// the R lobe left (opaque, smooth, untilted scales), f peaks at the mirror
+// image of wo in the tube's true normal, not at the mirror image about the
+// normal on the other side of the axis (what a flipped h would give).
+TEST(HairMaterial, SurfaceReflectionLeavesAtTheMirrorDirection) {
+  Scene s = straight_hair("cylinder", R"("rgb sigma_a" [50 50 50] "float beta_m" 0.1 "float beta_n" 0.1 "float alpha" 0)");
+  Accel a(s);
+  for (float y0 : {-0.07f, -0.04f, 0.03f, 0.06f}) {
+    vec3 o(0.5f, y0, 5.0f), d(0.0f, 0.0f, -1.0f);
+    BSDF b = hair_bsdf_at(s, a, Ray{o, 0.0f, d, kInfinity});
+    ASSERT_EQ(b.bxdf.kind, BxDFKind::Hair);
+    // The true normal where the ray meets the tube of radius 0.1 and the normal mirrored across the axis.
+    vec3 n(0.0f, y0 / 0.1f, std::sqrt(1.0f - sqr(y0 / 0.1f))), n_flip(0.0f, -n.y, n.z);
+    vec3 wo = -d;
+    vec3 mirror = 2.0f * glm::dot(wo, n) * n - wo, wrong = 2.0f * glm::dot(wo, n_flip) * n_flip - wo;
+    float f_mirror = luminance_avg(bsdf_f(b, wo, mirror)), f_wrong = luminance_avg(bsdf_f(b, wo, wrong));
+    EXPECT_GT(f_mirror, 10.0f * f_wrong) << "y0 " << y0 << ": h " << b.bxdf.hair.h;
+  }
+}
+
+// Guiding shares sampling by hemisphere (bsdf_event's lobe_of), which the
+// fibre's lobes do not follow.
+TEST(HairMaterial, IsNotGuidable) {
+  Scene s = straight_hair("cylinder", R"("rgb sigma_a" [1 1 1] "float beta_m" 0.9)");
+  Accel a(s);
+  BSDF b = hair_bsdf_at(s, a, Ray{vec3(0.5f, 0.02f, 5.0f), 0.0f, vec3(0, 0, -1), kInfinity});
+  ASSERT_EQ(b.bxdf.kind, BxDFKind::Hair);
+  EXPECT_FALSE(bsdf_is_guidable(b, 0.0f));
 }

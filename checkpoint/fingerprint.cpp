@@ -62,7 +62,8 @@ uint64_t scene_fingerprint(const Scene& s) {
   for (const Material& m : s.materials) {
     for (int v : {int(m.kind), m.reflectance, m.transmittance, m.uroughness, m.vroughness, int(m.remap_roughness),
                   m.conductor_eta, m.conductor_k, m.conductor_uroughness, m.conductor_vroughness, m.thickness, m.g,
-                  m.albedo, m.max_depth, m.n_samples, m.mix[0], m.mix[1], m.amount, m.displacement, m.normal_map})
+                  m.albedo, m.max_depth, m.n_samples, m.mix[0], m.mix[1], m.amount, m.displacement, m.normal_map, m.sigma_a, m.eumelanin, m.pheomelanin, m.beta_m,
+                  m.beta_n, m.hair_alpha})
       h.pod(v);
     h.pod(m.scale);
     h.pod(m.eta);

@@ -101,6 +101,54 @@ Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteract
   return Frame{s, glm::cross(ns, s), ns};
 }
 
+// The hair frame keeps x exactly along the fibre (pbrt-v4 builds it from
+// dpdu and the normal): sin(theta) = w.x only holds if x is the tangent, so
+// here the normal is made perpendicular to dpdu rather than dpdu to the normal.
+Frame hair_frame(const Frame& shading, const vec3& dpdu) {
+  if (!(glm::dot(dpdu, dpdu) > 0.0f) || !std::isfinite(dpdu.x + dpdu.y + dpdu.z)) return shading;
+  vec3 x = glm::normalize(dpdu);
+  vec3 z = shading.n - x * glm::dot(x, shading.n);
+  if (!(glm::dot(z, z) > 1e-12f)) return shading;
+  z = glm::normalize(z);
+  return Frame{x, glm::cross(z, x), z};
+}
+
+// The offset h in [-1, 1] from the fibre's axis at which the ray met it, in
+// the hair model's sense: the ray's distance from the axis over the radius,
+// positive along y = z x x of the hair frame when z faces wo (then gamma_o =
+// asin(h) and the R lobe leaves at phi_o - 2 gamma_o, the mirror image of wo
+// in the fibre's normal).  pbrt-v4 reads it from v across its ray-facing
+// ribbons (h = -1 + 2v); theia's curves need their own:
+//  - round ("cylinder") curves are real tubes, where Embree's v is always 0
+//    (h = -1 would make every hit grazing, Fresnel 1, a lossless mirror):
+//    h is where wo meets the tube's normal, -wo.y / |(wo.y, wo.z)| when the
+//    frame's z is the outward normal;
+//  - flat curves face the ray; Embree's v runs 1..-1 along dpdv;
+//  - ribbons: pbrt-v4's -1 + 2v, v running along dpdv before the normal was
+//    flipped (ReverseOrientation), signed by the side the ray comes from;
+//  - any other shape, pbrt-v4's -1 + 2v.
+// dpdv is compared with y rather than assumed along it: an instance's mirror
+// turns the frame's y but not the direction in which v grows.
+float hair_offset(const Scene& scene, const SurfaceInteraction& si, const Frame& frame) {
+  const Shape* shape = si.shape >= 0 ? &scene.shapes[size_t(si.shape)] : nullptr;
+  if (!shape || shape->kind != ShapeKind::Curve || shape->curves < 0) return -1.0f + 2.0f * si.uv.y;
+  vec3 wo = frame.to_local(si.wo);
+  float side = wo.z < 0.0f ? -1.0f : 1.0f;
+  float along_y = glm::dot(si.dpdv, frame.t) * side < 0.0f ? -1.0f : 1.0f;  // dpdv along y (z facing wo)?
+  switch (scene.curves[size_t(shape->curves)].type) {
+    case CurveType::Cylinder: {
+      float len = std::sqrt(sqr(wo.y) + sqr(wo.z));
+      return len > 0.0f ? -side * wo.y / len : 0.0f;
+    }
+    case CurveType::Flat: return -along_y * si.uv.y;
+    case CurveType::Ribbon: {
+      bool flipped = shape->reverse_orientation != shape->transform_swaps_handedness;
+      return (flipped ? -along_y : along_y) * (-1.0f + 2.0f * si.uv.y);
+    }
+  }
+  return 0.0f;
+}
+
 void set_lobes(BSDF& b) {
   const BxDF& x = b.bxdf;
   uint8_t flags = bxdf_flags(x);
@@ -140,6 +188,12 @@ void set_lobes(BSDF& b) {
       b.lobe_count = 1;
       b.lobes[0] = {flags, std::max(x.dielectric.distrib.roughness(), x.conductor.distrib.roughness()),
                     conductor_fresnel(1.0f, x.conductor)};
+      break;
+    case BxDFKind::Hair:
+      // One glossy lobe over the whole sphere; its albedo is the colour the
+      // absorption stands for (the inverse of pbrt-v4's SigmaAFromReflectance).
+      b.lobe_count = 1;
+      b.lobes[0] = {flags, x.hair.beta_m, srgb_to_working(hair_reflectance_from_sigma_a(x.hair.sigma_a, x.hair.beta_n))};
       break;
     case BxDFKind::None: b.lobe_count = 0; break;
   }
@@ -224,6 +278,24 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
       x.layer.n_samples = m->n_samples;
       break;
     }
+    case MaterialKind::Hair: {
+      // pbrt-v4's HairMaterial.  The hair frame's x is dpdu, along the
+      // fibre; h is where across it the ray met it (hair_offset).
+      float beta_n = std::clamp(tex_float(scene, m->beta_n, tc, 0.3f), 0.0f, 1.0f);
+      RGB sigma_a;
+      if (m->sigma_a >= 0) sigma_a = glm::max(eval_texture(scene, m->sigma_a, tc), RGB(0.0f));
+      else if (m->reflectance >= 0)  // a colour: to the sRGB bands sigma_a lives in
+        sigma_a = hair_sigma_a_from_reflectance(
+            glm::clamp(working_to_srgb(eval_texture(scene, m->reflectance, tc)), RGB(0.0f), RGB(1.0f)), beta_n);
+      else
+        sigma_a = hair_sigma_a_from_concentration(std::max(tex_float(scene, m->eumelanin, tc, 0.0f), 0.0f),
+                                                  std::max(tex_float(scene, m->pheomelanin, tc, 0.0f), 0.0f));
+      x.kind = BxDFKind::Hair;
+      bsdf.shading = hair_frame(bsdf.shading, si.dpdu);
+      x.hair = make_hair_bxdf(hair_offset(scene, si, bsdf.shading), m->eta, sigma_a,
+                              tex_float(scene, m->beta_m, tc, 0.3f), beta_n, tex_float(scene, m->hair_alpha, tc, 2.0f));
+      break;
+    }
     case MaterialKind::Mix:
     case MaterialKind::Interface: break;  // resolved above
   }
@@ -297,6 +369,8 @@ std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo_world, con
 bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness) {
   if (bsdf.lobe_count == 0 || bsdf.kind == MaterialKind::CoatedDiffuse || bsdf.kind == MaterialKind::CoatedConductor)
     return false;
+  // Hair: R, TT and TRT each span both hemispheres, not the split by hemisphere bsdf_event assumes.
+  if (bsdf.bxdf.kind == BxDFKind::Hair) return false;
   if (bxdf_flags(bsdf.bxdf) & kLobeSpecular) return false;
   for (int i = 0; i < bsdf.lobe_count; ++i)
     if (bsdf.lobes[i].roughness > min_roughness) return true;

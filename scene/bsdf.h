@@ -82,7 +82,8 @@ std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_
 std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo, const vec3& wi);
 // True where a guide may share sampling with the BSDF (seeds/000 ch. 1
 // section 3): no delta lobe (a delta has no density to mix), an exact pdf
-// (not the layered kinds), and some lobe rougher than `min_roughness`, since
+// (not the layered kinds), lobes split by hemisphere (not hair), and some
+// lobe rougher than `min_roughness`, since
 // directions a guide proposes rarely matter to a near-specular lobe.
 bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness);
 // Joint pdf of choosing `lobe` and sampling wi (the lobes' pdfs sum to

@@ -256,6 +256,7 @@ RGB bxdf_f(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode) {
     case BxDFKind::DiffuseTransmission: return f_of(b.diffuse_transmission, wo, wi, mode);
     case BxDFKind::CoatedDiffuse:
     case BxDFKind::CoatedConductor: return layered::f(b, wo, wi, mode);
+    case BxDFKind::Hair: return hair_f(b.hair, wo, wi);
     case BxDFKind::ThinDielectric:
     case BxDFKind::None: break;
   }
@@ -270,6 +271,7 @@ float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode
     case BxDFKind::DiffuseTransmission: return pdf_of(b.diffuse_transmission, wo, wi, mode, flags);
     case BxDFKind::CoatedDiffuse:
     case BxDFKind::CoatedConductor: return (flags & kSampleReflection) ? layered::pdf(b, wo, wi, mode) : 0.0f;
+    case BxDFKind::Hair: return flags == kSampleAll ? hair_pdf(b.hair, wo, wi) : 0.0f;
     case BxDFKind::ThinDielectric:
     case BxDFKind::None: break;
   }
@@ -288,6 +290,19 @@ std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, v
     case BxDFKind::CoatedDiffuse:
     case BxDFKind::CoatedConductor:
       if (flags & kSampleReflection) s = layered::sample(b, wo, uc, u, mode);
+      break;
+    case BxDFKind::Hair:
+      // pbrt-v4 ignores the sample flags; the fibre's lobes cannot be split by
+      // hemisphere, so only a request for everything is served.
+      if (flags == kSampleAll) {
+        if (auto h = hair_sample(b.hair, wo, uc, u)) {
+          s = BxDFSample{};
+          s->f = h->f;
+          s->wi = h->wi;
+          s->pdf = h->pdf;
+          s->flags = uint8_t(kBxDFGlossy | (same_hemisphere(wo, h->wi) ? kBxDFReflection : kBxDFTransmission));
+        }
+      }
       break;
     case BxDFKind::None: break;
   }
@@ -313,6 +328,7 @@ uint8_t bxdf_flags(const BxDF& b) {
       else if (b.dielectric.distrib.effectively_smooth()) f |= kBxDFSpecular;
       return f;
     }
+    case BxDFKind::Hair: return kBxDFReflection | kBxDFTransmission | kBxDFGlossy;
     case BxDFKind::None: break;
   }
   return 0;

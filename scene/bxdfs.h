@@ -12,6 +12,7 @@
 // density (pdf_is_proportional), so MIS must use bxdf_pdf instead.
 #pragma once
 
+#include "scene/hair.h"
 #include "scene/microfacet.h"
 
 #include <optional>
@@ -43,6 +44,7 @@ enum class BxDFKind : uint8_t {
   DiffuseTransmission,
   CoatedDiffuse,    // dielectric interface over a diffuse base
   CoatedConductor,  // dielectric interface over a conductor base
+  Hair,             // pbrt-v4's HairBxDF (scene/hair.h): x along the fibre
 };
 
 struct DiffuseBxDF {
@@ -88,6 +90,7 @@ struct BxDF {
   ThinDielectricBxDF thin;
   DiffuseTransmissionBxDF diffuse_transmission;
   LayerParams layer;
+  HairBxDF hair;
 };
 
 struct BxDFSample {

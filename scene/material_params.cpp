@@ -38,6 +38,41 @@ float parse_eta(const ParamList& p, const char* name, const SourceLoc& loc) {
   return eta;
 }
 
+// pbrt-v4's HairMaterial: the first of sigma_a, reflectance (pbrt-v3's
+// "color"), eumelanin/pheomelanin given decides the absorption, and the
+// others are ignored with a warning as pbrt-v4 does; with none, eumelanin 1.3.
+void parse_hair(const ParamList& params, const SourceLoc& loc, const MaterialLookups& L, Material* m) {
+  auto given = [&](const char* name) -> const Param* {
+    for (const Param& q : params.params)
+      if (q.name == name) return &q;
+    return nullptr;
+  };
+  const char* refl_name = given("reflectance") || !given("color") ? "reflectance" : "color";
+  const char* winner = given("sigma_a") ? "sigma_a" : given(refl_name) ? refl_name : nullptr;
+  for (const char* name : {"reflectance", "color", "eumelanin", "pheomelanin"}) {
+    const Param* q = given(name);
+    if (!q || !winner || std::string_view(name) == winner) continue;
+    warn_at(q->loc, "hair: ignoring {} since \"{}\" was given", q->label(), winner);
+    q->used = true;
+  }
+  auto ftex = [&](const char* name, float def) { return L.texture(params, name, true, RGB(def), SpectrumUse::Unbounded); };
+  if (given("sigma_a")) {
+    m->sigma_a = L.texture(params, "sigma_a", false, RGB(0.0f), SpectrumUse::Unbounded);
+  } else if (given(refl_name)) {
+    m->reflectance = L.texture(params, refl_name, false, RGB(0.5f), SpectrumUse::Reflectance);
+  } else {
+    bool pheo = given("pheomelanin") != nullptr;
+    m->eumelanin = ftex("eumelanin", pheo ? 0.0f : 1.3f);
+    m->pheomelanin = ftex("pheomelanin", 0.0f);
+  }
+  m->eta = params.get_float("eta", 1.55f);
+  if (!(m->eta > 0.0f) || !std::isfinite(m->eta))
+    throw_at(loc, "hair with eta {}, expected a positive index of refraction", m->eta);
+  m->beta_m = ftex("beta_m", 0.3f);
+  m->beta_n = ftex("beta_n", 0.3f);
+  m->hair_alpha = ftex("alpha", 2.0f);
+}
+
 }  // namespace
 
 Material parse_material(const std::string& type, const ParamList& params, const SourceLoc& loc,
@@ -111,6 +146,9 @@ Material parse_material(const std::string& type, const ParamList& params, const 
     conductor("conductor.");
     roughness("conductor.", &m.conductor_uroughness, &m.conductor_vroughness);
     layer();
+  } else if (type == "hair") {
+    m.kind = MaterialKind::Hair;
+    parse_hair(params, loc, L, &m);
   } else if (type == "mix") {
     m.kind = MaterialKind::Mix;
     const Param* names = params.find("materials", ParamType::String);

@@ -88,7 +88,7 @@ struct Texture {
 // Scene::textures (float or spectrum as the slot says; constants are
 // constant textures); -1 where the material does not use the slot.
 enum class MaterialKind {
-  Diffuse, Conductor, Dielectric, ThinDielectric, DiffuseTransmission, CoatedDiffuse, CoatedConductor, Mix, Interface
+  Diffuse, Conductor, Dielectric, ThinDielectric, DiffuseTransmission, CoatedDiffuse, CoatedConductor, Hair, Mix, Interface
 };
 
 struct Material {
@@ -99,11 +99,15 @@ struct Material {
   float scale = 1.0f;            // diffusetransmission "scale"
   int uroughness = -1, vroughness = -1;  // float: conductor, dielectric, coated interface
   bool remap_roughness = true;
-  float eta = 1.5f;              // dielectric, thindielectric, coated interface (at ~550 nm)
+  float eta = 1.5f;              // dielectric, thindielectric, coated interface (at ~550 nm), hair
   int conductor_eta = -1, conductor_k = -1;  // spectrum (RGB): conductor, coatedconductor base
   int conductor_uroughness = -1, conductor_vroughness = -1;  // float: coatedconductor base
   int thickness = -1, g = -1, albedo = -1;  // coated: float, float, spectrum
   int max_depth = 10, n_samples = 1;        // coated
+  // hair: sigma_a (spectrum, sRGB bands) wins over reflectance, which wins
+  // over eumelanin/pheomelanin (float); -1 where not given.  eta is `eta`.
+  int sigma_a = -1, eumelanin = -1, pheomelanin = -1;
+  int beta_m = -1, beta_n = -1, hair_alpha = -1;  // float textures (defaults 0.3, 0.3, 2 degrees)
   int mix[2] = {-1, -1};         // Mix: indices into Scene::materials (-1: interface)
   int amount = -1;               // Mix: float texture, probability of mix[1]
   int displacement = -1;         // float texture: bump map

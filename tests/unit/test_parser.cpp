@@ -461,7 +461,7 @@ TEST(Parser, UnsupportedMaterialsWarnOnceAndSubstituteDiffuse) {
   int before = warning_count();
   Scene s = parse(R"(WorldBegin
 MakeNamedMaterial "metal" "string type" "conductor" "spectrum eta" "metal-Cu-eta" "float roughness" 0.1
-Material "hair" "float eumelanin" 1.3
+Material "measured" "string filename" "skin.bsdf"
 Shape "sphere"
 NamedMaterial "metal"
 Shape "sphere")");

@@ -88,7 +88,8 @@ struct Texture {
 // Scene::textures (float or spectrum as the slot says; constants are
 // constant textures); -1 where the material does not use the slot.
 enum class MaterialKind {
-  Diffuse, Conductor, Dielectric, ThinDielectric, DiffuseTransmission, CoatedDiffuse, CoatedConductor, Hair, Mix, Interface
+  Diffuse, Conductor, Dielectric, ThinDielectric, DiffuseTransmission, CoatedDiffuse, CoatedConductor, Mix, Interface,
+  Hair  // last, so that checkpoint fingerprints of scenes without hair keep their values
 };
 
 struct Material {

@@ -65,6 +65,11 @@ int main(int argc, char** argv) {
   render->add_option("--guiding-spatial-threshold", rc.guiding_spatial_threshold,
                      "SD-tree: split a spatial leaf after this many samples times sqrt(spp of the iteration)")
       ->capture_default_str();
+  render->add_flag("--caustics", rc.caustics,
+                   "Trace directly seen caustics (light -> near-mirror or glass -> diffuse -> camera) from the lights");
+  render->add_option("--caustic-roughness", rc.caustic_roughness,
+                     "Caustic casters: conductors and dielectrics no rougher than this")
+      ->capture_default_str();
   render->add_option("--schedule", rc.schedule,
                      "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16); default: guiding with "
                      "--guiding, else regular")

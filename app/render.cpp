@@ -51,6 +51,12 @@ static void check_config(const RenderConfig& c) {
     throw_error("--guiding-min-roughness must be zero or positive, got {}", c.guiding_min_roughness);
   if (!(c.guiding_spatial_threshold > 0.0f && std::isfinite(c.guiding_spatial_threshold)))
     throw_error("--guiding-spatial-threshold must be positive, got {}", c.guiding_spatial_threshold);
+  if (!(c.caustic_roughness >= 0.0f && c.caustic_roughness <= 1.0f))
+    throw_error("--caustic-roughness must be in [0, 1], got {}", c.caustic_roughness);
+  if (c.caustics && c.adaptive)
+    throw_error("--caustics cannot be combined with --adaptive yet: the caustic pass traces a fixed number of paths per pixel");
+  if (c.caustics && c.throughput_reset_bounce >= 0)
+    throw_error("--caustics cannot be combined with --throughput-reset-bounce");
   if (!c.schedule.empty() && c.schedule != "regular" && c.schedule != "guiding")
     throw_error("--schedule {}: expected regular or guiding", c.schedule);
   if (c.checkpoint_first_ideal <= 0)
@@ -77,6 +83,7 @@ static uint64_t options_fingerprint(const RenderConfig& c, int spp, int max_dept
   std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
                                  s.first_size, s.repeat_first, s.growth, s.max_size, c.combine,
                                  c.checkpoint_first_ideal, c.adaptive);
+  if (c.caustics) text += fmt::format(" caustics {}", c.caustic_roughness);
   if (c.guiding)
     text += fmt::format(" guiding {} {} {} {} {} {}", c.guiding_fraction, c.guiding_min_roughness,
                         c.guiding_spatial_threshold, c.recorder_budget, c.recorder_vertex_skip, c.recorder_min_distance);
@@ -147,6 +154,13 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     trainer = std::make_unique<SDTreeTrainer>(*sd_tree);
     opt.guide = sd_tree.get();
     opt.guiding_min_roughness = config.guiding_min_roughness;
+  }
+  std::unique_ptr<CausticTracer> caustics;
+  if (config.caustics) {
+    caustics = std::make_unique<CausticTracer>(rs.scene, rs.accel, rs.lights, rs.camera, rs.filter,
+                                               CausticOptions{config.caustic_roughness, config.seed});
+    if (caustics->active()) opt.caustics = caustics.get();
+    else log_info("--caustics: nothing to trace ({})", caustics->inactive_reason());
   }
   // The recorder costs nothing unless a debug buffer or guiding consumes it.
   std::unique_ptr<RadianceRecorder> recorder;
@@ -276,6 +290,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                     {"light_sampler", rs.light_sampler->name()},
                     {"schedule", schedule_name(config)},
                     {"guiding", config.guiding},
+                    {"caustics", config.caustics},
                     {"combine", config.combine},
                     {"adaptive", config.adaptive}};
   nlohmann::json phases;
@@ -329,6 +344,17 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                       {"quadtree_nodes", gs.quadtree_nodes},
                       {"bytes", sd_tree->memory_bytes()}};
     log["memory"]["guiding"] = sd_tree->memory_bytes();
+  }
+  if (caustics) {
+    const CausticStats& cs = caustics->stats();
+    log["caustics"] = {{"active", caustics->active()},
+                       {"inactive_reason", caustics->inactive_reason()},
+                       {"caster_roughness", config.caustic_roughness},
+                       {"paths", cs.paths},
+                       {"caster_hits", cs.caster_hits},
+                       {"receiver_hits", cs.receiver_hits},
+                       {"splats", cs.splats},
+                       {"seconds", cs.seconds}};
   }
   if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;
   if (!config.reference_path.empty()) log["reference"] = config.reference_path;

@@ -50,6 +50,10 @@ struct RenderConfig {
   float guiding_min_roughness = 0.05f;      // guide only BSDFs with a lobe rougher than this
   float guiding_spatial_threshold = 4000.0f;// SD-tree leaf split: this many samples times 2^(k/2)
 
+  // Directly seen caustics traced from the lights (wavefront/caustics.h).
+  bool caustics = false;
+  float caustic_roughness = 0.1f;   // casters: conductors and dielectrics no rougher than this
+
   // Iterations (scheduler/schedule.h): a named schedule, then any of its
   // numbers overridden (-1 / 0: keep the schedule's).
   std::string schedule;              // regular | guiding; empty: guiding with --guiding, else regular

@@ -5,6 +5,7 @@
 #include <glm/gtc/matrix_inverse.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -80,5 +81,8 @@ struct Transform {
   bool is_identity() const { return m == mat4(1.0f); }
   friend Transform operator*(const Transform& a, const Transform& b) { return {a.m * b.m, b.m_inv * a.m_inv}; }
 };
+
+// Lock-free accumulation into buffers that many threads splat into.
+inline void atomic_add(float& target, float v) { std::atomic_ref<float>(target).fetch_add(v, std::memory_order_relaxed); }
 
 }  // namespace theia

@@ -14,9 +14,8 @@ namespace {
 // time, so the lock is taken once per this many allocations or frees.
 constexpr size_t kFreeBatch = 256;
 
-void atomic_add(float& target, float v) { std::atomic_ref<float>(target).fetch_add(v, std::memory_order_relaxed); }
 void atomic_add(RGB& target, const RGB& v) {
-  for (int c = 0; c < 3; ++c) atomic_add(target[c], v[c]);
+  for (int c = 0; c < 3; ++c) theia::atomic_add(target[c], v[c]);
 }
 RGB load(RGB& v) {
   RGB r;

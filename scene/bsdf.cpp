@@ -308,10 +308,27 @@ static int lobe_of(const BSDF& bsdf, const vec3& wo, const vec3& wi) {
   return (bsdf.lobe_count == 2 && !same_hemisphere(wo, wi)) ? 1 : 0;
 }
 
-RGB bsdf_f(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
+RGB bsdf_f(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world, TransportMode mode) {
   vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
   if (wo.z == 0.0f) return RGB(0.0f);
-  return bxdf_f(bsdf.bxdf, wo, wi);
+  return bxdf_f(bsdf.bxdf, wo, wi, mode);
+}
+
+bool bsdf_is_caustic_caster(const BSDF& bsdf, float max_roughness) {
+  if (bsdf.kind != MaterialKind::Conductor && bsdf.kind != MaterialKind::Dielectric &&
+      bsdf.kind != MaterialKind::ThinDielectric)
+    return false;
+  if (bsdf.lobe_count == 0) return false;
+  for (int i = 0; i < bsdf.lobe_count; ++i)
+    if (!(bsdf.lobes[i].roughness <= max_roughness)) return false;
+  return true;
+}
+
+bool bsdf_is_caustic_receiver(const BSDF& bsdf) {
+  if (bsdf.lobe_count == 0) return false;
+  for (int i = 0; i < bsdf.lobe_count; ++i)
+    if ((bsdf.lobes[i].flags & (kLobeGlossy | kLobeSpecular)) || !(bsdf.lobes[i].flags & kLobeDiffuse)) return false;
+  return true;
 }
 
 float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo_world, const vec3& wi_world) {
@@ -326,16 +343,17 @@ float bsdf_pdf(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
   return bxdf_pdf(bsdf.bxdf, wo, wi);
 }
 
-std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u) {
+std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
+                                      TransportMode mode) {
   vec3 wo = bsdf.shading.to_local(wo_world);
   if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
-  auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u);
+  auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u, mode);
   if (!bs) return std::nullopt;
   BSDFSample s;
   s.f = bs->f;
   s.pdf = bs->pdf;
   if (bs->pdf_is_proportional && !bs->is_specular()) {
-    float pdf = bxdf_pdf(bsdf.bxdf, wo, bs->wi);
+    float pdf = bxdf_pdf(bsdf.bxdf, wo, bs->wi, mode);
     if (!(pdf > 0.0f)) return std::nullopt;
     s.f = bs->f * (pdf / bs->pdf);
     s.pdf = pdf;

@@ -68,13 +68,15 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
 inline bool bsdf_is_passthrough(const BSDF& bsdf) { return bsdf.lobe_count == 0; }
 
 // f(wo, wi) summed over the non-specular lobes; wo and wi are world-space unit vectors.
-RGB bsdf_f(const BSDF& bsdf, const vec3& wo, const vec3& wi);
+// `mode` Importance for paths traced from the lights (the adjoint BSDF).
+RGB bsdf_f(const BSDF& bsdf, const vec3& wo, const vec3& wi, TransportMode mode = TransportMode::Radiance);
 // Solid-angle pdf that bsdf_sample() produces wi (non-specular lobes only).
 float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
 // For the stochastic layered BxDFs a non-specular sample reports bsdf_pdf()
 // as its pdf (what MIS needs) and f rescaled so that f / pdf is the random
 // walk's own weight, as pbrt-v4's pdfIsProportional handling amounts to.
-std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u);
+std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u,
+                                      TransportMode mode = TransportMode::Radiance);
 // The scattering event of a direction chosen elsewhere (by a path-guiding
 // distribution): f, bsdf_pdf, and the lobe the direction belongs to with its
 // flags, roughness and eta, as bsdf_sample would report them.  nullopt where
@@ -86,6 +88,13 @@ std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo, const vec
 // lobe rougher than `min_roughness`, since
 // directions a guide proposes rarely matter to a near-specular lobe.
 bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness);
+// The two ends of a directly seen caustic (wavefront/caustics.h): a caster
+// is a conductor or dielectric whose every lobe is at most `max_roughness`
+// rough (a near-mirror, a glass); a receiver's every lobe is diffuse.  Both
+// depend on the BSDF alone, so that camera paths and light paths agree on
+// which paths are caustics.
+bool bsdf_is_caustic_caster(const BSDF& bsdf, float max_roughness);
+bool bsdf_is_caustic_receiver(const BSDF& bsdf);
 // Joint pdf of choosing `lobe` and sampling wi (the lobes' pdfs sum to
 // bsdf_pdf), for guiding's per-lobe decisions.
 float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);

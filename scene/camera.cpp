@@ -108,6 +108,34 @@ vec2 spherical_camera_raster(const Camera& c, const vec3& dir) {
   return uv * c.resolution;
 }
 
+bool camera_supports_wi(const Camera& c) {
+  if (c.kind != CameraKind::Perspective || c.lens_radius > 0.0f) return false;
+  mat3 m(c.render_from_camera.m);
+  mat3 g = glm::transpose(m) * m;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (std::abs(g[i][j] - (i == j ? 1.0f : 0.0f)) > 1e-4f) return false;
+  return true;
+}
+
+std::optional<CameraWiSample> camera_wi(const Camera& c, const vec3& p) {
+  vec3 p_camera = c.render_from_camera.inverse().point(p);
+  float d2 = glm::dot(p_camera, p_camera);
+  if (!(p_camera.z > 0.0f) || !(d2 > 0.0f) || !std::isfinite(d2)) return std::nullopt;
+  float d = std::sqrt(d2);
+  float cos_theta = p_camera.z / d;
+  vec3 q = p_camera / p_camera.z;  // on the z = 1 plane, where cameraFromRaster puts the film
+  CameraWiSample s;
+  s.raster = vec2((q.x - c.p00.x) / c.dx.x, (q.y - c.p00.y) / c.dy.y);
+  s.p_lens = c.render_from_camera.point(vec3(0.0f));
+  s.wi = (s.p_lens - p) / d;
+  s.distance = d;
+  float film_area = std::abs(c.dx.x * c.resolution.x * c.dy.y * c.resolution.y);
+  s.importance = 1.0f / (film_area * cos_theta * cos_theta * cos_theta * d2);
+  if (!std::isfinite(s.importance) || !std::isfinite(s.raster.x) || !std::isfinite(s.raster.y)) return std::nullopt;
+  return s;
+}
+
 Ray generate_camera_ray(const Camera& c, vec2 p_film, vec2 u_lens) {
   vec3 o(0.0f), d;
   if (c.kind == CameraKind::Spherical) {

@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace theia {
 
@@ -51,6 +52,23 @@ Camera make_camera(const CameraParams& camera, const FilmParams& film);
 // for a pinhole and the spherical camera).  p_film may lie a filter radius
 // outside the image.
 Ray generate_camera_ray(const Camera& camera, vec2 p_film, vec2 u_lens);
+
+// The camera seen from a render-space point (pbrt-v4's Camera::SampleWi), for
+// light paths that end on it.  Pinhole perspective cameras with a rigid
+// render_from_camera only (camera_supports_wi).  raster: where the point
+// lands (may lie outside the image); wi: unit direction from p to the
+// pinhole; importance: pbrt-v4's We / pdf = 1 / (A cos^3 theta d^2), A the
+// film's area on the z = 1 plane, so that radiance L leaving p along wi
+// contributes L * importance per unit raster area (pbrt-v4's splat scale).
+struct CameraWiSample {
+  vec2 raster{0.0f};
+  vec3 p_lens{0.0f};
+  vec3 wi{0.0f};
+  float distance = 0.0f;
+  float importance = 0.0f;
+};
+bool camera_supports_wi(const Camera& camera);
+std::optional<CameraWiSample> camera_wi(const Camera& camera, const vec3& p);
 
 // Spherical camera: the camera-space unit direction of raster point p_film,
 // and back (the raster point of a camera-space direction, within the image).

@@ -429,6 +429,36 @@ RGB area_light_L(const LightSet& lights, int light_index, const SurfaceInteracti
   return area_radiance(lights, light_index, hit.prim, hit.uv);
 }
 
+std::optional<LightLeSample> sample_le(const LightSet& lights, int light_index, vec2 u_pos, float u_prim,
+                                       vec2 u_dir) {
+  const Light& light = lights.scene->lights[size_t(light_index)];
+  if (light.kind != LightKind::Area) return std::nullopt;
+  auto ss = lights.shapes.sample_area(light.shape, u_pos, u_prim);
+  if (!ss || area_light_alpha_masked(*lights.scene, light.shape, ss->p, ss->uv)) return std::nullopt;
+  LightLeSample ls;
+  ls.L = area_radiance(lights, light_index, ss->prim, ss->uv);
+  if (is_black(ls.L)) return std::nullopt;
+  ls.p = ss->p;
+  ls.p_error = ss->p_error;
+  ls.n = ss->n;
+  ls.pdf_pos = ss->pdf;
+  vec3 n = ss->n;
+  if (light.two_sided) {
+    // The first coordinate picks the side and is stretched back to [0, 1).
+    if (u_dir.x < 0.5f) {
+      u_dir.x = std::min(u_dir.x * 2.0f, kOneMinusEpsilon);
+    } else {
+      u_dir.x = std::min((u_dir.x - 0.5f) * 2.0f, kOneMinusEpsilon);
+      n = -n;
+    }
+  }
+  vec3 w_local = sample_cosine_hemisphere(u_dir);
+  ls.pdf_dir = cosine_hemisphere_pdf(w_local.z) * (light.two_sided ? 0.5f : 1.0f);
+  if (!(ls.pdf_dir > 0.0f)) return std::nullopt;
+  ls.w = glm::normalize(Frame::from_z(n).from_local(w_local));
+  return ls;
+}
+
 bool area_light_alpha_masked(const Scene& scene, int shape, const vec3& p, vec2 uv) {
   int alpha = scene.shapes[size_t(shape)].alpha;
   if (alpha < 0) return false;

@@ -119,6 +119,20 @@ bool area_light_alpha_masked(const Scene& scene, int shape, const vec3& p, vec2 
 // Radiance arriving along an escaped ray from one infinite light.
 RGB infinite_light_Le(const LightSet& lights, int light, const vec3& dir);
 
+// A ray leaving an area light (pbrt-v4's Light::SampleLe): a point by area
+// (triangles by power, as for light sampling) and a cosine-weighted
+// direction on its emitting side (either side, each half the time, when
+// two-sided).  L is what leaves along the ray; the pdfs are per unit area and
+// per unit solid angle.  nullopt for other lights, and where the point is
+// alpha-masked or emits nothing.
+struct LightLeSample {
+  RGB L{0.0f};
+  vec3 p{0.0f}, p_error{0.0f}, n{0.0f};  // n: the shape's oriented normal at p
+  vec3 w{0.0f};
+  float pdf_pos = 0.0f, pdf_dir = 0.0f;
+};
+std::optional<LightLeSample> sample_le(const LightSet& lights, int light, vec2 u_pos, float u_prim, vec2 u_dir);
+
 // Total emitted power (for power-proportional light selection), as luminance.
 float light_power(const LightSet& lights, int light);
 

@@ -465,6 +465,12 @@ std::optional<ShapeSample> to_solid_angle(ShapeSample ss, float pdf_area, const 
   return ss;
 }
 
+std::optional<ShapeSample> with_pdf(ShapeSample ss, float pdf_area) {
+  ss.pdf = pdf_area;
+  if (!std::isfinite(ss.pdf) || ss.pdf <= 0.0f) return std::nullopt;
+  return ss;
+}
+
 ShapeSample from_quadric(const ShapeSampling::Entry& e, const LocalGeom& g) {
   ShapeSample ss;
   ss.p = vec3(dvec3(e.render_from_object * dvec4(g.p, 1.0)));
@@ -604,24 +610,6 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
   if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
   const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
   if (!(e.area > 0.0f)) return std::nullopt;
-
-  if (e.kind == ShapeKind::TriangleMesh) {
-    const TriangleMesh& m = *e.mesh;
-    size_t t = size_t(e.triangles.sample_discrete(u_prim));
-    vec2 b = sample_uniform_triangle(u);
-    float b0 = b.x, b1 = b.y, b2 = 1.0f - b.x - b.y;
-    const vec3 &p0 = m.p[m.indices[3 * t]], &p1 = m.p[m.indices[3 * t + 1]], &p2 = m.p[m.indices[3 * t + 2]];
-    ShapeSample ss;
-    ss.p = b0 * p0 + b1 * p1 + b2 * p2;
-    ss.p_error = gamma_bound(6) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
-    ss.n = triangle_normal(m, e.flip, t, b0, b1, b2, nullptr);
-    vec2 uv[3];
-    triangle_uvs(m, t, uv);
-    ss.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
-    ss.prim = int(t);
-    return to_solid_angle(ss, area_pdf(e, ss.p, ss.prim), ref);
-  }
-
   if (e.kind == ShapeKind::Sphere) {
     const SphereShape& sp = e.sphere;
     vec3 to_center = e.center - ref.p;
@@ -656,13 +644,43 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       if (!std::isfinite(ss.pdf)) return std::nullopt;
       return ss;
     }
+  }
+  auto ss = sample_area(shape, u, u_prim);
+  if (!ss) return std::nullopt;
+  return to_solid_angle(*ss, ss->pdf, ref);
+}
+
+std::optional<ShapeSample> ShapeSampling::sample_area(int shape, vec2 u, float u_prim) const {
+  if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
+  const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
+  if (!(e.area > 0.0f)) return std::nullopt;
+
+  if (e.kind == ShapeKind::TriangleMesh) {
+    const TriangleMesh& m = *e.mesh;
+    size_t t = size_t(e.triangles.sample_discrete(u_prim));
+    vec2 b = sample_uniform_triangle(u);
+    float b0 = b.x, b1 = b.y, b2 = 1.0f - b.x - b.y;
+    const vec3 &p0 = m.p[m.indices[3 * t]], &p1 = m.p[m.indices[3 * t + 1]], &p2 = m.p[m.indices[3 * t + 2]];
+    ShapeSample ss;
+    ss.p = b0 * p0 + b1 * p1 + b2 * p2;
+    ss.p_error = gamma_bound(6) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
+    ss.n = triangle_normal(m, e.flip, t, b0, b1, b2, nullptr);
+    vec2 uv[3];
+    triangle_uvs(m, t, uv);
+    ss.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
+    ss.prim = int(t);
+    return with_pdf(ss, area_pdf(e, ss.p, ss.prim));
+  }
+
+  if (e.kind == ShapeKind::Sphere) {
+    const SphereShape& sp = e.sphere;
     // Uniform in (z, phi) is uniform in area on the (partial) object-space sphere.
     double z = sp.zmin + double(u.x) * (sp.zmax - sp.zmin);
     double phi = double(u.y) * sp.phimax;
     double theta = std::acos(std::clamp(z / sp.radius, -1.0, 1.0));
     LocalGeom g = sphere_local(sp, phi, theta);
     ShapeSample ss = from_quadric(e, g);
-    return to_solid_angle(ss, area_pdf(e, ss.p, -1), ref);
+    return with_pdf(ss, area_pdf(e, ss.p, -1));
   }
 
   if (e.kind == ShapeKind::Cylinder) {
@@ -671,7 +689,7 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
     double z = cy.zmin + double(u.x) * (cy.zmax - cy.zmin);
     double phi = double(u.y) * cy.phimax;
     ShapeSample ss = from_quadric(e, cylinder_local(cy, phi, z));
-    return to_solid_angle(ss, area_pdf(e, ss.p, -1), ref);
+    return with_pdf(ss, area_pdf(e, ss.p, -1));
   }
 
   const DiskShape& dk = e.disk;
@@ -688,7 +706,7 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
     x = r * std::cos(phi);
     y = r * std::sin(phi);
   }
-  return to_solid_angle(from_quadric(e, disk_local(dk, x, y)), 1.0f / e.area, ref);
+  return with_pdf(from_quadric(e, disk_local(dk, x, y)), 1.0f / e.area);
 }
 
 float ShapeSampling::pdf(int shape, const ShapeSampleContext& ref, const vec3& wi,

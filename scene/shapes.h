@@ -116,6 +116,8 @@ class ShapeSampling {
   explicit ShapeSampling(const Scene& scene, const std::vector<std::vector<float>>& triangle_weight = {});
 
   std::optional<ShapeSample> sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim) const;
+  // A point by area (what sample() does where it does not sample a cone), pdf per unit area.
+  std::optional<ShapeSample> sample_area(int shape, vec2 u, float u_prim) const;
   // Solid-angle density with which sample() returns light_hit's point in direction wi.
   float pdf(int shape, const ShapeSampleContext& ref, const vec3& wi, const SurfaceInteraction& light_hit) const;
   float area(int shape) const;

@@ -93,6 +93,7 @@ struct WavefrontEngine::Impl {
   Film& film;
   EngineOptions opt;
   PathObserver* observer;
+  CausticTracer* caustics = nullptr;  // opt.caustics when active and usable in this engine
 
   PathStatePool pool;
   // Per path slot, the curve segment its queued ray left; allocated only
@@ -140,6 +141,7 @@ struct WavefrontEngine::Impl {
     // Bump mapping takes its finite-difference offsets from the footprint too.
     for (const Material& m : scene.materials) uses_footprint |= m.displacement >= 0;
     footprint_scale = footprint_spp_scale(opt.footprint_spp);
+    if (opt.caustics && opt.caustics->active() && opt.throughput_reset_depth < 0) caustics = opt.caustics;
   }
 
   UVFootprint footprint(const SurfaceInteraction& si) const {
@@ -222,7 +224,7 @@ struct WavefrontEngine::Impl {
         ps.filter_weight = fs.weight;
         ps.prev_pdf = 0.0f;
         ps.depth = 0;
-        ps.prev_specular = 1;
+        ps.flags = kPathPrevSpecular;
         ps.alpha_only = alpha_only ? 1 : 0;
         ps.eta_scale = 1.0f;
         if (!path_skip.empty()) path_skip[slots[i]] = PrimRef{};
@@ -370,7 +372,10 @@ struct WavefrontEngine::Impl {
     const uint32_t pixel = ps.pixel, sample = ps.sample, depth = ps.depth;
     const float fw = ps.filter_weight;
     RGB beta = ps.beta;
-    const bool prev_specular = ps.prev_specular != 0;
+    const bool prev_specular = (ps.flags & kPathPrevSpecular) != 0;
+    // Emission after a receiver and a caster, from a light the caustic pass
+    // traces, is that pass's to count (wavefront/caustics.h).
+    const bool caustic_suffix = (ps.flags & kPathCausticCaster) != 0;
     LightSampleContext prev_ctx{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
     // Throughput-reset image (recorder debug, bounce N): only light arriving
     // at vertices of depth >= N reaches the film, with the throughput set to
@@ -415,7 +420,7 @@ struct WavefrontEngine::Impl {
     }
 
     // Emission found by the BSDF-sampled ray.
-    if (si.area_light >= 0) {
+    if (si.area_light >= 0 && !(caustic_suffix && caustics->traces_light(si.area_light))) {
       const Light& light = scene.lights[si.area_light];
       RGB Le = area_light_L(lights, si.area_light, si, wo);
       if (!is_black(Le)) {
@@ -463,6 +468,17 @@ struct WavefrontEngine::Impl {
     const uint32_t dim = kBounceBase + kDimsPerBounce * depth;
     if (int(depth) == reset_depth) beta = RGB(1.0f);
 
+    // Directly seen caustics: a receiver at the primary hit and a caster
+    // right after it hand the caster's light from the traced lights to the
+    // caustic pass, by NEE here and by emission at the next hit.
+    uint8_t caustic_flags = 0;
+    if (caustics) {
+      if (depth == 0 && bsdf_is_caustic_receiver(bsdf)) caustic_flags = kPathCausticReceiver;
+      else if (depth == 1 && (ps.flags & kPathCausticReceiver) &&
+               bsdf_is_caustic_caster(bsdf, caustics->caster_roughness()))
+        caustic_flags = kPathCausticCaster;
+    }
+
     // The guide's region, where this vertex samples directions from the
     // mixture of guide and BSDF; every pdf MIS needs at this vertex is then
     // the mixture's.
@@ -479,8 +495,10 @@ struct WavefrontEngine::Impl {
     if (!bsdf_is_specular(bsdf) && int(depth) >= reset_depth) {
       LightSampleContext ctx{si.p, si.p_error, si.ng, ns};
       if (auto sl = light_sampler.sample(ctx, sample1(pixel, sample, dim + kDimLightChoice))) {
-        auto ls = sample_li(lights, sl->light, ctx, sample2(pixel, sample, dim + kDimLightPoint),
-                            sample1(pixel, sample, dim + kDimLightPrim));
+        auto ls = caustic_flags == kPathCausticCaster && caustics->traces_light(sl->light)
+                      ? std::nullopt
+                      : sample_li(lights, sl->light, ctx, sample2(pixel, sample, dim + kDimLightPoint),
+                                  sample1(pixel, sample, dim + kDimLightPrim));
         // pdf guard: the product of selection and sampling pdfs can underflow
         // to 0 (a light of 1e-3 beside one of 1e9); such a sample is dropped, never divided by.
         const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
@@ -596,7 +614,7 @@ struct WavefrontEngine::Impl {
     ps.depth = uint16_t(next_depth);
     ps.prev_pdf = bs->pdf;
     ps.eta_scale = eta_scale;
-    ps.prev_specular = bs->is_specular() ? 1 : 0;
+    ps.flags = uint8_t((bs->is_specular() ? kPathPrevSpecular : 0) | caustic_flags);
     ps.prev_p = si.p;
     ps.prev_ng = si.ng;
     out.rays.rays.push_back(spawn_ray(si, bs->wi));
@@ -711,6 +729,12 @@ struct WavefrontEngine::Impl {
         continue;
       }
       break;
+    }
+    // The iteration's camera samples are all in: the caustic pass adds its
+    // estimate for the same samples (an interrupted iteration runs it when resumed).
+    if (caustics && !ranges && next_camera == camera_end) {
+      ScopedTimer timer(stats.phases[Phase::Caustics]);
+      caustics->trace(film, sample_begin, sample_begin + sample_count);
     }
     report();
     stats.render_seconds += seconds_since(t0);

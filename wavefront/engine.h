@@ -13,6 +13,7 @@
 #include "cachepoints/light_sampler.h"
 #include "core/directional_guide.h"
 #include "core/stats.h"
+#include "wavefront/caustics.h"
 #include "scene/accel.h"
 #include "scene/camera.h"
 #include "scene/filter.h"
@@ -57,6 +58,11 @@ struct EngineOptions {
   // sample of the mixture (seeds/000 ch. 1 section 3.2).  Null: no guiding.
   const DirectionalGuide* guide = nullptr;
   float guiding_min_roughness = 0.05f;
+  // Directly seen caustics traced from the lights (wavefront/caustics.h):
+  // when set and active, camera paths leave those paths to it, and each
+  // completed render() call runs its pass for the same samples.  Not with
+  // per-pixel sample ranges (adaptive sampling) or the throughput-reset image.
+  CausticTracer* caustics = nullptr;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
@@ -73,8 +79,8 @@ struct SampleRanges {
   uint64_t total() const { return offset.empty() ? 0 : offset.back(); }
 };
 
-enum class Phase { Generate, Sort, Trace, TraceShadow, Shade, Queue, Count };
-inline constexpr const char* kPhaseNames[] = {"generate", "sort", "trace", "trace_shadow", "shade", "queue"};
+enum class Phase { Generate, Sort, Trace, TraceShadow, Shade, Queue, Caustics, Count };
+inline constexpr const char* kPhaseNames[] = {"generate", "sort", "trace", "trace_shadow", "shade", "queue", "caustics"};
 
 struct EngineStats {
   PhaseTimes<Phase, size_t(Phase::Count)> phases;

@@ -4,8 +4,6 @@
 
 namespace theia {
 
-static void atomic_add(float& target, float v) { std::atomic_ref<float>(target).fetch_add(v, std::memory_order_relaxed); }
-
 const char* const Film::kPlaneNames[Film::kPlaneCount] = {
     "R",    "G",    "B",    "weight", "alpha", "albedo.R", "albedo.G", "albedo.B", "N.X",
     "N.Y",  "N.Z",  "depth", "odd.R", "odd.G", "odd.B",    "odd.weight", "alpha_weight"};
@@ -122,6 +120,17 @@ ImageBuffer resolve_film(const Film& film) {
   }
   if (!film.layers.empty()) append_film_layers(img, film.layers, film.weight);
   return img;
+}
+
+void Film::add_resolved(const std::vector<float>& rgb, const std::vector<float>& rgb_odd) {
+  for (size_t j = 0; j < pixel_count(); ++j) {
+    r[j] += rgb[3 * j] * weight[j];
+    g[j] += rgb[3 * j + 1] * weight[j];
+    b[j] += rgb[3 * j + 2] * weight[j];
+    r_odd[j] += rgb_odd[3 * j] * weight_odd[j];
+    g_odd[j] += rgb_odd[3 * j + 1] * weight_odd[j];
+    b_odd[j] += rgb_odd[3 * j + 2] * weight_odd[j];
+  }
 }
 
 }  // namespace theia

@@ -25,8 +25,14 @@ namespace theia {
   F(float, prev_pdf)          /* solid-angle pdf of the BSDF sample that made the ray */      \
   F(float, eta_scale)         /* product of eta^2 over refractions (pbrt-v4's etaScale, RR) */ \
   F(uint16_t, depth)          /* bounces so far: 0 for the camera ray */                      \
-  F(uint8_t, prev_specular)   /* that sample came from a specular lobe */                     \
+  F(uint8_t, flags)           /* PathFlags */                                                  \
   F(uint8_t, alpha_only)      /* consistent alpha: the camera ray only measures coverage */
+
+enum PathFlags : uint8_t {
+  kPathPrevSpecular = 1 << 0,    // the ray's direction came from a specular lobe
+  kPathCausticReceiver = 1 << 1, // the primary hit was a caustic receiver (wavefront/caustics.h)
+  kPathCausticCaster = 1 << 2,   // ... and the ray leaves the caster after it
+};
 
 struct alignas(64) PathState {
 #define THEIA_DECLARE_FIELD(type, name) type name;

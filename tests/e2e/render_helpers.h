@@ -29,6 +29,29 @@ inline Scene load_test_scene_file(const std::string& path) {
   return s;
 }
 
+// A one-sided area light facing up under a rough metal ceiling: the floor
+// sees the light only through the ceiling, so nearly all of its light is a
+// caustic (light -> ceiling -> floor -> camera).  The caustic tests' scene.
+inline std::string mirror_room_scene(int width, int height, float ceiling_roughness) {
+  return "Film \"rgb\" \"integer xresolution\" [" + std::to_string(width) + "] \"integer yresolution\" [" +
+         std::to_string(height) + R"(]
+  Integrator "volpath" "integer maxdepth" [5]
+  LookAt 0 5 -9  0 0 0  0 1 0
+  Camera "perspective" "float fov" [45]
+  WorldBegin
+  AttributeBegin
+    AreaLightSource "diffuse" "rgb L" [20 20 20]
+    Material "diffuse" "rgb reflectance" [0 0 0]
+    Shape "trianglemesh" "point3 P" [-1.5 3 -1.5  1.5 3 -1.5  1.5 3 1.5  -1.5 3 1.5] "integer indices" [0 2 1 0 3 2]
+  AttributeEnd
+  Material "conductor" "float roughness" [)" +
+         std::to_string(ceiling_roughness) + R"(] "bool remaproughness" false "rgb eta" [0.2 0.9 1.1] "rgb k" [3.9 2.4 2.1]
+  Shape "trianglemesh" "point3 P" [-3 5 -3  3 5 -3  3 5 3  -3 5 3] "integer indices" [0 1 2 0 2 3]
+  Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+  Shape "trianglemesh" "point3 P" [-8 0 -8  8 0 -8  8 0 8  -8 0 8] "integer indices" [0 1 2 0 2 3]
+)";
+}
+
 inline RenderConfig quick_config(int spp) {
   RenderConfig c;
   c.spp = spp;

@@ -231,3 +231,24 @@ TEST(Resume, PathGuidingResumesExactly) {
             0);
   EXPECT_GT(test::max_relative_difference(read_image_file(f.out("plain.exr")), ref), 1e-3);
 }
+
+// The caustic pass runs once an iteration's camera samples are all in, so an
+// iteration interrupted half-way and resumed gets it exactly once.
+TEST(Resume, CausticPassResumesExactly) {
+  fs::path dir = temp_dir("caustics");
+  std::string scene = (dir / "s.pbrt").string();
+  std::ofstream(scene) << test::mirror_room_scene(24, 16, 0.05f);
+  auto render = [&](const std::string& out, const std::string& more) {
+    return run("render " + scene + " -o " + (dir / out).string() + " --spp 40 --max-paths 256 -q --caustics" + more);
+  };
+  ASSERT_EQ(render("ref.exr", "").exit_code, 0);
+  ImageBuffer ref = read_image_file((dir / "ref.exr").string());
+  std::string ck = (dir / "ck").string();
+  // Schedule for 40 spp: 16 16 8; stop inside the second iteration.
+  ASSERT_EQ(render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at 1:0.5").exit_code, kInterrupted);
+  ASSERT_EQ(render("out.exr", " --checkpoint-dir " + ck + " --resume").exit_code, 0);
+  EXPECT_LT(test::max_relative_difference(read_image_file((dir / "out.exr").string()), ref), 1e-5);
+  nlohmann::json log = nlohmann::json::parse(std::ifstream((dir / "out.json").string()));
+  EXPECT_GT(log["caustics"]["splats"].get<uint64_t>(), 0u);
+  fs::remove_all(dir);
+}

@@ -1,0 +1,197 @@
+#include "wavefront/caustics.h"
+
+#include "core/hash.h"
+#include "core/sampler.h"
+#include "core/stats.h"
+#include "scene/bsdf.h"
+
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+
+namespace theia {
+
+namespace {
+
+// Sample dimensions of a light path (its own seed keeps them apart from the camera paths').
+constexpr uint32_t kDimPosition = 0, kDimDirection = 2, kDimBsdfDir = 4, kDimLight = 6, kDimPrim = 7, kDimLobe = 8;
+constexpr size_t kChunk = size_t(1) << 16;  // light paths traced together
+constexpr size_t kGrain = 256;
+
+// A light path on its way: throughput and the ray it travels.
+struct LightPath {
+  RGB beta{0.0f};
+  bool alive = false;
+};
+
+// A finished path's connection to the camera, waiting for its shadow ray.
+struct Connection {
+  vec2 raster{0.0f};
+  RGB value{0.0f};  // per unit raster area, before the filter
+  bool odd = false;
+  bool alive = false;
+};
+
+}  // namespace
+
+CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const LightSet& lights, const Camera& camera,
+                             const Filter& filter, const CausticOptions& options)
+    : scene_(scene), accel_(accel), lights_(lights), camera_(camera), filter_(filter), options_(options) {
+  traced_.assign(scene.lights.size(), 0);
+  std::vector<float> power;
+  for (size_t l = 0; l < scene.lights.size(); ++l) {
+    const Light& light = scene.lights[l];
+    if (light.kind != LightKind::Area || light.is_virtual || light.shape < 0) continue;
+    if (scene.shapes[size_t(light.shape)].alpha >= 0) continue;  // pbrt-v4's invisible lights and cut-outs
+    float p = light_power(lights, int(l));
+    if (!(p > 0.0f) || !std::isfinite(p)) continue;
+    traced_[l] = 1;
+    light_of_entry_.push_back(int(l));
+    power.push_back(p);
+  }
+  bool has_caster = false, has_interface = false;
+  for (const Material& m : scene.materials) {
+    has_caster |= m.kind == MaterialKind::Conductor || m.kind == MaterialKind::Dielectric ||
+                  m.kind == MaterialKind::ThinDielectric;
+    has_interface |= m.kind == MaterialKind::Interface;
+  }
+  if (!camera_supports_wi(camera)) inactive_reason_ = "the camera is not a pinhole perspective camera";
+  else if (light_of_entry_.empty()) inactive_reason_ = "no area light without alpha";
+  else if (!has_caster) inactive_reason_ = "no conductor or dielectric material";
+  else if (has_interface) inactive_reason_ = "interface materials";
+  else if (!scene.curves.empty()) inactive_reason_ = "curves";
+  active_ = inactive_reason_.empty();
+  if (active_) light_distribution_ = Distribution1D(power);
+  else std::fill(traced_.begin(), traced_.end(), 0);
+}
+
+void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end) {
+  if (!active_ || sample_end <= sample_begin) return;
+  auto t0 = std::chrono::steady_clock::now();
+  const uint32_t seed = uint32_t(hash(options_.seed, 0xca057u));
+  const size_t pixels = film.pixel_count();
+  const uint64_t total = uint64_t(pixels) * uint64_t(sample_end - sample_begin);
+  // Each pixel's estimate, RGB interleaved, from all light paths and from
+  // the odd-numbered ones (the film's half buffers).
+  std::vector<float> estimate(3 * pixels, 0.0f), estimate_odd(3 * pixels, 0.0f);
+  const vec2 radius = filter_radius(filter_);
+  const float scale = float(double(pixels) / double(total)) / filter_integral(filter_);
+  const int width = film.width, height = film.height;
+
+  std::vector<Ray> rays(kChunk), shadow(kChunk);
+  std::vector<Hit> hits(kChunk);
+  std::vector<uint8_t> blocked(kChunk);
+  std::vector<LightPath> paths(kChunk);
+  std::vector<Connection> connections(kChunk);
+  std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0};
+
+  for (uint64_t first = 0; first < total; first += kChunk) {
+    const size_t n = size_t(std::min<uint64_t>(kChunk, total - first));
+    auto key = [&](size_t i) {
+      uint64_t k = first + i;
+      return SamplerKey{seed, uint32_t(k % pixels), sample_begin + uint32_t(k / pixels)};
+    };
+    auto parallel = [&](auto&& body) {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) body(i);
+      });
+    };
+    auto trace_rays = [&] {
+      for (size_t i = 0; i < n; ++i)
+        if (!paths[i].alive) rays[i] = Ray{vec3(0.0f), 0.0f, vec3(0, 0, 1), 0.0f};  // a no-op ray
+      accel_.intersect(std::span(rays.data(), n), std::span(hits.data(), n), false);
+    };
+
+    // Leave a light: a point by area, a cosine-weighted direction.
+    parallel([&](size_t i) {
+      SamplerKey k = key(i);
+      paths[i].alive = false;
+      float pmf = 0.0f;
+      int entry = light_distribution_.sample_discrete(sample_1d(k, kDimLight), &pmf);
+      int light = light_of_entry_[size_t(entry)];
+      auto le = sample_le(lights_, light, sample_2d(k, kDimPosition), sample_1d(k, kDimPrim),
+                          sample_2d(k, kDimDirection));
+      if (!le || !(pmf > 0.0f)) return;
+      RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
+      if (!is_finite(beta) || is_black(beta)) return;
+      paths[i] = {beta, true};
+      rays[i] = Ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
+    });
+    trace_rays();
+
+    // The caster: scatter with the adjoint BSDF.
+    parallel([&](size_t i) {
+      if (!paths[i].alive) return;
+      paths[i].alive = false;
+      if (!hits[i].hit()) return;
+      SurfaceInteraction si = compute_interaction(scene_, accel_, rays[i], hits[i]);
+      if (si.shape >= 0 && scene_.shapes[size_t(si.shape)].holdout) return;
+      BSDF bsdf = make_bsdf(scene_, si);
+      if (!bsdf_is_caustic_caster(bsdf, options_.caster_roughness)) return;
+      caster_hits.fetch_add(1, std::memory_order_relaxed);
+      SamplerKey k = key(i);
+      auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
+      if (!bs || !(bs->pdf > 0.0f)) return;
+      RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf);
+      if (!is_finite(beta) || is_black(beta)) return;
+      paths[i] = {beta, true};
+      rays[i] = spawn_ray(si, bs->wi);
+    });
+    trace_rays();
+
+    // The receiver, connected to the camera.
+    parallel([&](size_t i) {
+      connections[i].alive = false;
+      if (!paths[i].alive || !hits[i].hit()) return;
+      SurfaceInteraction si = compute_interaction(scene_, accel_, rays[i], hits[i]);
+      if (si.shape >= 0 && scene_.shapes[size_t(si.shape)].holdout) return;
+      BSDF bsdf = make_bsdf(scene_, si);
+      if (!bsdf_is_caustic_receiver(bsdf)) return;
+      receiver_hits.fetch_add(1, std::memory_order_relaxed);
+      auto cw = camera_wi(camera_, si.p);
+      if (!cw) return;
+      if (cw->raster.x < -radius.x || cw->raster.y < -radius.y || cw->raster.x > float(width) + radius.x ||
+          cw->raster.y > float(height) + radius.y)
+        return;
+      RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
+      RGB value = paths[i].beta * f * (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance);
+      if (!is_finite(value) || is_black(value)) return;
+      connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};
+      shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
+    });
+    for (size_t i = 0; i < n; ++i)
+      if (!connections[i].alive) shadow[i] = Ray{vec3(0.0f), 0.0f, vec3(0, 0, 1), 0.0f};
+    accel_.occluded(std::span<const Ray>(shadow.data(), n), std::span(blocked.data(), n));
+
+    // Splat through the pixel filter, as pbrt-v4's film adds splats.
+    parallel([&](size_t i) {
+      const Connection& c = connections[i];
+      if (!c.alive || blocked[i]) return;
+      splats.fetch_add(1, std::memory_order_relaxed);
+      int x0 = std::max(0, int(std::ceil(c.raster.x - 0.5f - radius.x)));
+      int x1 = std::min(width - 1, int(std::floor(c.raster.x - 0.5f + radius.x)));
+      int y0 = std::max(0, int(std::ceil(c.raster.y - 0.5f - radius.y)));
+      int y1 = std::min(height - 1, int(std::floor(c.raster.y - 0.5f + radius.y)));
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+          float h = filter_eval(filter_, c.raster - vec2(float(x) + 0.5f, float(y) + 0.5f));
+          if (h == 0.0f) continue;
+          RGB v = c.value * (h * scale);
+          size_t j = 3 * (size_t(y) * size_t(width) + size_t(x));
+          for (int ch = 0; ch < 3; ++ch) {
+            atomic_add(estimate[j + size_t(ch)], v[ch]);
+            // Half the paths are odd: their own estimate counts them twice.
+            if (c.odd) atomic_add(estimate_odd[j + size_t(ch)], 2.0f * v[ch]);
+          }
+        }
+    });
+  }
+  film.add_resolved(estimate, estimate_odd);
+  stats_.paths += total;
+  stats_.caster_hits += caster_hits.load();
+  stats_.receiver_hits += receiver_hits.load();
+  stats_.splats += splats.load();
+  stats_.seconds += seconds_since(t0);
+}
+
+}  // namespace theia

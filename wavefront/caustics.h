@@ -1,0 +1,81 @@
+// Directly seen caustics, traced from the lights: paths light -> caster ->
+// receiver -> camera (L S D E in Heckbert's notation, one caster), where the
+// caster is a near-mirror or a glass and the receiver is diffuse.  A small
+// light's reflection in a near-mirror, landing on a diffuse wall, is found by
+// a camera path only when the wall's diffuse bounce happens to hit the one
+// spot of the mirror that sees the light (veach-mis: about once in 3000
+// samples, at about 3000 times the pixel's value).  From the light, every
+// path that hits the mirror finds it.
+//
+// The two tracers split path space rather than weighting each other by MIS:
+// the engine's camera paths leave out exactly the paths this pass traces (a
+// receiver at the primary hit, a caster at the next, then one of this pass's
+// lights, reached by NEE or by hitting it), so every path is counted once
+// and the sum stays unbiased.  Which paths those are depends only on the
+// BSDFs at the two hits (scene/bsdf.h bsdf_is_caustic_caster / _receiver).
+#pragma once
+
+#include "core/sampling.h"
+#include "scene/accel.h"
+#include "scene/camera.h"
+#include "scene/filter.h"
+#include "scene/lights.h"
+#include "wavefront/film.h"
+
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+namespace theia {
+
+struct CausticOptions {
+  // Casters: conductors and dielectrics whose every lobe is at most this rough.
+  float caster_roughness = 0.1f;
+  uint32_t seed = 0;
+};
+
+struct CausticStats {
+  uint64_t paths = 0, caster_hits = 0, receiver_hits = 0, splats = 0;
+  double seconds = 0.0;
+};
+
+class CausticTracer {
+ public:
+  CausticTracer(const Scene& scene, const Accel& accel, const LightSet& lights, const Camera& camera,
+                const Filter& filter, const CausticOptions& options);
+
+  // Whether there is anything to trace: a pinhole perspective camera, an
+  // area light the pass can emit from, a material that can be a caster, and
+  // nothing the two tracers would see differently (interface materials,
+  // curves).  When false the engine neither splits path space nor calls trace().
+  bool active() const { return active_; }
+  // Area lights without alpha textures and not virtual: the lights whose
+  // caustics this pass owns.
+  bool traces_light(int light) const { return light >= 0 && size_t(light) < traced_.size() && traced_[size_t(light)]; }
+  float caster_roughness() const { return options_.caster_roughness; }
+  // Why the pass is off (for the log), empty when active.
+  const std::string& inactive_reason() const { return inactive_reason_; }
+
+  // One light path per camera sample of samples [sample_begin, sample_end)
+  // of every pixel; adds each pixel's estimate of its directly seen caustics
+  // to the film (Film::add_resolved).  Deterministic per (seed, samples).
+  void trace(Film& film, uint32_t sample_begin, uint32_t sample_end);
+
+  const CausticStats& stats() const { return stats_; }
+
+ private:
+  const Scene& scene_;
+  const Accel& accel_;
+  const LightSet& lights_;
+  const Camera& camera_;
+  const Filter& filter_;
+  CausticOptions options_;
+  bool active_ = false;
+  std::string inactive_reason_;
+  std::vector<uint8_t> traced_;  // per scene light
+  std::vector<int> light_of_entry_;
+  Distribution1D light_distribution_;  // over the traced lights, by power
+  CausticStats stats_;
+};
+
+}  // namespace theia

@@ -55,6 +55,9 @@ static void check_config(const RenderConfig& c) {
     throw_error("--caustic-roughness must be in [0, 1], got {}", c.caustic_roughness);
   if (c.caustics && c.adaptive)
     throw_error("--caustics cannot be combined with --adaptive yet: the caustic pass traces a fixed number of paths per pixel");
+  if (c.caustics && (c.recorder_debug || c.recorder_debug_bounce >= 0))
+    throw_error("--caustics cannot be combined with --recorder-debug: light-traced caustics reach the beauty, not the "
+                "recorder's vertices, so the debug layers would not match it");
   if (c.caustics && c.throughput_reset_bounce >= 0)
     throw_error("--caustics cannot be combined with --throughput-reset-bounce");
   if (!c.schedule.empty() && c.schedule != "regular" && c.schedule != "guiding")

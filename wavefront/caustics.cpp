@@ -65,7 +65,8 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
   else std::fill(traced_.begin(), traced_.end(), 0);
 }
 
-void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end) {
+void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end,
+                          const std::function<UVFootprint(const SurfaceInteraction&)>& footprint) {
   if (!active_ || sample_end <= sample_begin) return;
   auto t0 = std::chrono::steady_clock::now();
   const uint32_t seed = uint32_t(hash(options_.seed, 0xca057u));
@@ -126,7 +127,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
       if (!hits[i].hit()) return;
       SurfaceInteraction si = compute_interaction(scene_, accel_, rays[i], hits[i]);
       if (si.shape >= 0 && scene_.shapes[size_t(si.shape)].holdout) return;
-      BSDF bsdf = make_bsdf(scene_, si);
+      BSDF bsdf = make_bsdf(scene_, si, footprint(si));
       if (!bsdf_is_caustic_caster(bsdf, options_.caster_roughness)) return;
       caster_hits.fetch_add(1, std::memory_order_relaxed);
       SamplerKey k = key(i);
@@ -145,7 +146,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
       if (!paths[i].alive || !hits[i].hit()) return;
       SurfaceInteraction si = compute_interaction(scene_, accel_, rays[i], hits[i]);
       if (si.shape >= 0 && scene_.shapes[size_t(si.shape)].holdout) return;
-      BSDF bsdf = make_bsdf(scene_, si);
+      BSDF bsdf = make_bsdf(scene_, si, footprint(si));
       if (!bsdf_is_caustic_receiver(bsdf)) return;
       receiver_hits.fetch_add(1, std::memory_order_relaxed);
       auto cw = camera_wi(camera_, si.p);

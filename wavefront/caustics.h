@@ -24,6 +24,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace theia {
@@ -59,7 +60,10 @@ class CausticTracer {
   // One light path per camera sample of samples [sample_begin, sample_end)
   // of every pixel; adds each pixel's estimate of its directly seen caustics
   // to the film (Film::add_resolved).  Deterministic per (seed, samples).
-  void trace(Film& film, uint32_t sample_begin, uint32_t sample_end);
+  // `footprint` is the engine's texture footprint at a hit, so that both
+  // tracers make the same BSDF there (and agree on casters and receivers).
+  void trace(Film& film, uint32_t sample_begin, uint32_t sample_end,
+             const std::function<UVFootprint(const SurfaceInteraction&)>& footprint);
 
   const CausticStats& stats() const { return stats_; }
 

@@ -734,7 +734,8 @@ struct WavefrontEngine::Impl {
     // estimate for the same samples (an interrupted iteration runs it when resumed).
     if (caustics && !ranges && next_camera == camera_end) {
       ScopedTimer timer(stats.phases[Phase::Caustics]);
-      caustics->trace(film, sample_begin, sample_begin + sample_count);
+      caustics->trace(film, sample_begin, sample_begin + sample_count,
+                      [this](const SurfaceInteraction& si) { return footprint(si); });
     }
     report();
     stats.render_seconds += seconds_since(t0);

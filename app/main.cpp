@@ -65,8 +65,9 @@ int main(int argc, char** argv) {
   render->add_option("--guiding-spatial-threshold", rc.guiding_spatial_threshold,
                      "SD-tree: split a spatial leaf after this many samples times sqrt(spp of the iteration)")
       ->capture_default_str();
-  render->add_flag("--caustics", rc.caustics,
-                   "Trace directly seen caustics (light -> near-mirror or glass -> diffuse -> camera) from the lights");
+  render->add_flag("--caustics,!--no-caustics", rc.caustics,
+                   "Trace directly seen caustics (light -> near-mirror or glass -> diffuse -> camera) from the lights "
+                   "(default: on; off by itself where it finds nothing)");
   render->add_option("--caustic-roughness", rc.caustic_roughness,
                      "Caustic casters: conductors and dielectrics no rougher than this")
       ->capture_default_str();

@@ -53,13 +53,6 @@ static void check_config(const RenderConfig& c) {
     throw_error("--guiding-spatial-threshold must be positive, got {}", c.guiding_spatial_threshold);
   if (!(c.caustic_roughness >= 0.0f && c.caustic_roughness <= 1.0f))
     throw_error("--caustic-roughness must be in [0, 1], got {}", c.caustic_roughness);
-  if (c.caustics && c.adaptive)
-    throw_error("--caustics cannot be combined with --adaptive yet: the caustic pass traces a fixed number of paths per pixel");
-  if (c.caustics && (c.recorder_debug || c.recorder_debug_bounce >= 0))
-    throw_error("--caustics cannot be combined with --recorder-debug: light-traced caustics reach the beauty, not the "
-                "recorder's vertices, so the debug layers would not match it");
-  if (c.caustics && c.throughput_reset_bounce >= 0)
-    throw_error("--caustics cannot be combined with --throughput-reset-bounce");
   if (!c.schedule.empty() && c.schedule != "regular" && c.schedule != "guiding")
     throw_error("--schedule {}: expected regular or guiding", c.schedule);
   if (c.checkpoint_first_ideal <= 0)
@@ -158,12 +151,20 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     opt.guide = sd_tree.get();
     opt.guiding_min_roughness = config.guiding_min_roughness;
   }
+  // The caustic pass (on by default) stays off where its light paths could
+  // not be counted: per-pixel sample ranges (adaptive sampling) and the
+  // recorder's debug comparisons, which see camera paths only.
   std::unique_ptr<CausticTracer> caustics;
-  if (config.caustics) {
+  std::string caustics_off;
+  if (!config.caustics) caustics_off = "--no-caustics";
+  else if (config.adaptive) caustics_off = "adaptive sampling";
+  else if (config.recorder_debug || config.recorder_debug_bounce >= 0) caustics_off = "recorder debug layers";
+  else if (config.throughput_reset_bounce >= 0) caustics_off = "--throughput-reset-bounce";
+  if (caustics_off.empty()) {
     caustics = std::make_unique<CausticTracer>(rs.scene, rs.accel, rs.lights, rs.camera, rs.filter,
                                                CausticOptions{config.caustic_roughness, config.seed});
+    caustics_off = caustics->inactive_reason();
     if (caustics->active()) opt.caustics = caustics.get();
-    else log_info("--caustics: nothing to trace ({})", caustics->inactive_reason());
   }
   // The recorder costs nothing unless a debug buffer or guiding consumes it.
   std::unique_ptr<RadianceRecorder> recorder;
@@ -219,6 +220,22 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     tasks.on_end([&](const IterationInfo&) { recorder->end_iteration(); });
     tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [&](const IterationInfo&) { recorder->update_skip_rate(); });
   }
+  // The caustic pass's switch-off counters survive a resume, so a resumed
+  // render switches it off (or not) where an uninterrupted one does.
+  if (opt.caustics)
+    ic.participants.push_back({"caustics", 1,
+                               [&] {
+                                 ByteWriter w;
+                                 w.put(caustics->stats());
+                                 w.put(int32_t(caustics->passes()));
+                                 return w.bytes;
+                               },
+                               [&](const CheckpointSection& section) {
+                                 ByteReader r(section.bytes, "checkpoint section 'caustics'");
+                                 CausticStats cs = r.get<CausticStats>();
+                                 int passes = r.get<int32_t>();
+                                 caustics->restore_stats(cs, passes);
+                               }});
   // The field learns from each iteration's samples (handed over by the
   // recorder at the iteration's end); the next iteration samples it.
   if (sd_tree) {
@@ -348,10 +365,11 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                       {"bytes", sd_tree->memory_bytes()}};
     log["memory"]["guiding"] = sd_tree->memory_bytes();
   }
-  if (caustics) {
-    const CausticStats& cs = caustics->stats();
-    log["caustics"] = {{"active", caustics->active()},
-                       {"inactive_reason", caustics->inactive_reason()},
+  {
+    CausticStats cs = caustics ? caustics->stats() : CausticStats{};
+    log["caustics"] = {{"traced", opt.caustics != nullptr},
+                       {"off_because", caustics_off},
+                       {"switched_off_after_passes", cs.switched_off_after},
                        {"caster_roughness", config.caustic_roughness},
                        {"paths", cs.paths},
                        {"caster_hits", cs.caster_hits},

@@ -51,7 +51,7 @@ struct RenderConfig {
   float guiding_spatial_threshold = 4000.0f;// SD-tree leaf split: this many samples times 2^(k/2)
 
   // Directly seen caustics traced from the lights (wavefront/caustics.h).
-  bool caustics = false;
+  bool caustics = true;
   float caustic_roughness = 0.1f;   // casters: conductors and dielectrics no rougher than this
 
   // Iterations (scheduler/schedule.h): a named schedule, then any of its

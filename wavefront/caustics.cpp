@@ -193,6 +193,9 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
   stats_.receiver_hits += receiver_hits.load();
   stats_.splats += splats.load();
   stats_.seconds += seconds_since(t0);
+  ++passes_;
+  if (stats_.paths >= kCausticDecisionPaths && double(stats_.splats) < kCausticMinSplatRate * double(stats_.paths))
+    stats_.switched_off_after = passes_;
 }
 
 }  // namespace theia

@@ -141,7 +141,6 @@ struct WavefrontEngine::Impl {
     // Bump mapping takes its finite-difference offsets from the footprint too.
     for (const Material& m : scene.materials) uses_footprint |= m.displacement >= 0;
     footprint_scale = footprint_spp_scale(opt.footprint_spp);
-    if (opt.caustics && opt.caustics->active() && opt.throughput_reset_depth < 0) caustics = opt.caustics;
   }
 
   UVFootprint footprint(const SurfaceInteraction& si) const {
@@ -684,6 +683,9 @@ struct WavefrontEngine::Impl {
     auto t0 = std::chrono::steady_clock::now();
     sample_begin = s_begin;
     sample_count = s_end > s_begin ? s_end - s_begin : 0;
+    // Per iteration: the caustic pass may have switched itself off after the last one.
+    caustics = opt.caustics && opt.caustics->active() && opt.throughput_reset_depth < 0 && !ranges ? opt.caustics
+                                                                                                    : nullptr;
     camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
     next_camera = std::min(first_camera, camera_end);
     // Once stopped, no camera ray is generated: the paths in flight finish,
@@ -732,7 +734,7 @@ struct WavefrontEngine::Impl {
     }
     // The iteration's camera samples are all in: the caustic pass adds its
     // estimate for the same samples (an interrupted iteration runs it when resumed).
-    if (caustics && !ranges && next_camera == camera_end) {
+    if (caustics && next_camera == camera_end) {
       ScopedTimer timer(stats.phases[Phase::Caustics]);
       caustics->trace(film, sample_begin, sample_begin + sample_count,
                       [this](const SurfaceInteraction& si) { return footprint(si); });

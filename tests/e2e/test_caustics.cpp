@@ -37,7 +37,8 @@ TEST(Caustics, LightTracedCausticsConvergeToThePathTracedImage) {
   Scene scene = load_test_scene(kMirrorRoom);
   RenderResult pt = render(scene, 4096, false);
   RenderResult ca = render(scene, 256, true);
-  ASSERT_TRUE(ca.log["caustics"]["active"].get<bool>());
+  ASSERT_TRUE(ca.log["caustics"]["traced"].get<bool>());
+  EXPECT_EQ(ca.log["caustics"]["switched_off_after_passes"].get<int>(), -1);
   EXPECT_GT(ca.log["caustics"]["splats"].get<uint64_t>(), 10000u);
   RGB mp = image_mean(pt.image), mc = image_mean(ca.image);
   std::printf("mirror room: path traced 4096 spp (%.4f %.4f %.4f), with caustics 256 spp (%.4f %.4f %.4f)\n", mp.x,
@@ -88,4 +89,18 @@ TEST(CameraImportance, RasterAndDirectionRoundTrip) {
     EXPECT_NEAR(cw->distance, 7.0f, 1e-4f);
   }
   EXPECT_FALSE(camera_wi(cam, cam.render_from_camera.point(vec3(0, 0, -1))));  // behind the camera
+}
+
+// Casters and lights but no receiver in view: the pass finds nothing, so it
+// switches itself off once it has traced enough paths to say so, and the
+// image is the path tracer's.
+TEST(Caustics, SwitchesItselfOffWhenTheCameraSeesNoCaustic) {
+  std::string text = mirror_room_scene(64, 64, 0.1f);
+  text.replace(text.find("LookAt 0 5 -9  0 0 0"), 20, "LookAt 0 1 -9  0 1 -20");  // facing away, at the sky
+  Scene scene = load_test_scene(text);
+  RenderResult on = render(scene, 64, true), off = render(scene, 64, false);
+  // Regular schedule 16 16 32: 4096 x 32 = 131k paths after the second pass.
+  EXPECT_EQ(on.log["caustics"]["switched_off_after_passes"].get<int>(), 2);
+  EXPECT_EQ(on.log["caustics"]["splats"].get<uint64_t>(), 0u);
+  EXPECT_LT(max_relative_difference(on.image, off.image), 1e-5);
 }

@@ -5,7 +5,7 @@
 // theia must reach: relMSE <= 2x pbrt's, 8x8-block relMSE <= max(3x pbrt's,
 // 5e-4) (noise averages out there, bias does not), and every channel's mean
 // within pbrt's deviation + 0.02.  The Cornell box has its own test
-// (test_cornell.cpp).  veach-mis renders with the caustic pass: its tiny
+// (test_cornell.cpp).  veach-mis relies on the caustic pass (on by default): its tiny
 // bright sphere seen in a near-mirror plate, on the diffuse back wall, is a
 // caustic that camera paths alone find once in ~3000 samples at ~3000 times
 // the pixel's value (9 of 12 seeds meet the bar without the pass, 12 of 12
@@ -23,14 +23,13 @@ namespace {
 struct PbrtYardstick {
   const char* scene;
   double rel_mse, block_rel_mse, mean_deviation;
-  bool caustics = false;
 };
 
 constexpr PbrtYardstick kPbrt[] = {
     {"living-room", 0.0055, 7.6e-5, 0.0003},
     {"material-testball", 0.0256, 0.00123, 0.0021},
     {"veach-ajar", 0.679, 0.0093, 0.0046},
-    {"veach-mis", 0.0359, 0.00066, 0.0122, true},
+    {"veach-mis", 0.0359, 0.00066, 0.0122},
 };
 
 class Validation : public ::testing::TestWithParam<PbrtYardstick> {};
@@ -40,9 +39,7 @@ class Validation : public ::testing::TestWithParam<PbrtYardstick> {};
 TEST_P(Validation, MatchesPbrtReferenceAt256spp) {
   const PbrtYardstick& y = GetParam();
   Scene scene = load_test_scene_file(std::string(THEIA_SCENES) + "/" + y.scene + "/scene.pbrt");
-  RenderConfig c = quick_config(256);
-  c.caustics = y.caustics;
-  RenderResult r = render_scene(scene, c);
+  RenderResult r = render_scene(scene, quick_config(256));
   ImageBuffer ref = read_image_file(std::string(THEIA_TEST_DATA) + "/" + y.scene + ".exr");
   ErrorMetrics m = compute_error_metrics(r.image, ref);
   std::printf("%s 256 spp: relMSE %.5f (pbrt %.5f), block relMSE %.2e (pbrt %.2e), mean deviation %.4f (pbrt %.4f), %.1f s\n",

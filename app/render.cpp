@@ -375,6 +375,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
                        {"caster_hits", cs.caster_hits},
                        {"receiver_hits", cs.receiver_hits},
                        {"splats", cs.splats},
+                       {"dropped", cs.dropped},
                        {"seconds", cs.seconds}};
   }
   if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;

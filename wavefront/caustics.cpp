@@ -84,7 +84,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
   std::vector<uint8_t> blocked(kChunk);
   std::vector<LightPath> paths(kChunk);
   std::vector<Connection> connections(kChunk);
-  std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0};
+  std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
 
   for (uint64_t first = 0; first < total; first += kChunk) {
     const size_t n = size_t(std::min<uint64_t>(kChunk, total - first));
@@ -114,6 +114,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
                           sample_2d(k, kDimDirection));
       if (!le || !(pmf > 0.0f)) return;
       RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
+      if (!is_finite(beta)) dropped.fetch_add(1, std::memory_order_relaxed);
       if (!is_finite(beta) || is_black(beta)) return;
       paths[i] = {beta, true};
       rays[i] = Ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
@@ -134,6 +135,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
       auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
       if (!bs || !(bs->pdf > 0.0f)) return;
       RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf);
+      if (!is_finite(beta)) dropped.fetch_add(1, std::memory_order_relaxed);
       if (!is_finite(beta) || is_black(beta)) return;
       paths[i] = {beta, true};
       rays[i] = spawn_ray(si, bs->wi);
@@ -156,6 +158,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
         return;
       RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
       RGB value = paths[i].beta * f * (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance);
+      if (!is_finite(value)) dropped.fetch_add(1, std::memory_order_relaxed);
       if (!is_finite(value) || is_black(value)) return;
       connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};
       shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
@@ -192,6 +195,7 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
   stats_.caster_hits += caster_hits.load();
   stats_.receiver_hits += receiver_hits.load();
   stats_.splats += splats.load();
+  stats_.dropped += dropped.load();
   stats_.seconds += seconds_since(t0);
   ++passes_;
   if (stats_.paths >= kCausticDecisionPaths && double(stats_.splats) < kCausticMinSplatRate * double(stats_.paths))

@@ -37,6 +37,7 @@ struct CausticOptions {
 
 struct CausticStats {
   uint64_t paths = 0, caster_hits = 0, receiver_hits = 0, splats = 0;
+  uint64_t dropped = 0;  // light paths ended by a non-finite throughput or value (never splatted)
   double seconds = 0.0;
   int switched_off_after = -1;  // passes run before it switched itself off; -1: on
 };

@@ -50,6 +50,7 @@ TEST(Caustics, LightTracedCausticsConvergeToThePathTracedImage) {
   EXPECT_NEAR(half_mean(ca.image, false) / half_mean(pt.image, false), 1.0, 0.01);
   EXPECT_NEAR(half_mean(ca.image, true) / half_mean(pt.image, true), 1.0, 0.04);
   EXPECT_EQ(ca.log["dropped_samples"].get<uint64_t>(), 0u);
+  EXPECT_EQ(ca.log["caustics"]["dropped"].get<uint64_t>(), 0u);
 }
 
 // Splats add atomically in any order; the light paths themselves are a

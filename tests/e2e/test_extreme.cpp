@@ -45,8 +45,10 @@ void expect_sane(const RenderResult& r, bool expect_no_drops = true) {
 
 // A box with a sphere and an area light; `s` scales all of it (camera too),
 // `L` is the light's radiance.  Area lights and diffuse surfaces: the image
-// does not depend on s, and is linear in L.
-std::string box_scene(double s, double L) {
+// does not depend on s, and is linear in L.  `sphere` is the sphere's
+// material (a mirror makes caustics on the floor, traced from the light).
+std::string box_scene(double s, double L,
+                      const std::string& sphere = R"(Material "diffuse" "rgb reflectance" [0.5 0.5 0.8])") {
   return fmt::format(R"(
     Film "rgb" "integer xresolution" [24] "integer yresolution" [24]
     LookAt 0 {1} {2}  0 {1} 0  0 1 0
@@ -61,7 +63,7 @@ std::string box_scene(double s, double L) {
     Material "diffuse" "rgb reflectance" [0.2 0.7 0.2]
     Shape "trianglemesh" "point3 P" [1 0 -1  1 0 1  1 2 1  1 2 -1] "integer indices" [0 2 1 0 3 2]
     AttributeBegin
-      Material "diffuse" "rgb reflectance" [0.5 0.5 0.8]
+      {4}
       Translate 0.3 0.35 0.2
       Shape "sphere" "float radius" [0.35]
     AttributeEnd
@@ -71,7 +73,7 @@ std::string box_scene(double s, double L) {
         "integer indices" [0 1 2 0 2 3]
     AttributeEnd
   )",
-                     s, 1.0 * s, -3.5 * s, L);
+                     s, 1.0 * s, -3.5 * s, L, sphere);
 }
 
 // A white furnace: a constant environment of radiance 1 around surfaces of
@@ -109,6 +111,28 @@ TEST(ExtremeScale, SameImageAtScale1eMinus4And1e5) {
     RenderResult r = render_scene(load_test_scene(box_scene(s, 4.0)), extreme_config(32, 5));
     expect_sane(r);
     // Same random numbers, same paths up to rounding: the twin is the same image.
+    EXPECT_LT(channel_mean_deviation(r.image, base.image), 0.01) << "scale " << s;
+    EXPECT_LT(rel_mse(r.image, base.image), 1e-3) << "scale " << s;
+  }
+}
+
+// The caustic pass at the same scales: a mirror sphere's caustic on the
+// floor, traced from the light, gives the same image at 1e-4 and 1e5.
+TEST(ExtremeScale, CausticsSameImageAtScale1eMinus4And1e5) {
+  const std::string mirror = R"(Material "conductor" "float roughness" [0] "rgb eta" [0.2 0.9 1.1] "rgb k" [3.9 2.4 2.1])";
+  RenderResult base = render_scene(load_test_scene(box_scene(1.0, 4.0, mirror)), extreme_config(32, 5));
+  expect_sane(base);
+  ASSERT_TRUE(base.log["caustics"]["traced"].get<bool>());
+  EXPECT_GT(base.log["caustics"]["splats"].get<uint64_t>(), 100u);
+  for (double s : {1e-4, 1e5}) {
+    RenderResult r = render_scene(load_test_scene(box_scene(s, 4.0, mirror)), extreme_config(32, 5));
+    expect_sane(r);
+    EXPECT_EQ(r.log["caustics"]["dropped"].get<uint64_t>(), 0u) << "scale " << s;
+    // Same random numbers, same light paths: (nearly) the same ones reach the camera.
+    EXPECT_NEAR(double(r.log["caustics"]["splats"].get<uint64_t>()),
+                double(base.log["caustics"]["splats"].get<uint64_t>()),
+                0.02 * double(base.log["caustics"]["splats"].get<uint64_t>()))
+        << "scale " << s;
     EXPECT_LT(channel_mean_deviation(r.image, base.image), 0.01) << "scale " << s;
     EXPECT_LT(rel_mse(r.image, base.image), 1e-3) << "scale " << s;
   }

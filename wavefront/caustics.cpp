@@ -24,6 +24,16 @@ struct LightPath {
   bool alive = false;
 };
 
+// Veach's correction for shading normals in light transport (thesis 5.3;
+// pbrt-v3's CorrectShadingNormal): scattering importance-carrying light from
+// wo (towards the light) into wi with a shading normal ns that is not the
+// geometric ng.  1 where they agree.
+float adjoint_shading_correction(const vec3& wo, const vec3& wi, const vec3& ns, const vec3& ng) {
+  float den = std::abs(glm::dot(wo, ng)) * std::abs(glm::dot(wi, ns));
+  if (!(den > 0.0f)) return 0.0f;
+  return std::abs(glm::dot(wo, ns)) * std::abs(glm::dot(wi, ng)) / den;
+}
+
 // A finished path's connection to the camera, waiting for its shadow ray.
 struct Connection {
   vec2 raster{0.0f};
@@ -134,7 +144,8 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
       SamplerKey k = key(i);
       auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
       if (!bs || !(bs->pdf > 0.0f)) return;
-      RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf);
+      RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf) *
+                 adjoint_shading_correction(si.wo, bs->wi, bsdf.shading.n, si.ng);
       if (!is_finite(beta)) dropped.fetch_add(1, std::memory_order_relaxed);
       if (!is_finite(beta) || is_black(beta)) return;
       paths[i] = {beta, true};
@@ -157,7 +168,9 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
           cw->raster.y > float(height) + radius.y)
         return;
       RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
-      RGB value = paths[i].beta * f * (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance);
+      RGB value = paths[i].beta * f *
+                  (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance *
+                   adjoint_shading_correction(si.wo, cw->wi, bsdf.shading.n, si.ng));
       if (!is_finite(value)) dropped.fetch_add(1, std::memory_order_relaxed);
       if (!is_finite(value) || is_black(value)) return;
       connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};

@@ -105,3 +105,19 @@ TEST(Caustics, SwitchesItselfOffWhenTheCameraSeesNoCaustic) {
   EXPECT_EQ(on.log["caustics"]["splats"].get<uint64_t>(), 0u);
   EXPECT_LT(max_relative_difference(on.image, off.image), 1e-5);
 }
+
+// Shading normals that are not the geometric ones (a floor whose vertex
+// normals lean 20 degrees towards the camera): light paths need Veach's adjoint correction at
+// the caster and the receiver to agree with camera paths.
+TEST(Caustics, ShadingNormalsGetTheAdjointCorrection) {
+  std::string text = mirror_room_scene(32, 24, 0.1f);
+  const std::string floor = "Shape \"trianglemesh\" \"point3 P\" [-8 0 -8  8 0 -8  8 0 8  -8 0 8]";
+  text.replace(text.find(floor), floor.size(), floor + " \"normal N\" [0 0.94 -0.342  0 0.94 -0.342  0 0.94 -0.342  0 0.94 -0.342]");
+  Scene scene = load_test_scene(text);
+  RenderResult pt = render(scene, 4096, false), ca = render(scene, 256, true);
+  RGB mp = image_mean(pt.image), mc = image_mean(ca.image);
+  std::printf("leaning shading normals: path traced %.4f, with caustics %.4f\n", mp.y, mc.y);
+  EXPECT_NEAR(mc.y / mp.y, 1.0, 0.01);
+  EXPECT_NEAR(half_mean(ca.image, false) / half_mean(pt.image, false), 1.0, 0.015);
+}
+

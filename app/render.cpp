@@ -160,6 +160,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   else if (config.adaptive) caustics_off = "adaptive sampling";
   else if (config.recorder_debug || config.recorder_debug_bounce >= 0) caustics_off = "recorder debug layers";
   else if (config.throughput_reset_bounce >= 0) caustics_off = "--throughput-reset-bounce";
+  else if (max_depth < 2) caustics_off = "a maximum depth below 2 (no camera path reaches a light through a caster)";
   if (caustics_off.empty()) {
     caustics = std::make_unique<CausticTracer>(rs.scene, rs.accel, rs.lights, rs.camera, rs.filter,
                                                CausticOptions{config.caustic_roughness, config.seed});

@@ -684,8 +684,10 @@ struct WavefrontEngine::Impl {
     sample_begin = s_begin;
     sample_count = s_end > s_begin ? s_end - s_begin : 0;
     // Per iteration: the caustic pass may have switched itself off after the last one.
-    caustics = opt.caustics && opt.caustics->active() && opt.throughput_reset_depth < 0 && !ranges ? opt.caustics
-                                                                                                    : nullptr;
+    // Below depth 2 no camera path reaches a light through a caster, so there is nothing to hand over.
+    caustics = opt.caustics && opt.caustics->active() && opt.throughput_reset_depth < 0 && !ranges && opt.max_depth >= 2
+                   ? opt.caustics
+                   : nullptr;
     camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
     next_camera = std::min(first_camera, camera_end);
     // Once stopped, no camera ray is generated: the paths in flight finish,

@@ -71,6 +71,16 @@ TEST(Caustics, InactiveWithoutACasterAndTheImageIsUnchanged) {
   RenderResult on = render_scene(scene, c), off = render(scene, 8, false);
   EXPECT_EQ(on.log["caustics"]["splats"].get<uint64_t>(), 0u);
   EXPECT_LT(max_relative_difference(on.image, off.image), 1e-6);
+  // With a maximum depth of 1 no camera path reaches the light through the
+  // ceiling, so the light tracer must not add those paths either.
+  Scene shallow = load_test_scene(mirror_room_scene(32, 24, 0.1f));
+  RenderConfig d1 = quick_config(8);
+  d1.max_depth = 1;
+  RenderResult a = render_scene(shallow, d1);
+  d1.caustics = false;
+  RenderResult b = render_scene(shallow, d1);
+  EXPECT_FALSE(a.log["caustics"]["traced"].get<bool>());
+  EXPECT_LT(max_relative_difference(a.image, b.image), 1e-6);
 }
 
 // The pinhole's importance, checked against the camera's own rays: a point

@@ -47,7 +47,7 @@ struct SDTreeStats {
   size_t spatial_leaves = 0;
   size_t quadtree_nodes = 0;  // sampling + building, all leaves
   size_t bytes = 0;           // memory_bytes()
-  int updates = 0;            // k
+  int updates = 0;            // update() calls so far
   // The last finished iteration (the one the last update() consumed).
   uint64_t samples_recorded = 0;
   uint64_t samples_dropped = 0;

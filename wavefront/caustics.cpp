@@ -89,9 +89,10 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
   const float scale = float(double(pixels) / double(total)) / filter_integral(filter_);
   const int width = film.width, height = film.height;
 
-  std::vector<Ray> rays(kChunk), shadow(kChunk);
-  std::vector<Hit> hits(kChunk);
-  std::vector<uint8_t> blocked(kChunk);
+  std::vector<Ray> rays(kChunk), shadow(kChunk), dense(kChunk);
+  std::vector<Hit> hits(kChunk), dense_hits(kChunk);
+  std::vector<uint8_t> blocked(kChunk), dense_blocked(kChunk);
+  std::vector<uint32_t> live;
   std::vector<LightPath> paths(kChunk);
   std::vector<Connection> connections(kChunk);
   std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
@@ -107,10 +108,19 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
         for (size_t i = r.begin(); i != r.end(); ++i) body(i);
       });
     };
-    auto trace_rays = [&] {
+    // Only the live paths' rays are traced, gathered densely: most light
+    // paths end at their first hit (a caustic needs a caster, then a receiver).
+    auto gather = [&](const std::vector<Ray>& from, auto&& alive) {
+      live.clear();
       for (size_t i = 0; i < n; ++i)
-        if (!paths[i].alive) rays[i] = Ray{vec3(0.0f), 0.0f, vec3(0, 0, 1), 0.0f};  // a no-op ray
-      accel_.intersect(std::span(rays.data(), n), std::span(hits.data(), n), false);
+        if (alive(i)) live.push_back(uint32_t(i));
+      for (size_t j = 0; j < live.size(); ++j) dense[j] = from[live[j]];
+      return live.size();
+    };
+    auto trace_rays = [&] {
+      size_t m = gather(rays, [&](size_t i) { return paths[i].alive; });
+      accel_.intersect(std::span<const Ray>(dense.data(), m), std::span(dense_hits.data(), m), false);
+      for (size_t j = 0; j < m; ++j) hits[live[j]] = dense_hits[j];
     };
 
     // Leave a light: a point by area, a cosine-weighted direction.
@@ -176,9 +186,9 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
       connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};
       shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
     });
-    for (size_t i = 0; i < n; ++i)
-      if (!connections[i].alive) shadow[i] = Ray{vec3(0.0f), 0.0f, vec3(0, 0, 1), 0.0f};
-    accel_.occluded(std::span<const Ray>(shadow.data(), n), std::span(blocked.data(), n));
+    size_t m = gather(shadow, [&](size_t i) { return connections[i].alive; });
+    accel_.occluded(std::span<const Ray>(dense.data(), m), std::span(dense_blocked.data(), m));
+    for (size_t j = 0; j < m; ++j) blocked[live[j]] = dense_blocked[j];
 
     // Splat through the pixel filter, as pbrt-v4's film adds splats.
     parallel([&](size_t i) {

@@ -22,7 +22,7 @@
 #include "scene/lights.h"
 #include "wavefront/film.h"
 
-#include <atomic>
+#include <string>
 #include <cstdint>
 #include <functional>
 #include <vector>

@@ -29,6 +29,17 @@ inline Scene load_test_scene_file(const std::string& path) {
   return s;
 }
 
+// A diffuse sphere of radius 1 seen from 5 away inside a constant environment
+// of radiance 1 (the white furnace: with albedo 1 every pixel is 1).
+inline std::string furnace_sphere_scene(int resolution, float fov, float albedo, int max_depth = 50) {
+  const std::string a = std::to_string(albedo);
+  return "Film \"rgb\" \"integer xresolution\" [" + std::to_string(resolution) + "] \"integer yresolution\" [" +
+         std::to_string(resolution) + "]\nIntegrator \"volpath\" \"integer maxdepth\" [" + std::to_string(max_depth) +
+         "]\nLookAt 0 0 -5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [" + std::to_string(fov) +
+         "]\nWorldBegin\nLightSource \"infinite\" \"rgb L\" [1 1 1]\nMaterial \"diffuse\" \"rgb reflectance\" [" + a +
+         " " + a + " " + a + "]\nShape \"sphere\" \"float radius\" [1]\n";
+}
+
 // A one-sided area light facing up under a rough metal ceiling: the floor
 // sees the light only through the ceiling, so nearly all of its light is a
 // caustic (light -> ceiling -> floor -> camera).  The caustic tests' scene.

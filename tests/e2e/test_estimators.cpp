@@ -10,17 +10,7 @@ using namespace theia::test;
 // A diffuse sphere of albedo 1 inside a constant environment of radiance 1:
 // every path ends in the environment with throughput 1, so every pixel is 1.
 TEST(WhiteFurnace, DiffuseSphereOfAlbedoOneRendersToOne) {
-  Scene scene = load_test_scene(R"(
-    Film "rgb" "integer xresolution" [32] "integer yresolution" [32]
-    Sampler "zsobol" "integer pixelsamples" [64]
-    Integrator "volpath" "integer maxdepth" [50]
-    LookAt 0 0 -5  0 0 0  0 1 0
-    Camera "perspective" "float fov" [30]
-    WorldBegin
-    LightSource "infinite" "rgb L" [1 1 1]
-    Material "diffuse" "rgb reflectance" [1 1 1]
-    Shape "sphere" "float radius" [1]
-  )");
+  Scene scene = load_test_scene(furnace_sphere_scene(32, 30.0f, 1.0f));
   RenderResult r = render_scene(scene, quick_config(64));
   RGB mean = image_mean(r.image);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], 1.0f, 0.005f) << "channel " << c;
@@ -35,15 +25,7 @@ TEST(WhiteFurnace, DiffuseSphereOfAlbedoOneRendersToOne) {
 // The same furnace with albedo 0.5: single-sphere, convex, so radiance at the
 // sphere is 0.5 * 1 (one bounce, then the environment): pixels inside read 0.5.
 TEST(WhiteFurnace, GreySphereReflectsHalf) {
-  Scene scene = load_test_scene(R"(
-    Film "rgb" "integer xresolution" [16] "integer yresolution" [16]
-    LookAt 0 0 -5  0 0 0  0 1 0
-    Camera "perspective" "float fov" [10]
-    WorldBegin
-    LightSource "infinite" "rgb L" [1 1 1]
-    Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
-    Shape "sphere" "float radius" [1]
-  )");
+  Scene scene = load_test_scene(furnace_sphere_scene(16, 10.0f, 0.5f));
   RenderResult r = render_scene(scene, quick_config(256));
   RGB mean = image_mean(r.image);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], 0.5f, 0.005f);

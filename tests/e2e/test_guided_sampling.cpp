@@ -73,15 +73,7 @@ BlockStats block_stats(const ImageBuffer& img, int x0, int y0, int n, int c) {
 // sphere is exactly 1 in expectation.  Guided with a lobe that has nothing
 // to do with the lighting, samples are no longer all 1, but their mean is.
 TEST(GuidedSampling, WhiteFurnaceStaysOneUnderAnyGuide) {
-  Scene scene = load_test_scene(R"(
-    Film "rgb" "integer xresolution" [32] "integer yresolution" [32]
-    LookAt 0 0 -5  0 0 0  0 1 0
-    Camera "perspective" "float fov" [18]
-    WorldBegin
-    LightSource "infinite" "rgb L" [1 1 1]
-    Material "diffuse" "rgb reflectance" [1 1 1]
-    Shape "sphere" "float radius" [1]
-  )");
+  Scene scene = load_test_scene(furnace_sphere_scene(32, 18.0f, 1.0f));
   VMFGuide guide(vec3(0.3f, 1.0f, -0.2f), 20.0f, 0.7f);
   ImageBuffer img = render_with(scene, &guide, 128);
   double sum = 0.0;

@@ -137,7 +137,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.batch_size = config.batch_size;
   opt.max_paths = config.max_paths;
   opt.sort = config.sort;
-  opt.throughput_reset_depth = config.throughput_reset_bounce;
+  opt.throughput_reset_bounce = config.throughput_reset_bounce;
 
   // Guiding: the field the engine samples, trained from the recorder's samples.
   std::unique_ptr<SDTree> sd_tree;

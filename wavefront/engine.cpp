@@ -379,7 +379,7 @@ struct WavefrontEngine::Impl {
     // Throughput-reset image (recorder debug, bounce N): only light arriving
     // at vertices of depth >= N reaches the film, with the throughput set to
     // 1 at hit N.  Emission found at hit d arrives at the vertex of depth d-1.
-    const int reset_depth = opt.throughput_reset_depth;
+    const int reset_depth = opt.throughput_reset_bounce;
     const bool splat_emission = reset_depth < 0 || int(depth) > reset_depth;
 
     // Escaped: infinite lights, MIS-weighted against light sampling.
@@ -685,7 +685,7 @@ struct WavefrontEngine::Impl {
     sample_count = s_end > s_begin ? s_end - s_begin : 0;
     // Per iteration: the caustic pass may have switched itself off after the last one.
     // Below depth 2 no camera path reaches a light through a caster, so there is nothing to hand over.
-    caustics = opt.caustics && opt.caustics->active() && opt.throughput_reset_depth < 0 && !ranges && opt.max_depth >= 2
+    caustics = opt.caustics && opt.caustics->active() && opt.throughput_reset_bounce < 0 && !ranges && opt.max_depth >= 2
                    ? opt.caustics
                    : nullptr;
     camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;

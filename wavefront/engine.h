@@ -41,7 +41,7 @@ struct EngineOptions {
   // >= 0: render the "throughput reset at bounce N" image the recorder's
   // N-th bounce debug buffer is compared with (only light arriving at
   // vertices of depth >= N, throughput 1 at hit N).
-  int throughput_reset_depth = -1;
+  int throughput_reset_bounce = -1;
   // When set (e.g. by a SIGTERM handler), render() generates no more camera
   // rays, finishes the paths in flight and returns early.
   const std::atomic<bool>* stop = nullptr;

@@ -183,7 +183,7 @@ TEST(RecorderDebug, NthBounceBufferEqualsThroughputResetImage) {
     ro.debug_bounce = bounce;
     RecordedRender r = render_recorded(scene, opt, ro, 1, 4);
     EngineOptions reset = opt;
-    reset.throughput_reset_depth = bounce;
+    reset.throughput_reset_bounce = bounce;
     ImageBuffer reference = layer(render_recorded(scene, reset, ro, 1, 4, false).image, "");
     EXPECT_LT(max_relative_difference(layer(r.image, "bounce"), reference), 1e-4) << "bounce " << bounce;
     EXPECT_GT(image_mean(reference).x, 0.01f);
@@ -193,7 +193,7 @@ TEST(RecorderDebug, NthBounceBufferEqualsThroughputResetImage) {
   ro.debug_bounce = 1;
   ro.vertex_skip_probability = 0.5f;
   EngineOptions reset = opt;
-  reset.throughput_reset_depth = 1;
+  reset.throughput_reset_bounce = 1;
   auto error_at = [&](int spp) {
     RecordedRender r = render_recorded(scene, opt, ro, 1, spp);
     ImageBuffer reference = layer(render_recorded(scene, reset, ro, 1, spp, false).image, "");

@@ -132,6 +132,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   Film film(scene.film.width, scene.film.height);
 
   EngineOptions opt;
+  EngineHooks hooks;
   opt.max_depth = max_depth;
   opt.seed = config.seed;
   opt.batch_size = config.batch_size;
@@ -148,7 +149,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     go.spatial_threshold = config.guiding_spatial_threshold;
     sd_tree = std::make_unique<SDTree>(rs.accel.bounds(), go);
     trainer = std::make_unique<SDTreeTrainer>(*sd_tree);
-    opt.guide = sd_tree.get();
+    hooks.guide = sd_tree.get();
     opt.guiding_min_roughness = config.guiding_min_roughness;
   }
   // The caustic pass (on by default) stays off where its light paths could
@@ -165,7 +166,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     caustics = std::make_unique<CausticTracer>(rs.scene, rs.accel, rs.lights, rs.camera, rs.filter,
                                                CausticOptions{config.caustic_roughness, config.seed});
     caustics_off = caustics->inactive_reason();
-    if (caustics->active()) opt.caustics = caustics.get();
+    if (caustics->active()) hooks.caustics = caustics.get();
   }
   // The recorder costs nothing unless a debug buffer or guiding consumes it.
   std::unique_ptr<RadianceRecorder> recorder;
@@ -186,7 +187,8 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   opt.alpha_spp = config.adaptive ? uint32_t(spp) : 0;
   opt.footprint_spp = spp;
   const ScheduleOptions schedule = schedule_options(config);
-  WavefrontEngine engine(rs, film, opt, recorder.get());
+  hooks.observer = recorder.get();
+  WavefrontEngine engine(rs, film, opt, hooks);
 
   IterationConfig ic;
   ic.schedule = schedule;
@@ -223,7 +225,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   }
   // The caustic pass's switch-off counters survive a resume, so a resumed
   // render switches it off (or not) where an uninterrupted one does.
-  if (opt.caustics)
+  if (hooks.caustics)
     ic.participants.push_back({"caustics", 1,
                                [&] {
                                  ByteWriter w;
@@ -368,7 +370,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   }
   {
     CausticStats cs = caustics ? caustics->stats() : CausticStats{};
-    log["caustics"] = {{"traced", opt.caustics != nullptr},
+    log["caustics"] = {{"traced", hooks.caustics != nullptr},
                        {"off_because", caustics_off},
                        {"switched_off_after_passes", cs.switched_off_after},
                        {"caster_roughness", config.caustic_roughness},

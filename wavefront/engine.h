@@ -33,8 +33,11 @@ namespace theia {
 struct EngineOptions {
   int max_depth = 5;
   uint32_t seed = 0;
-  size_t batch_size = size_t(1) << 16;    // rays per batch
-  size_t max_paths = size_t(1) << 19;     // path-state pool capacity
+  // Rays per batch and path-state pool capacity; 0: sized from the frame
+  // and the thread count (engine_sizes), which is what a render wants unless
+  // it measures otherwise.
+  size_t batch_size = 0;
+  size_t max_paths = 0;
   float occupancy_threshold = 0.5f;       // refill the pool below this fraction
   bool sort = true;                       // sort rays and hits (off: queue order)
   int rr_min_depth = 1;                   // Russian roulette from this depth on (pbrt-v4: depth > 1)
@@ -52,22 +55,40 @@ struct EngineOptions {
   // Samples per pixel of the whole render: sets pbrt-v4's texture-footprint
   // scale max(1/8, 1/sqrt(spp)) for trilinear imagemaps (scene/camera.h).
   int footprint_spp = 1;
-  // Path guiding: at vertices whose BSDF is guidable (bsdf_is_guidable with
-  // this roughness threshold), directions come from the guide with its
-  // selection probability and from the BSDF otherwise, weighted as one
-  // sample of the mixture (seeds/000 ch. 1 section 3.2).  Null: no guiding.
-  const DirectionalGuide* guide = nullptr;
+  // Path guiding (EngineHooks::guide): guide only where bsdf_is_guidable
+  // with this roughness threshold.
   float guiding_min_roughness = 0.05f;
-  // Directly seen caustics traced from the lights (wavefront/caustics.h):
-  // when set and active, camera paths leave those paths to it, and each
-  // completed render() call runs its pass for the same samples.  Not with
-  // per-pixel sample ranges (adaptive sampling) or the throughput-reset image.
-  CausticTracer* caustics = nullptr;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
   std::vector<Ray>* capture_shadow_rays = nullptr;
 };
+
+// What the engine calls that is not the scene: each hook is an interface in
+// core/ (or the caustic pass of this folder), null when its feature is off,
+// and a feature that is off costs nothing.
+struct EngineHooks {
+  // Path events (the radiance recorder); without one, shading is compiled
+  // without the calls.
+  PathObserver* observer = nullptr;
+  // Path guiding: at vertices whose BSDF is guidable, directions come from
+  // the guide with its selection probability and from the BSDF otherwise,
+  // weighted as one sample of the mixture (seeds/000 ch. 1 section 3.2).
+  const DirectionalGuide* guide = nullptr;
+  // Directly seen caustics traced from the lights (wavefront/caustics.h):
+  // when active, camera paths leave those paths to it, and each completed
+  // render() call runs its pass for the same samples.  Not with per-pixel
+  // sample ranges (adaptive sampling) or the throughput-reset image.
+  CausticTracer* caustics = nullptr;
+};
+
+// The pool and batch sizes a render uses: `options`' where set, otherwise
+// sized from the frame's samples per iteration and the thread count, so that
+// a small image does not hold a production frame's queues.
+struct EngineSizes {
+  size_t max_paths = 0, batch_size = 0;
+};
+EngineSizes engine_sizes(const EngineOptions& options, uint64_t pixels, int threads);
 
 // Per-pixel samples of one iteration (adaptive sampling).  Pixel p renders
 // samples [begin[p], begin[p] + offset[p+1] - offset[p]); those at or past
@@ -118,13 +139,7 @@ struct RenderableScene {
 
 class WavefrontEngine {
  public:
-  WavefrontEngine(const RenderableScene& rs, Film& film, const EngineOptions& options,
-                  PathObserver* observer = nullptr)
-      : WavefrontEngine(rs.scene, rs.accel, rs.lights, *rs.light_sampler, rs.camera, rs.filter, film, options,
-                        observer) {}
-  WavefrontEngine(const Scene& scene, const Accel& accel, const LightSet& lights, const LightSampler& light_sampler,
-                  const Camera& camera, const Filter& filter, Film& film, const EngineOptions& options,
-                  PathObserver* observer = nullptr);
+  WavefrontEngine(const RenderableScene& rs, Film& film, const EngineOptions& options, const EngineHooks& hooks = {});
   ~WavefrontEngine();
   WavefrontEngine(const WavefrontEngine&) = delete;
   WavefrontEngine& operator=(const WavefrontEngine&) = delete;

@@ -1,12 +1,16 @@
-// The path-state pool, declared once as a table of fields (as Cycles does).
+// The path-state pool, declared once as tables of fields (as Cycles does).
 //
-// The table generates one record per path.  Shading visits paths in hit
+// The hot table generates one 64-byte record per path: what every stage reads.
+// The cold tables hold per-feature state, one array per field and path slot,
+// allocated only when the feature is on (a scene without curves has no curve
+// skips, a render without media no medium stack).  Shading visits paths in hit
 // order, which is random with respect to pool slots, so a record that fits in
 // one cache line (one miss per path) beats a structure of arrays (one miss per
 // field) on a CPU; the static_assert keeps it that way as fields are added.
 #pragma once
 
 #include "core/math.h"
+#include "scene/accel.h"
 
 #include <cstdint>
 #include <vector>
@@ -41,21 +45,43 @@ struct alignas(64) PathState {
 };
 static_assert(sizeof(PathState) == 64, "a path's state should stay within one cache line");
 
+// Cold per-feature state, indexed by path slot.
+//   type       name          feature    meaning
+#define THEIA_PATH_COLD_FIELDS(F) \
+  F(PrimRef, curve_skip, curves, "the curve segment the path's queued ray left (scene/accel.h: skips beside rays)")
+
+// Which features are on, so the cold tables know which fields to allocate.
+struct PathFeatures {
+  bool curves = false;
+};
+
 struct PathStatePool {
   std::vector<PathState> paths;
   std::vector<uint32_t> free_slots;  // stack of unused slots
+#define THEIA_DECLARE_COLD_FIELD(type, name, feature, doc) std::vector<type> name;
+  THEIA_PATH_COLD_FIELDS(THEIA_DECLARE_COLD_FIELD)
+#undef THEIA_DECLARE_COLD_FIELD
 
-  explicit PathStatePool(size_t capacity) : paths(capacity), free_slots(capacity) {
+  PathStatePool(size_t capacity, const PathFeatures& features) : paths(capacity), free_slots(capacity) {
     // Hand out low slots first so a small render touches little memory.
     for (size_t i = 0; i < capacity; ++i) free_slots[i] = uint32_t(capacity - 1 - i);
+#define THEIA_ALLOCATE_COLD_FIELD(type, name, feature, doc) \
+  if (features.feature) name.resize(capacity);
+    THEIA_PATH_COLD_FIELDS(THEIA_ALLOCATE_COLD_FIELD)
+#undef THEIA_ALLOCATE_COLD_FIELD
   }
 
   PathState& operator[](uint32_t slot) { return paths[slot]; }
   const PathState& operator[](uint32_t slot) const { return paths[slot]; }
   size_t capacity() const { return paths.size(); }
   size_t live() const { return capacity() - free_slots.size(); }
-  static constexpr size_t bytes_per_path() { return sizeof(PathState) + sizeof(uint32_t); }
-  size_t memory_bytes() const { return capacity() * bytes_per_path(); }
+  size_t memory_bytes() const {
+    size_t bytes = paths.capacity() * sizeof(PathState) + free_slots.capacity() * sizeof(uint32_t);
+#define THEIA_COLD_FIELD_BYTES(type, name, feature, doc) bytes += name.capacity() * sizeof(type);
+    THEIA_PATH_COLD_FIELDS(THEIA_COLD_FIELD_BYTES)
+#undef THEIA_COLD_FIELD_BYTES
+    return bytes;
+  }
 };
 
 }  // namespace theia

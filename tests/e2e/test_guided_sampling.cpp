@@ -45,9 +45,8 @@ ImageBuffer render_with(const Scene& scene, const DirectionalGuide* guide, int s
   RenderableScene rs(scene);
   EngineOptions opt;
   opt.max_depth = max_depth;
-  opt.guide = guide;
   Film film(scene.film.width, scene.film.height);
-  WavefrontEngine(rs, film, opt).render(0, uint32_t(spp));
+  WavefrontEngine(rs, film, opt, EngineHooks{.guide = guide}).render(0, uint32_t(spp));
   return resolve_film(film);
 }
 

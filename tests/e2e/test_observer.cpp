@@ -69,7 +69,7 @@ TEST(PathObserver, EveryVertexFinishesExactlyOnceAndImageIsUnchanged) {
   Film plain(24, 24), observed(24, 24);
   WavefrontEngine(rs, plain, opt).render(0, 8);
   CountingObserver obs(24 * 24 * 8 * 64);
-  WavefrontEngine engine(rs, observed, opt, &obs);
+  WavefrontEngine engine(rs, observed, opt, EngineHooks{.observer = &obs});
   engine.render(0, 8);
 
   EXPECT_EQ(obs.started.load(), uint64_t(24 * 24 * 8));

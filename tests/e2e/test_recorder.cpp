@@ -34,7 +34,7 @@ RecordedRender render_recorded(const Scene& scene, const EngineOptions& opt, Rec
   ro.height = scene.film.height;
   std::unique_ptr<RadianceRecorder> rec;
   if (record) rec = std::make_unique<RadianceRecorder>(ro);
-  WavefrontEngine engine(rs, film, opt, rec.get());
+  WavefrontEngine engine(rs, film, opt, EngineHooks{.observer = rec.get()});
   RecordedRender out;
   for (int it = 0; it < iterations; ++it) {
     if (rec) rec->begin_iteration();

@@ -1,0 +1,181 @@
+// The wavefront's parts on their own: the radix sort, the queue tables, the
+// sample-dimension table, the pool sizes and the film.
+#include "wavefront/engine.h"
+#include "wavefront/film.h"
+#include "wavefront/path_state.h"
+#include "wavefront/queues.h"
+#include "wavefront/radix_sort.h"
+#include "wavefront/sample_dims.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
+
+namespace theia {
+namespace {
+
+std::vector<SortPair> random_pairs(size_t n, uint64_t key_mask, uint32_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<SortPair> pairs(n);
+  for (size_t i = 0; i < n; ++i) pairs[i] = SortPair{rng() & key_mask, uint32_t(i)};
+  return pairs;
+}
+
+void expect_stable_sorted(std::vector<SortPair> pairs, int key_bits) {
+  std::vector<SortPair> expected = pairs, scratch;
+  std::stable_sort(expected.begin(), expected.end(), [](const SortPair& a, const SortPair& b) { return a.key < b.key; });
+  radix_sort(pairs, scratch, key_bits);
+  ASSERT_EQ(pairs.size(), expected.size());
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    ASSERT_EQ(pairs[i].key, expected[i].key) << "at " << i;
+    ASSERT_EQ(pairs[i].index, expected[i].index) << "at " << i << ": the sort must be stable";
+  }
+}
+
+TEST(RadixSort, MatchesStableSortSerialAndParallel) {
+  // 1000 pairs take the serial path, 300k the chunked parallel one; few
+  // distinct keys make ties, where stability shows.
+  for (size_t n : {size_t(1), size_t(2), size_t(1000), size_t(300000)}) {
+    expect_stable_sorted(random_pairs(n, ~uint64_t(0), 1), 64);
+    expect_stable_sorted(random_pairs(n, 0xff, 2), 64);
+    expect_stable_sorted(random_pairs(n, (uint64_t(1) << 42) - 1, 3), 42);
+  }
+}
+
+TEST(RadixSort, SortsOnlyTheLowKeyBits) {
+  std::vector<SortPair> pairs = {{(uint64_t(1) << 50) | 2, 0}, {1, 1}, {uint64_t(1) << 50, 2}}, scratch;
+  radix_sort(pairs, scratch, 22);
+  // The high bit is ignored: keys 0 (index 2), 1 and 2 (index 0) in that order.
+  EXPECT_EQ(pairs[0].index, 2u);
+  EXPECT_EQ(pairs[1].index, 1u);
+  EXPECT_EQ(pairs[2].index, 0u);
+}
+
+TEST(RadixSort, MortonCodeInterleavesAxes) {
+  EXPECT_EQ(morton3(0, 0, 0), 0u);
+  EXPECT_EQ(morton3(1, 1, 1), (1u << 30) - 1);
+  EXPECT_EQ(morton3(0.5f, 0, 0), 1u << 29);  // x's top bit is the code's top bit
+  EXPECT_EQ(morton3(0, 0, 0.5f), 1u << 27);
+}
+
+Ray ray_at(float x) {
+  Ray r;
+  r.o = vec3(x, 0, 0);
+  r.d = vec3(0, 0, 1);
+  return r;
+}
+
+TEST(Queues, AppendGatherAndClearEveryFieldThatIsPresent) {
+  ShadowQueue a, b, scratch;
+  for (int i = 0; i < 3; ++i) {
+    a.rays.push_back(ray_at(float(i)));
+    a.contribution.push_back(RGB(float(i)));
+    a.pixel.push_back(uint32_t(10 + i));
+    a.sample.push_back(uint32_t(i));
+    a.vertex.push_back(kNoVertex);
+  }
+  b = a;
+  queue_append(a, b);
+  EXPECT_EQ(a.size(), 6u);
+  EXPECT_EQ(a.pixel.size(), 6u);
+  // The feature fields were empty on both sides and stay empty.
+  EXPECT_TRUE(a.mis_weight.empty());
+  EXPECT_TRUE(a.skip.empty());
+
+  const std::vector<uint32_t> order = {5, 0, 4, 1, 3, 2};
+  queue_gather(a, order, scratch);
+  for (size_t k = 0; k < order.size(); ++k) {
+    uint32_t i = order[k] % 3;
+    EXPECT_EQ(a.rays[k].o.x, float(i));
+    EXPECT_EQ(a.contribution[k].y, float(i));
+    EXPECT_EQ(a.pixel[k], 10 + i);
+  }
+  EXPECT_TRUE(a.mis_weight.empty());
+  queue_clear(a);
+  EXPECT_EQ(a.size(), 0u);
+  EXPECT_TRUE(a.pixel.empty());
+}
+
+TEST(Queues, BytesFollowTheTable) {
+  EXPECT_EQ(RayQueue::kItemBytes, sizeof(Ray) + sizeof(uint32_t));
+  EXPECT_EQ(ShadowQueue::kItemBytes,
+            sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(PrimRef));
+  ShadowQueue q;
+  q.rays.reserve(100);
+  q.pixel.reserve(100);
+  EXPECT_GE(queue_bytes(q), 100 * (sizeof(Ray) + sizeof(uint32_t)));
+  EXPECT_LT(queue_bytes(q), 100 * (sizeof(Ray) + sizeof(uint32_t)) + 4096);
+}
+
+TEST(PathState, ColdTablesExistOnlyForFeaturesThatAreOn) {
+  PathStatePool plain(1000, PathFeatures{});
+  PathStatePool curves(1000, PathFeatures{.curves = true});
+  EXPECT_TRUE(plain.curve_skip.empty());
+  EXPECT_EQ(curves.curve_skip.size(), 1000u);
+  EXPECT_EQ(curves.memory_bytes() - plain.memory_bytes(), 1000 * sizeof(PrimRef));
+  // Slots are handed out low first.
+  EXPECT_EQ(plain.free_slots.back(), 0u);
+  EXPECT_EQ(plain.live(), 0u);
+}
+
+TEST(SampleDims, SurfacePageKeepsItsLayoutAndNothingOverlaps) {
+  // The layout every render has drawn since the engine was written: camera
+  // 0..3, bounce d at 4 + 8d (light point, choice, primitive, direction,
+  // lobe, roulette).  Changing it changes every image.
+  for (uint32_t d : {0u, 1u, 7u}) {
+    BounceDims b = bounce_dims(d);
+    EXPECT_EQ(b.light_point, 4 + 8 * d);
+    EXPECT_EQ(b.light_choice, 6 + 8 * d);
+    EXPECT_EQ(b.light_prim, 7 + 8 * d);
+    EXPECT_EQ(b.bsdf_dir, 8 + 8 * d);
+    EXPECT_EQ(b.bsdf_lobe, 10 + 8 * d);
+    EXPECT_EQ(b.roulette, 11 + 8 * d);
+  }
+  std::set<uint32_t> used = {CameraDims::film, CameraDims::film + 1, CameraDims::lens, CameraDims::lens + 1};
+  for (uint32_t d = 0; d < 200; ++d) {
+    BounceDims b = bounce_dims(d);
+    for (auto [dim, width] : {std::pair{b.light_point, 2u}, {b.light_choice, 1u}, {b.light_prim, 1u},
+                              {b.bsdf_dir, 2u}, {b.bsdf_lobe, 1u}, {b.roulette, 1u}})
+      for (uint32_t k = 0; k < width; ++k) EXPECT_TRUE(used.insert(dim + k).second) << "dimension " << dim + k;
+    EXPECT_EQ(b.light_point % 2, 0u);  // 2D slots are jointly stratified pairs
+    EXPECT_EQ(b.bsdf_dir % 2, 0u);
+  }
+}
+
+TEST(EngineSizes, FollowTheFrameUnlessSet) {
+  EngineOptions o;
+  EngineSizes small = engine_sizes(o, 64 * 64, 2), big = engine_sizes(o, 1920 * 1080, 2);
+  EXPECT_LT(small.max_paths, big.max_paths);
+  EXPECT_EQ(big.max_paths, size_t(1) << 19);
+  EXPECT_GE(small.max_paths, size_t(2) << 14);  // enough work for both threads
+  EXPECT_GE(small.max_paths, small.batch_size * 6);  // continuation rays over six bins fill a batch
+  o.max_paths = 12345;
+  o.batch_size = 77;
+  EngineSizes set = engine_sizes(o, 64 * 64, 2);
+  EXPECT_EQ(set.max_paths, 12345u);
+  EXPECT_EQ(set.batch_size, 77u);
+}
+
+TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {
+  Film film(2, 1);
+  film.add_weight(0, 0, 1.0f);
+  film.add_weight(0, 1, 1.0f);
+  film.splat(0, 0, RGB(1, 2, 3));
+  film.splat(0, 1, RGB(3, 2, 1));
+  film.splat(0, 1, RGB(std::numeric_limits<float>::infinity(), 0, 0));
+  film.splat(1, 0, RGB(std::numeric_limits<float>::quiet_NaN()));
+  EXPECT_EQ(film.dropped.load(), 2u);
+  EXPECT_EQ(film.r[0], 4.0f);
+  EXPECT_EQ(film.r_odd[0], 3.0f);  // sample 1 only
+  EXPECT_EQ(film.weight_odd[0], 1.0f);
+  EXPECT_EQ(film.r[1], 0.0f);
+  ImageBuffer img = resolve_film(film);
+  // Grey (2, 2, 2) in the working space is grey in the output's sRGB.
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(img.at(0, 0, c), 2.0f, 1e-5f);
+  EXPECT_EQ(img.at(1, 0, 0), 0.0f);  // no weight: black, not NaN
+}
+
+}  // namespace
+}  // namespace theia

@@ -1,0 +1,97 @@
+// Stage: generate camera rays, in pixel-sample order, into fresh path slots.
+#include "wavefront/engine_impl.h"
+
+#include <tbb/parallel_for.h>
+
+namespace theia {
+
+namespace {
+
+struct PixelSample {
+  uint32_t pixel = 0, sample = 0;
+  bool alpha_only = false;  // past the pixel's colour samples: coverage only
+};
+
+// Camera sample g of the iteration: pixel-sample order over the frame, or
+// over the per-pixel ranges of adaptive sampling.
+PixelSample camera_sample(uint64_t g, const SampleRanges* ranges, uint32_t sample_begin, uint32_t sample_count) {
+  PixelSample s;
+  if (ranges) {
+    auto it = std::upper_bound(ranges->offset.begin(), ranges->offset.end(), g);
+    s.pixel = uint32_t(it - ranges->offset.begin()) - 1;
+    s.sample = ranges->begin[s.pixel] + uint32_t(g - ranges->offset[s.pixel]);
+    s.alpha_only = s.sample >= ranges->colour_end[s.pixel];
+  } else {
+    s.pixel = uint32_t(g / sample_count);
+    s.sample = sample_begin + uint32_t(g % sample_count);
+  }
+  return s;
+}
+
+}  // namespace
+
+void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
+  ScopedTimer timer(stats.phases[Phase::Generate]);
+  count = std::min<uint64_t>({count, camera_end - next_camera, pool.free_slots.size()});
+  if (count == 0) return;
+  std::vector<uint32_t> slots(pool.free_slots.end() - count, pool.free_slots.end());
+  pool.free_slots.resize(pool.free_slots.size() - count);
+
+  Batch all = take_spare();
+  all.camera = true;
+  all.rays.resize(count);
+  all.paths = slots;
+  const uint64_t first = next_camera;
+  const uint32_t width = uint32_t(film.width);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const PixelSample s = camera_sample(first + i, ranges, sample_begin, sample_count);
+      const SamplerKey key{opt.seed, s.pixel, s.sample};
+      FilterSample fs = sample_filter(filter, sample_2d(key, CameraDims::film));
+      vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
+      auto cam = generate_camera_ray(camera, p_film, sample_2d(key, CameraDims::lens));
+      Ray ray;
+      ray.o = cam.o;
+      ray.d = cam.d;
+      if (!s.alpha_only) film.add_weight(s.pixel, s.sample, fs.weight);
+      if (counts_for_alpha(s.sample)) film.add_alpha_weight(s.pixel, fs.weight);
+      PathState& ps = pool[slots[i]];
+      ps.beta = RGB(1.0f);
+      ps.prev_p = ray.o;
+      ps.prev_ng = vec3(0.0f);
+      ps.pixel = s.pixel;
+      ps.sample = s.sample;
+      ps.vertex = observer ? observer->path_started(s.pixel, s.sample) : kNoVertex;
+      ps.filter_weight = fs.weight;
+      ps.prev_pdf = 0.0f;
+      ps.eta_scale = 1.0f;
+      ps.depth = 0;
+      ps.flags = kPathPrevSpecular;
+      ps.alpha_only = s.alpha_only ? 1 : 0;
+      if (!pool.curve_skip.empty()) pool.curve_skip[slots[i]] = PrimRef{};
+      all.rays[i] = ray;
+    }
+  });
+  next_camera += count;
+  stats.camera_rays += count;
+  stats.paths += count;
+  queued_rays += count;
+
+  // Camera rays stay in pixel order rather than entering the direction bins:
+  // neighbouring pixels' rays are already coherent, and a batch of them is
+  // traced with Embree's COHERENT flag.  Split into batches; push the last
+  // first so the first pixels are traced first.
+  const size_t n_batches = (count + opt.batch_size - 1) / opt.batch_size;
+  for (size_t k = n_batches; k-- > 0;) {
+    size_t lo = k * opt.batch_size, hi = std::min(count, lo + opt.batch_size);
+    Batch b = take_spare();
+    b.camera = true;
+    b.rays.assign(all.rays.begin() + lo, all.rays.begin() + hi);
+    b.paths.assign(all.paths.begin() + lo, all.paths.begin() + hi);
+    full.push_back(std::move(b));
+  }
+  spare.push_back(std::move(all));
+  stats.peak_live_paths = std::max(stats.peak_live_paths, pool.live());
+}
+
+}  // namespace theia

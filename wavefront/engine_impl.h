@@ -1,0 +1,190 @@
+// The engine's state and its stages, shared by the stage files of wavefront/
+// (private to the folder: nothing outside includes it).
+//
+//   engine.cpp        the loop, batches, sorting, tracing closest hits
+//   camera_rays.cpp   generate camera rays
+//   escaped_rays.cpp  rays that left the scene: infinite lights
+//   surface.cpp       shade surface hits (emission, pass-through, NEE, continuation, roulette)
+//   shadow_rays.cpp   trace shadow rays and splat the unoccluded ones
+#pragma once
+
+#include "core/sampler.h"
+#include "scene/bsdf.h"
+#include "wavefront/engine.h"
+#include "wavefront/path_state.h"
+#include "wavefront/queues.h"
+#include "wavefront/radix_sort.h"
+#include "wavefront/sample_dims.h"
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <array>
+
+namespace theia {
+
+// A batch of rays of one direction bin; camera rays are coherent (traced with
+// Embree's COHERENT flag).
+struct Batch : RayQueue {
+  bool camera = false;
+};
+
+// What one thread's shading produced, merged into the queues after the stage.
+struct ShadeOutput {
+  RayQueue rays;
+  ShadowQueue shadows;
+  std::vector<uint32_t> freed;
+  uint64_t vertices = 0;
+};
+
+// One surface vertex while it is shaded: what its steps share.
+struct ShadingPoint {
+  PathState& ps;
+  uint32_t slot;
+  const SurfaceInteraction& si;
+  BSDF bsdf;
+  vec3 ns{0.0f};              // bump- or normal-mapped shading normal
+  RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
+  BounceDims dims{};
+  uint8_t caustic_flags = 0;  // kPathCausticReceiver / kPathCausticCaster at this vertex
+  uint32_t guide_region = kNoGuideRegion;
+  float guide_fraction = 0.0f;  // > 0: directions come from the guide/BSDF mixture
+};
+
+// The ray-sorting key: origin Morton code, then a coarse direction.
+uint64_t ray_sort_key(const Ray& r, const vec3& bounds_min, const vec3& bounds_inv_extent);
+// `order` = the permutation that sorts `rays` by ray_sort_key (radix sort).
+void sort_by_ray_key(std::span<const Ray> rays, const vec3& bounds_min, const vec3& bounds_inv_extent,
+                     std::vector<SortPair>& keys, std::vector<SortPair>& scratch, std::vector<uint32_t>& order);
+
+struct WavefrontEngine::Impl {
+  const Scene& scene;
+  const Accel& accel;
+  const LightSet& lights;
+  const LightSampler& light_sampler;
+  const Camera& camera;
+  const Filter& filter;
+  Film& film;
+  EngineOptions opt;
+  EngineHooks hooks;
+  PathObserver* observer;             // hooks.observer
+  CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
+
+  EngineSizes sizes;  // the pool's and batches' (engine_sizes)
+  PathStatePool pool;
+  std::array<Batch, 6> filling;  // the batch being filled, per direction bin
+  std::vector<Batch> full;       // filled batches, processed last-in first-out
+  std::vector<Batch> spare;      // emptied batches, reused to keep allocations flat
+  ShadowQueue shadows;
+  size_t queued_rays = 0;
+
+  // Scratch reused from batch to batch.
+  std::vector<SortPair> keys, scratch;
+  std::vector<uint32_t> order;
+  std::vector<Hit> hits;
+  std::vector<PrimRef> batch_skips;  // the curve skips gathered in a batch's ray order
+  std::vector<uint8_t> blocked;
+  Batch sorted;
+  ShadowQueue shadows_sorted;
+  EscapedQueue escaped;
+  tbb::enumerable_thread_specific<ShadeOutput> outputs;
+
+  vec3 bounds_min{0.0f}, bounds_inv_extent{1.0f};
+  EngineStats stats;
+  // Texture footprints cost a transform per hit: only when a texture filters
+  // (MIP-mapped images, pbrt-v4's box-filtered 2D checkerboard) or a material
+  // is bump mapped.
+  bool uses_footprint = false;
+  float footprint_scale = 1.0f;
+
+  uint64_t next_camera = 0, camera_end = 0;
+  uint32_t sample_begin = 0, sample_count = 0;
+  const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
+
+  Impl(const RenderableScene& rs, Film& film, const EngineOptions& options, const EngineHooks& hooks);
+
+  // ---- the loop and its stages
+  uint64_t render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const std::function<void(double)>& progress);
+  void process_batch(Batch& b);
+  void generate_camera_rays(size_t count);  // camera_rays.cpp
+  void sort_rays(Batch& b);
+  void trace_closest(const Batch& b);
+  void sort_hits(const Batch& b);           // shading order into `keys`, misses into `escaped`
+  void handle_escaped_rays();               // escaped_rays.cpp
+  void shade_surface_hits(const Batch& b);  // surface.cpp
+  void merge_outputs();
+  void trace_shadow_rays();                 // shadow_rays.cpp
+
+  template <bool kObserve>
+  void handle_escaped(const Ray& ray, uint32_t slot, ShadeOutput& out);
+  // ---- the surface stage's steps (surface.cpp)
+  template <bool kObserve>
+  void shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
+  template <bool kObserve>
+  bool add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si, ShadeOutput& out);
+  template <bool kObserve>
+  void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
+  std::optional<BSDFSample> sample_continuation(const ShadingPoint& v) const;
+  bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale) const;
+  template <bool kObserve>
+  void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local);
+  float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
+  uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;
+
+  // ---- shared by the stages
+  // Emission found by a BSDF-sampled ray: MIS against light sampling (the
+  // light pdf only computed when the previous bounce was not specular),
+  // splatted and reported.
+  template <bool kObserve, class LightPdf>
+  void add_emission(const PathState& ps, int light, const RGB& Le, LightPdf&& light_pdf);
+  // Light that the caustic pass counts (wavefront/caustics.h): from a light
+  // it traces, after a receiver and a caster.
+  bool left_to_caustic_pass(uint8_t path_flags, int light) const {
+    return caustics && (path_flags & kPathCausticCaster) && caustics->traces_light(light);
+  }
+  template <bool kObserve>
+  void finish_path(uint32_t slot, ShadeOutput& out) {
+    if constexpr (kObserve) observer->vertex_done(pool[slot].vertex);
+    out.freed.push_back(slot);
+  }
+  // Queues the path's next ray, leaving the surface `si`.
+  void queue_ray(uint32_t slot, const SurfaceInteraction& si, const Ray& ray, ShadeOutput& out) {
+    out.rays.rays.push_back(ray);
+    out.rays.paths.push_back(slot);
+    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
+  }
+  void enqueue(const Ray& ray, uint32_t path);
+  Batch take_spare();
+
+  UVFootprint footprint(const SurfaceInteraction& si) const {
+    return uses_footprint ? texture_footprint(camera, si, footprint_scale) : UVFootprint{};
+  }
+  bool counts_for_alpha(uint32_t sample) const { return opt.alpha_spp == 0 || sample < opt.alpha_spp; }
+  // The throughput-reset image (recorder debug, bounce N): only light
+  // arriving at vertices of depth >= N reaches the film.  Emission found at
+  // hit d arrives at the vertex of depth d-1.
+  bool splats_emission(uint32_t depth) const {
+    return opt.throughput_reset_bounce < 0 || int(depth) > opt.throughput_reset_bounce;
+  }
+  static LightSampleContext previous_vertex(const PathState& ps) {
+    return LightSampleContext{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
+  }
+  float sample1(const PathState& ps, uint32_t dim) const {
+    return sample_1d(SamplerKey{opt.seed, ps.pixel, ps.sample}, dim);
+  }
+  vec2 sample2(const PathState& ps, uint32_t dim) const {
+    return sample_2d(SamplerKey{opt.seed, ps.pixel, ps.sample}, dim);
+  }
+  size_t memory_bytes() const;
+};
+
+template <bool kObserve, class LightPdf>
+void WavefrontEngine::Impl::add_emission(const PathState& ps, int light, const RGB& Le, LightPdf&& light_pdf) {
+  float w = 1.0f;
+  if (!(ps.flags & kPathPrevSpecular))
+    w = power_heuristic(1, ps.prev_pdf, 1, light_sampler.pmf(previous_vertex(ps), light) * light_pdf());
+  RGB contribution = ps.filter_weight * ps.beta * w * Le;
+  if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution);
+  if constexpr (kObserve) observer->emission_added(ps.vertex, ps.pixel, contribution, w);
+}
+
+}  // namespace theia

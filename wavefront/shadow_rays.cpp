@@ -1,0 +1,48 @@
+// Stage: trace the queued shadow rays and splat the contribution of every
+// unoccluded one (it was computed when the ray was queued).
+#include "wavefront/engine_impl.h"
+
+#include <tbb/parallel_for.h>
+
+namespace theia {
+
+void WavefrontEngine::Impl::trace_shadow_rays() {
+  const size_t n = shadows.size();
+  if (n == 0) return;
+  ++stats.shadow_batches;
+  stats.shadow_rays += n;
+  ShadowQueue& s = shadows;
+  if (opt.sort) {
+    ScopedTimer timer(stats.phases[Phase::Sort]);
+    sort_by_ray_key(s.rays, bounds_min, bounds_inv_extent, keys, scratch, order);
+    queue_gather(s, order, shadows_sorted);
+  }
+  if (opt.capture_shadow_rays)
+    opt.capture_shadow_rays->insert(opt.capture_shadow_rays->end(), s.rays.begin(), s.rays.end());
+  blocked.assign(n, 0);
+  {
+    ScopedTimer timer(stats.phases[Phase::TraceShadow]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+      std::span<const PrimRef> skips;
+      if (!s.skip.empty()) skips = std::span<const PrimRef>(s.skip.data() + r.begin(), r.size());
+      accel.occluded(std::span<const Ray>(s.rays.data() + r.begin(), r.size()),
+                     std::span<uint8_t>(blocked.data() + r.begin(), r.size()), skips);
+    });
+  }
+  {
+    ScopedTimer timer(stats.phases[Phase::Shade]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        if (!blocked[i]) film.splat(s.pixel[i], s.sample[i], s.contribution[i]);
+        if (observer) {
+          // An occluded NEE ray still finishes its vertex: a zero sample.
+          if (!blocked[i]) observer->emission_added(s.vertex[i], s.pixel[i], s.contribution[i], s.mis_weight[i]);
+          observer->vertex_done(s.vertex[i]);
+        }
+      }
+    });
+  }
+  queue_clear(s);
+}
+
+}  // namespace theia

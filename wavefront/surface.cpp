@@ -1,0 +1,212 @@
+// Stage: shade surface hits.  Each hit reads as its steps: the interaction,
+// emission, pass-through, first-hit AOVs, direct light (a shadow ray), the
+// continuation (BSDF or guide), Russian roulette, the vertex reported to the
+// observer, the next ray queued.
+#include "wavefront/engine_impl.h"
+
+namespace theia {
+
+template <bool kObserve>
+void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
+  PathState& ps = pool[slot];
+  const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+  // A holdout matte blocks the ray and adds neither colour nor alpha.
+  if (si.shape >= 0 && scene.shapes[size_t(si.shape)].holdout) return finish_path<kObserve>(slot, out);
+  if (ps.alpha_only) {
+    film.splat_first_hit(ps.pixel, ps.filter_weight, true, bsdf_albedo(make_bsdf(scene, si, footprint(si))), si.ns,
+                         si.t);
+    return finish_path<kObserve>(slot, out);
+  }
+  if (add_surface_emission<kObserve>(slot, ray, si, out)) return;  // a virtual light: the ray went on
+  ++out.vertices;
+
+  ShadingPoint v{ps, slot, si, make_bsdf(scene, si, footprint(si))};
+  // An "interface" surface: continue the ray as it was, without a bounce.
+  if (bsdf_is_passthrough(v.bsdf)) return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
+  v.ns = v.bsdf.shading.n;
+  if (ps.depth == 0 && counts_for_alpha(ps.sample))
+    film.splat_first_hit(ps.pixel, ps.filter_weight, true, bsdf_albedo(v.bsdf), v.ns, si.t);
+  if (int(ps.depth) >= opt.max_depth) return finish_path<kObserve>(slot, out);
+
+  v.dims = bounce_dims(ps.depth);
+  v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ps.beta;
+  v.caustic_flags = caustic_flags(ps, v.bsdf);
+  if (hooks.guide && bsdf_is_guidable(v.bsdf, opt.guiding_min_roughness)) {
+    v.guide_region = hooks.guide->region(si.p);
+    if (v.guide_region != kNoGuideRegion) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
+  }
+
+  sample_direct_light<kObserve>(v, out);
+
+  // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
+  std::optional<BSDFSample> bs = sample_continuation(v);
+  if (!bs || !(bs->pdf > 0.0f)) return finish_path<kObserve>(slot, out);
+  RGB local = bs->f * (std::abs(glm::dot(bs->wi, v.ns)) / bs->pdf);
+  RGB beta = v.beta * local;
+  // Radiance refracted into a denser medium is scaled by 1/eta^2; roulette
+  // undoes that scale so that it does not kill paths inside glass.
+  const float eta_scale = bs->is_transmission() ? ps.eta_scale * sqr(bs->eta) : ps.eta_scale;
+  if (!survives_roulette(v, beta, local, eta_scale) || !is_finite(beta) || is_black(beta))
+    return finish_path<kObserve>(slot, out);
+  if constexpr (kObserve) report_vertex<kObserve>(v, *bs, local);
+
+  ps.beta = beta;
+  ps.depth = uint16_t(ps.depth + 1);
+  ps.prev_pdf = bs->pdf;
+  ps.eta_scale = eta_scale;
+  ps.flags = uint8_t((bs->is_specular() ? kPathPrevSpecular : 0) | v.caustic_flags);
+  ps.prev_p = si.p;
+  ps.prev_ng = si.ng;
+  queue_ray(slot, si, spawn_ray(si, bs->wi), out);
+}
+
+// Emission found by the BSDF-sampled ray.  True when the hit was a virtual
+// light, which emits but does not block: the same ray goes on from its far
+// side (re-traced; shadow rays skip it with an Embree filter).
+template <bool kObserve>
+bool WavefrontEngine::Impl::add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si,
+                                                 ShadeOutput& out) {
+  const PathState& ps = pool[slot];
+  if (si.area_light < 0 || left_to_caustic_pass(ps.flags, si.area_light)) return false;
+  const int light = si.area_light;
+  RGB Le = area_light_L(lights, light, si, si.wo);
+  if (!is_black(Le)) {
+    LightSampleContext prev = previous_vertex(ps);
+    add_emission<kObserve>(ps, light, Le,
+                           [&] { return area_light_pdf(lights, light, prev, glm::normalize(ray.d), si); });
+  }
+  if (!scene.lights[size_t(light)].is_virtual) return false;
+  if constexpr (kObserve) {
+    observer->vertex_continued(ps.vertex);
+    observer->vertex_done(ps.vertex);
+  }
+  queue_ray(slot, si, spawn_ray(si, ray.d), out);
+  return true;
+}
+
+// Directly seen caustics: a receiver at the primary hit and a caster right
+// after it hand the caster's light from the traced lights to the caustic
+// pass, by NEE here and by emission at the next hit.
+uint8_t WavefrontEngine::Impl::caustic_flags(const PathState& ps, const BSDF& bsdf) const {
+  if (!caustics) return 0;
+  if (ps.depth == 0 && bsdf_is_caustic_receiver(bsdf)) return kPathCausticReceiver;
+  if (ps.depth == 1 && (ps.flags & kPathCausticReceiver) && bsdf_is_caustic_caster(bsdf, caustics->caster_roughness()))
+    return kPathCausticCaster;
+  return 0;
+}
+
+// The pdf MIS needs for a scattered direction: the BSDF's, or where the
+// vertex is guided the mixture's.
+float WavefrontEngine::Impl::scattering_pdf(const ShadingPoint& v, const vec3& wi) const {
+  float p = bsdf_pdf(v.bsdf, v.si.wo, wi);
+  if (v.guide_fraction > 0.0f)
+    p = v.guide_fraction * hooks.guide->pdf(v.guide_region, wi) + (1.0f - v.guide_fraction) * p;
+  return p;
+}
+
+static PathVertexInfo vertex_info(const ShadingPoint& v, const vec3& wi, const RGB& local, float pdf) {
+  PathVertexInfo info;
+  info.p = v.si.p;
+  info.n = v.ns;
+  info.wi = wi;
+  info.prefix = v.ps.filter_weight * v.beta;
+  info.local = local;
+  info.pdf = pdf;
+  info.camera_weight = v.ps.filter_weight;
+  info.pixel = v.ps.pixel;
+  info.sample = v.ps.sample;
+  info.depth = int(v.ps.depth);
+  return info;
+}
+
+// Next-event estimation: a shadow ray carrying its unoccluded contribution.
+template <bool kObserve>
+void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& out) {
+  const PathState& ps = v.ps;
+  if (bsdf_is_specular(v.bsdf) || int(ps.depth) < opt.throughput_reset_bounce) return;
+  const LightSampleContext ctx{v.si.p, v.si.p_error, v.si.ng, v.ns};
+  auto sl = light_sampler.sample(ctx, sample1(ps, v.dims.light_choice));
+  if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light)) return;
+  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), sample1(ps, v.dims.light_prim));
+  // pdf guard: the product of selection and sampling pdfs can underflow to 0
+  // (a light of 1e-3 beside one of 1e9); such a sample is dropped, never divided by.
+  const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
+  if (!ls || !(light_pdf > 0.0f) || !std::isfinite(light_pdf)) return;
+  const RGB f = bsdf_f(v.bsdf, v.si.wo, ls->wi) * std::abs(glm::dot(ls->wi, v.ns));
+  if (is_black(f)) return;
+  const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, scattering_pdf(v, ls->wi));
+  const RGB contribution = ps.filter_weight * v.beta * f * (ls->L * (w / light_pdf));
+  if (!is_finite(contribution) || is_black(contribution)) return;
+
+  ShadowQueue& q = out.shadows;
+  q.rays.push_back(spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light));
+  q.contribution.push_back(contribution);
+  q.pixel.push_back(ps.pixel);
+  q.sample.push_back(ps.sample);
+  if (!pool.curve_skip.empty()) q.skip.push_back(v.si.skip);
+  uint32_t vertex = kNoVertex;
+  if constexpr (kObserve) {
+    q.mis_weight.push_back(w);
+    PathVertexInfo info = vertex_info(v, ls->wi, f / light_pdf, light_pdf);
+    info.is_nee = true;
+    info.delta_light = ls->is_delta;
+    vertex = observer->vertex_created(ps.vertex, info);
+  }
+  q.vertex.push_back(vertex);
+}
+
+// The continuation direction: a BSDF sample, or one sample of the mixture of
+// guide and BSDF, whose pdf it then reports.  The mixture splits the
+// lobe-choice dimension, so that an unguided render draws exactly the
+// numbers it drew before guiding existed.
+std::optional<BSDFSample> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v) const {
+  const float u_lobe = sample1(v.ps, v.dims.bsdf_lobe);
+  const vec2 u_dir = sample2(v.ps, v.dims.bsdf_dir);
+  const vec3& wo = v.si.wo;
+  if (v.guide_fraction <= 0.0f) return bsdf_sample(v.bsdf, wo, u_lobe, u_dir);
+  const DirectionalGuide& guide = *hooks.guide;
+  const float c = v.guide_fraction;
+  std::optional<BSDFSample> bs;
+  float guide_pdf = 0.0f;
+  if (u_lobe < c) {
+    // A direction the guide reports a zero density for (rounding at a
+    // quad's edge) cannot be weighted: the path ends, as for pdf 0.
+    GuideSample gs = guide.sample(v.guide_region, u_dir);
+    guide_pdf = gs.pdf;
+    if (gs.pdf > 0.0f) bs = bsdf_event(v.bsdf, wo, gs.wi);
+  } else {
+    bs = bsdf_sample(v.bsdf, wo, std::min((u_lobe - c) / (1.0f - c), kOneMinusEpsilon), u_dir);
+    if (bs) guide_pdf = guide.pdf(v.guide_region, bs->wi);
+  }
+  if (bs) bs->pdf = c * guide_pdf + (1.0f - c) * bs->pdf;
+  return bs;
+}
+
+// Russian roulette on the throughput (times eta_scale), as pbrt-v4 does it;
+// a survivor's throughput and local factor carry the compensation.
+bool WavefrontEngine::Impl::survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale) const {
+  if (int(v.ps.depth) + 1 <= opt.rr_min_depth) return true;
+  const float rr = max_component(beta * eta_scale);
+  if (rr >= 1.0f) return true;
+  const float q = std::max(0.0f, 1.0f - rr);
+  if (sample1(v.ps, v.dims.roulette) < q) return false;
+  beta /= 1.0f - q;
+  local /= 1.0f - q;
+  return true;
+}
+
+// The scattering vertex, to the observer: the path's handle moves to it.
+template <bool kObserve>
+void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local) {
+  PathVertexInfo info = vertex_info(v, bs.wi, local, bs.pdf);
+  info.lobe_flags = bs.flags;
+  info.roughness = bs.roughness;
+  uint32_t child = observer->vertex_created(v.ps.vertex, info);
+  observer->vertex_done(v.ps.vertex);
+  v.ps.vertex = child;
+}
+
+template void WavefrontEngine::Impl::shade_surface<true>(const Ray&, const Hit&, uint32_t, ShadeOutput&);
+template void WavefrontEngine::Impl::shade_surface<false>(const Ray&, const Hit&, uint32_t, ShadeOutput&);
+
+}  // namespace theia

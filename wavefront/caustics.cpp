@@ -75,150 +75,200 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
   else std::fill(traced_.begin(), traced_.end(), 0);
 }
 
+// One pass: the light paths of an iteration's samples, traced a chunk at a
+// time, and the per-pixel estimate they add up to.
+struct CausticTracer::Pass {
+  const CausticTracer& tracer;
+  const std::function<UVFootprint(const SurfaceInteraction&)>& footprint;
+  const uint32_t seed, sample_begin;
+  const size_t pixels;
+  const uint64_t total;  // light paths: one per camera sample
+  const int width, height;
+  const vec2 radius;
+  const float scale;     // per-path share of a pixel's estimate, over the filter's integral
+  // Each pixel's estimate, RGB interleaved, from all light paths and from
+  // the odd-numbered ones (the film's half buffers).
+  std::vector<float> estimate, estimate_odd;
+
+  // The chunk in flight.
+  uint64_t first = 0;
+  size_t n = 0;
+  std::vector<Ray> rays, shadow, dense;
+  std::vector<Hit> hits, dense_hits;
+  std::vector<uint8_t> blocked, dense_blocked;
+  std::vector<uint32_t> live;
+  std::vector<LightPath> paths;
+  std::vector<Connection> connections;
+  std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
+
+  Pass(const CausticTracer& t, const Film& film, uint32_t s_begin, uint32_t s_end,
+       const std::function<UVFootprint(const SurfaceInteraction&)>& fp)
+      : tracer(t), footprint(fp), seed(uint32_t(hash(t.options_.seed, 0xca057u))), sample_begin(s_begin),
+        pixels(film.pixel_count()), total(uint64_t(pixels) * uint64_t(s_end - s_begin)), width(film.width),
+        height(film.height), radius(filter_radius(t.filter_)),
+        scale(float(double(pixels) / double(total)) / filter_integral(t.filter_)), estimate(3 * pixels, 0.0f),
+        estimate_odd(3 * pixels, 0.0f), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
+        dense_hits(kChunk), blocked(kChunk), dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
+
+  SamplerKey key(size_t i) const {
+    uint64_t k = first + i;
+    return SamplerKey{seed, uint32_t(k % pixels), sample_begin + uint32_t(k / pixels)};
+  }
+  template <class Body>
+  void parallel(Body&& body) const {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) body(i);
+    });
+  }
+  // Only the live paths' rays are traced, gathered densely: most light
+  // paths end at their first hit (a caustic needs a caster, then a receiver).
+  template <class Alive>
+  size_t gather(const std::vector<Ray>& from, Alive&& alive) {
+    live.clear();
+    for (size_t i = 0; i < n; ++i)
+      if (alive(i)) live.push_back(uint32_t(i));
+    for (size_t j = 0; j < live.size(); ++j) dense[j] = from[live[j]];
+    return live.size();
+  }
+  void trace_rays() {
+    size_t m = gather(rays, [&](size_t i) { return paths[i].alive; });
+    tracer.accel_.intersect(std::span<const Ray>(dense.data(), m), std::span(dense_hits.data(), m), false);
+    for (size_t j = 0; j < m; ++j) hits[live[j]] = dense_hits[j];
+  }
+  void trace_connections() {
+    size_t m = gather(shadow, [&](size_t i) { return connections[i].alive; });
+    tracer.accel_.occluded(std::span<const Ray>(dense.data(), m), std::span(dense_blocked.data(), m));
+    for (size_t j = 0; j < m; ++j) blocked[live[j]] = dense_blocked[j];
+  }
+  // A path that may go on: its throughput is finite and not black (a
+  // non-finite one is counted).
+  bool keep(const RGB& v) {
+    if (!is_finite(v)) dropped.fetch_add(1, std::memory_order_relaxed);
+    return is_finite(v) && !is_black(v);
+  }
+  // The surface a path's ray hit, if it is one the pass shades (no holdout).
+  std::optional<std::pair<SurfaceInteraction, BSDF>> surface(size_t i) const {
+    SurfaceInteraction si = compute_interaction(tracer.scene_, tracer.accel_, rays[i], hits[i]);
+    if (si.shape >= 0 && tracer.scene_.shapes[size_t(si.shape)].holdout) return std::nullopt;
+    BSDF bsdf = make_bsdf(tracer.scene_, si, footprint(si));
+    return std::pair{si, bsdf};
+  }
+
+  void leave_light();
+  void the_caster();
+  void the_receiver();
+  void splat();
+};
+
+// Leave a light: a point by area, a cosine-weighted direction.
+void CausticTracer::Pass::leave_light() {
+  parallel([&](size_t i) {
+    SamplerKey k = key(i);
+    paths[i].alive = false;
+    float pmf = 0.0f;
+    int entry = tracer.light_distribution_.sample_discrete(sample_1d(k, kDimLight), &pmf);
+    int light = tracer.light_of_entry_[size_t(entry)];
+    auto le = sample_le(tracer.lights_, light, sample_2d(k, kDimPosition), sample_1d(k, kDimPrim),
+                        sample_2d(k, kDimDirection));
+    if (!le || !(pmf > 0.0f)) return;
+    RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
+    if (!keep(beta)) return;
+    paths[i] = {beta, true};
+    rays[i] = Ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
+  });
+}
+
+// The caster: scatter with the adjoint BSDF.
+void CausticTracer::Pass::the_caster() {
+  parallel([&](size_t i) {
+    if (!paths[i].alive) return;
+    paths[i].alive = false;
+    if (!hits[i].hit()) return;
+    auto hit = surface(i);
+    if (!hit || !bsdf_is_caustic_caster(hit->second, tracer.options_.caster_roughness)) return;
+    const auto& [si, bsdf] = *hit;
+    caster_hits.fetch_add(1, std::memory_order_relaxed);
+    SamplerKey k = key(i);
+    auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
+    if (!bs || !(bs->pdf > 0.0f)) return;
+    RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf) *
+               adjoint_shading_correction(si.wo, bs->wi, bsdf.shading.n, si.ng);
+    if (!keep(beta)) return;
+    paths[i] = {beta, true};
+    rays[i] = spawn_ray(si, bs->wi);
+  });
+}
+
+// The receiver, connected to the camera.
+void CausticTracer::Pass::the_receiver() {
+  parallel([&](size_t i) {
+    connections[i].alive = false;
+    if (!paths[i].alive || !hits[i].hit()) return;
+    auto hit = surface(i);
+    if (!hit || !bsdf_is_caustic_receiver(hit->second)) return;
+    const auto& [si, bsdf] = *hit;
+    receiver_hits.fetch_add(1, std::memory_order_relaxed);
+    auto cw = camera_wi(tracer.camera_, si.p);
+    if (!cw) return;
+    if (cw->raster.x < -radius.x || cw->raster.y < -radius.y || cw->raster.x > float(width) + radius.x ||
+        cw->raster.y > float(height) + radius.y)
+      return;
+    RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
+    RGB value = paths[i].beta * f *
+                (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance *
+                 adjoint_shading_correction(si.wo, cw->wi, bsdf.shading.n, si.ng));
+    if (!keep(value)) return;
+    connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};
+    shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
+  });
+}
+
+// Splat through the pixel filter, as pbrt-v4's film adds splats.
+void CausticTracer::Pass::splat() {
+  parallel([&](size_t i) {
+    const Connection& c = connections[i];
+    if (!c.alive || blocked[i]) return;
+    splats.fetch_add(1, std::memory_order_relaxed);
+    int x0 = std::max(0, int(std::ceil(c.raster.x - 0.5f - radius.x)));
+    int x1 = std::min(width - 1, int(std::floor(c.raster.x - 0.5f + radius.x)));
+    int y0 = std::max(0, int(std::ceil(c.raster.y - 0.5f - radius.y)));
+    int y1 = std::min(height - 1, int(std::floor(c.raster.y - 0.5f + radius.y)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        float h = filter_eval(tracer.filter_, c.raster - vec2(float(x) + 0.5f, float(y) + 0.5f));
+        if (h == 0.0f) continue;
+        RGB v = c.value * (h * scale);
+        size_t j = 3 * (size_t(y) * size_t(width) + size_t(x));
+        for (int ch = 0; ch < 3; ++ch) {
+          atomic_add(estimate[j + size_t(ch)], v[ch]);
+          // Half the paths are odd: their own estimate counts them twice.
+          if (c.odd) atomic_add(estimate_odd[j + size_t(ch)], 2.0f * v[ch]);
+        }
+      }
+  });
+}
+
 void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end,
                           const std::function<UVFootprint(const SurfaceInteraction&)>& footprint) {
   if (!active_ || sample_end <= sample_begin) return;
   auto t0 = std::chrono::steady_clock::now();
-  const uint32_t seed = uint32_t(hash(options_.seed, 0xca057u));
-  const size_t pixels = film.pixel_count();
-  const uint64_t total = uint64_t(pixels) * uint64_t(sample_end - sample_begin);
-  // Each pixel's estimate, RGB interleaved, from all light paths and from
-  // the odd-numbered ones (the film's half buffers).
-  std::vector<float> estimate(3 * pixels, 0.0f), estimate_odd(3 * pixels, 0.0f);
-  const vec2 radius = filter_radius(filter_);
-  const float scale = float(double(pixels) / double(total)) / filter_integral(filter_);
-  const int width = film.width, height = film.height;
-
-  std::vector<Ray> rays(kChunk), shadow(kChunk), dense(kChunk);
-  std::vector<Hit> hits(kChunk), dense_hits(kChunk);
-  std::vector<uint8_t> blocked(kChunk), dense_blocked(kChunk);
-  std::vector<uint32_t> live;
-  std::vector<LightPath> paths(kChunk);
-  std::vector<Connection> connections(kChunk);
-  std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
-
-  for (uint64_t first = 0; first < total; first += kChunk) {
-    const size_t n = size_t(std::min<uint64_t>(kChunk, total - first));
-    auto key = [&](size_t i) {
-      uint64_t k = first + i;
-      return SamplerKey{seed, uint32_t(k % pixels), sample_begin + uint32_t(k / pixels)};
-    };
-    auto parallel = [&](auto&& body) {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) body(i);
-      });
-    };
-    // Only the live paths' rays are traced, gathered densely: most light
-    // paths end at their first hit (a caustic needs a caster, then a receiver).
-    auto gather = [&](const std::vector<Ray>& from, auto&& alive) {
-      live.clear();
-      for (size_t i = 0; i < n; ++i)
-        if (alive(i)) live.push_back(uint32_t(i));
-      for (size_t j = 0; j < live.size(); ++j) dense[j] = from[live[j]];
-      return live.size();
-    };
-    auto trace_rays = [&] {
-      size_t m = gather(rays, [&](size_t i) { return paths[i].alive; });
-      accel_.intersect(std::span<const Ray>(dense.data(), m), std::span(dense_hits.data(), m), false);
-      for (size_t j = 0; j < m; ++j) hits[live[j]] = dense_hits[j];
-    };
-
-    // Leave a light: a point by area, a cosine-weighted direction.
-    parallel([&](size_t i) {
-      SamplerKey k = key(i);
-      paths[i].alive = false;
-      float pmf = 0.0f;
-      int entry = light_distribution_.sample_discrete(sample_1d(k, kDimLight), &pmf);
-      int light = light_of_entry_[size_t(entry)];
-      auto le = sample_le(lights_, light, sample_2d(k, kDimPosition), sample_1d(k, kDimPrim),
-                          sample_2d(k, kDimDirection));
-      if (!le || !(pmf > 0.0f)) return;
-      RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
-      if (!is_finite(beta)) dropped.fetch_add(1, std::memory_order_relaxed);
-      if (!is_finite(beta) || is_black(beta)) return;
-      paths[i] = {beta, true};
-      rays[i] = Ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
-    });
-    trace_rays();
-
-    // The caster: scatter with the adjoint BSDF.
-    parallel([&](size_t i) {
-      if (!paths[i].alive) return;
-      paths[i].alive = false;
-      if (!hits[i].hit()) return;
-      SurfaceInteraction si = compute_interaction(scene_, accel_, rays[i], hits[i]);
-      if (si.shape >= 0 && scene_.shapes[size_t(si.shape)].holdout) return;
-      BSDF bsdf = make_bsdf(scene_, si, footprint(si));
-      if (!bsdf_is_caustic_caster(bsdf, options_.caster_roughness)) return;
-      caster_hits.fetch_add(1, std::memory_order_relaxed);
-      SamplerKey k = key(i);
-      auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
-      if (!bs || !(bs->pdf > 0.0f)) return;
-      RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf) *
-                 adjoint_shading_correction(si.wo, bs->wi, bsdf.shading.n, si.ng);
-      if (!is_finite(beta)) dropped.fetch_add(1, std::memory_order_relaxed);
-      if (!is_finite(beta) || is_black(beta)) return;
-      paths[i] = {beta, true};
-      rays[i] = spawn_ray(si, bs->wi);
-    });
-    trace_rays();
-
-    // The receiver, connected to the camera.
-    parallel([&](size_t i) {
-      connections[i].alive = false;
-      if (!paths[i].alive || !hits[i].hit()) return;
-      SurfaceInteraction si = compute_interaction(scene_, accel_, rays[i], hits[i]);
-      if (si.shape >= 0 && scene_.shapes[size_t(si.shape)].holdout) return;
-      BSDF bsdf = make_bsdf(scene_, si, footprint(si));
-      if (!bsdf_is_caustic_receiver(bsdf)) return;
-      receiver_hits.fetch_add(1, std::memory_order_relaxed);
-      auto cw = camera_wi(camera_, si.p);
-      if (!cw) return;
-      if (cw->raster.x < -radius.x || cw->raster.y < -radius.y || cw->raster.x > float(width) + radius.x ||
-          cw->raster.y > float(height) + radius.y)
-        return;
-      RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
-      RGB value = paths[i].beta * f *
-                  (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance *
-                   adjoint_shading_correction(si.wo, cw->wi, bsdf.shading.n, si.ng));
-      if (!is_finite(value)) dropped.fetch_add(1, std::memory_order_relaxed);
-      if (!is_finite(value) || is_black(value)) return;
-      connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};
-      shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
-    });
-    size_t m = gather(shadow, [&](size_t i) { return connections[i].alive; });
-    accel_.occluded(std::span<const Ray>(dense.data(), m), std::span(dense_blocked.data(), m));
-    for (size_t j = 0; j < m; ++j) blocked[live[j]] = dense_blocked[j];
-
-    // Splat through the pixel filter, as pbrt-v4's film adds splats.
-    parallel([&](size_t i) {
-      const Connection& c = connections[i];
-      if (!c.alive || blocked[i]) return;
-      splats.fetch_add(1, std::memory_order_relaxed);
-      int x0 = std::max(0, int(std::ceil(c.raster.x - 0.5f - radius.x)));
-      int x1 = std::min(width - 1, int(std::floor(c.raster.x - 0.5f + radius.x)));
-      int y0 = std::max(0, int(std::ceil(c.raster.y - 0.5f - radius.y)));
-      int y1 = std::min(height - 1, int(std::floor(c.raster.y - 0.5f + radius.y)));
-      for (int y = y0; y <= y1; ++y)
-        for (int x = x0; x <= x1; ++x) {
-          float h = filter_eval(filter_, c.raster - vec2(float(x) + 0.5f, float(y) + 0.5f));
-          if (h == 0.0f) continue;
-          RGB v = c.value * (h * scale);
-          size_t j = 3 * (size_t(y) * size_t(width) + size_t(x));
-          for (int ch = 0; ch < 3; ++ch) {
-            atomic_add(estimate[j + size_t(ch)], v[ch]);
-            // Half the paths are odd: their own estimate counts them twice.
-            if (c.odd) atomic_add(estimate_odd[j + size_t(ch)], 2.0f * v[ch]);
-          }
-        }
-    });
+  Pass pass(*this, film, sample_begin, sample_end, footprint);
+  for (pass.first = 0; pass.first < pass.total; pass.first += kChunk) {
+    pass.n = size_t(std::min<uint64_t>(kChunk, pass.total - pass.first));
+    pass.leave_light();
+    pass.trace_rays();
+    pass.the_caster();
+    pass.trace_rays();
+    pass.the_receiver();
+    pass.trace_connections();
+    pass.splat();
   }
-  film.add_resolved(estimate, estimate_odd);
-  stats_.paths += total;
-  stats_.caster_hits += caster_hits.load();
-  stats_.receiver_hits += receiver_hits.load();
-  stats_.splats += splats.load();
-  stats_.dropped += dropped.load();
+  film.add_resolved(pass.estimate, pass.estimate_odd);
+  stats_.paths += pass.total;
+  stats_.caster_hits += pass.caster_hits.load();
+  stats_.receiver_hits += pass.receiver_hits.load();
+  stats_.splats += pass.splats.load();
+  stats_.dropped += pass.dropped.load();
   stats_.seconds += seconds_since(t0);
   ++passes_;
   if (stats_.paths >= kCausticDecisionPaths && double(stats_.splats) < kCausticMinSplatRate * double(stats_.paths))

@@ -85,6 +85,7 @@ class CausticTracer {
   int passes() const { return passes_; }
 
  private:
+  struct Pass;  // one call of trace(): its light paths, chunk by chunk
   const Scene& scene_;
   const Accel& accel_;
   const LightSet& lights_;

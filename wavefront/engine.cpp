@@ -257,20 +257,16 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
       keys[i] = SortPair{key, uint32_t(i)};
     }
   });
-  if (opt.sort) {
-    radix_sort(keys, scratch, 64);
-  } else {
-    // Queue order, misses moved to the end (stable, as the sort would).
-    std::stable_partition(keys.begin(), keys.end(), [](const SortPair& p) { return p.key != ~uint64_t(0); });
-  }
-  size_t first_miss = n;
-  while (first_miss > 0 && keys[first_miss - 1].key == ~uint64_t(0)) --first_miss;
+  // Misses leave first (stable), so that the sort sees only hits: their
+  // keys share high bits, whose passes the radix sort then skips.
+  auto first_miss = std::stable_partition(keys.begin(), keys.end(), [](const SortPair& p) { return p.key != ~uint64_t(0); });
   queue_clear(escaped);
-  for (size_t k = first_miss; k < n; ++k) {
-    escaped.rays.push_back(b.rays[keys[k].index]);
-    escaped.paths.push_back(b.paths[keys[k].index]);
+  for (auto it = first_miss; it != keys.end(); ++it) {
+    escaped.rays.push_back(b.rays[it->index]);
+    escaped.paths.push_back(b.paths[it->index]);
   }
-  keys.resize(first_miss);
+  keys.erase(first_miss, keys.end());
+  if (opt.sort) radix_sort(keys, scratch, 64);
 }
 
 // ---------------------------------------------------------------- shade surface hits

@@ -37,10 +37,21 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   std::vector<uint32_t> slots(pool.free_slots.end() - count, pool.free_slots.end());
   pool.free_slots.resize(pool.free_slots.size() - count);
 
-  Batch all = take_spare();
-  all.camera = true;
-  all.rays.resize(count);
-  all.paths = slots;
+  // Camera rays stay in pixel order rather than entering the direction bins:
+  // neighbouring pixels' rays are coherent already, and a batch of them is
+  // traced with Embree's COHERENT flag.  They are written straight into
+  // their batches, pushed last first so that the first pixels are traced first.
+  const size_t batch = opt.batch_size, n_batches = (count + batch - 1) / batch;
+  const size_t first_batch = full.size();
+  for (size_t k = n_batches; k-- > 0;) {
+    Batch b = take_spare();
+    b.camera = true;
+    const size_t lo = k * batch, hi = std::min(count, lo + batch);
+    b.rays.resize(hi - lo);
+    b.paths.assign(slots.begin() + lo, slots.begin() + hi);
+    full.push_back(std::move(b));
+  }
+  auto batch_of = [&](size_t i) -> Batch& { return full[first_batch + n_batches - 1 - i / batch]; };
   const uint64_t first = next_camera;
   const uint32_t width = uint32_t(film.width);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
@@ -69,7 +80,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
       ps.flags = kPathPrevSpecular;
       ps.alpha_only = s.alpha_only ? 1 : 0;
       if (!pool.curve_skip.empty()) pool.curve_skip[slots[i]] = PrimRef{};
-      all.rays[i] = ray;
+      batch_of(i).rays[i % batch] = ray;
     }
   });
   next_camera += count;
@@ -77,20 +88,6 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   stats.paths += count;
   queued_rays += count;
 
-  // Camera rays stay in pixel order rather than entering the direction bins:
-  // neighbouring pixels' rays are already coherent, and a batch of them is
-  // traced with Embree's COHERENT flag.  Split into batches; push the last
-  // first so the first pixels are traced first.
-  const size_t n_batches = (count + opt.batch_size - 1) / opt.batch_size;
-  for (size_t k = n_batches; k-- > 0;) {
-    size_t lo = k * opt.batch_size, hi = std::min(count, lo + opt.batch_size);
-    Batch b = take_spare();
-    b.camera = true;
-    b.rays.assign(all.rays.begin() + lo, all.rays.begin() + hi);
-    b.paths.assign(all.paths.begin() + lo, all.paths.begin() + hi);
-    full.push_back(std::move(b));
-  }
-  spare.push_back(std::move(all));
   stats.peak_live_paths = std::max(stats.peak_live_paths, pool.live());
 }
 

@@ -59,9 +59,19 @@ std::string dir_of(const std::string& path) {
   return dir.empty() ? fs::path(".").string() : dir.string();
 }
 
+// The file a path names, one spelling for every way to reach it.
+std::string canonical_path(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(path, ec);
+  return ec ? fs::absolute(path).lexically_normal().string() : p.string();
+}
+
 class SceneParser {
  public:
-  explicit SceneParser(Scene& scene) : scene_(scene) { named_coords_["world"] = Transform(); }
+  explicit SceneParser(Scene& scene) : scene_(scene) {
+    named_coords_["world"] = Transform();
+    if (!scene.path.empty()) includes_.push_back(canonical_path(scene.path));
+  }
 
   void parse(Tokenizer& tok, const std::string& base_dir);
   void finish(const SourceLoc& end);
@@ -104,6 +114,16 @@ class SceneParser {
   bool triangle_mesh(const ParamList& params, const SourceLoc& loc, TriangleMesh* out);
   bool bilinear_mesh(const ParamList& params, const SourceLoc& loc, TriangleMesh* out);
 
+  // The files being parsed, outermost first: an Include of one of them
+  // would recurse until the stack overflows.
+  struct IncludeGuard {
+    std::vector<std::string>& chain;
+    IncludeGuard(std::vector<std::string>& c, const std::string& path, const SourceLoc& loc, std::string_view d);
+    ~IncludeGuard() { chain.pop_back(); }
+  };
+  static constexpr size_t kMaxIncludeDepth = 64;
+  std::vector<std::string> includes_;
+
   Scene& scene_;
   GraphicsState gs_;
   std::vector<Pushed> stack_;
@@ -118,12 +138,48 @@ class SceneParser {
   bool warned_curve_light_ = false;
 };
 
+// ---------------------------------------------------------------- transforms
+
+// A transform every point can go through and come back: finite both ways and
+// within a range where float arithmetic on scene coordinates still means
+// something.  A singular matrix (Scale 0, a zero Transform) has no inverse.
+bool is_usable(const Transform& t) {
+  constexpr float kLimit = 1e20f;
+  if (!(std::abs(glm::determinant(mat3(t.m))) > 0.0f)) return false;
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r)
+      if (!(std::abs(t.m[c][r]) < kLimit) || !(std::abs(t.m_inv[c][r]) < kLimit)) return false;
+  return true;
+}
+
+// ---------------------------------------------------------------- includes
+
+SceneParser::IncludeGuard::IncludeGuard(std::vector<std::string>& c, const std::string& path, const SourceLoc& loc,
+                                        std::string_view d)
+    : chain(c) {
+  std::string file = canonical_path(path);
+  if (std::find(chain.begin(), chain.end(), file) != chain.end()) {
+    std::string cycle;
+    for (auto it = std::find(chain.begin(), chain.end(), file); it != chain.end(); ++it) cycle += *it + " -> ";
+    throw_at(loc, "{} cycle: {}{}, expected files that do not include themselves", d, cycle, file);
+  }
+  if (chain.size() >= kMaxIncludeDepth)
+    throw_at(loc, "{} nested {} files deep, expected at most {}", d, chain.size(), kMaxIncludeDepth);
+  chain.push_back(std::move(file));
+}
+
 // ---------------------------------------------------------------- arguments
 
 float SceneParser::number(Tokenizer& tok, std::string_view directive) {
   Token t = tok.next();
   double v;
-  if (t.kind == Token::Bare && parse_number(t.text, &v)) return float(v);
+  if (t.kind == Token::Bare && parse_number(t.text, &v)) {
+    // Transforms multiply into every point of the scene: one NaN, or a value
+    // past float's range, poisons the whole image (or crashes Embree).
+    if (!std::isfinite(float(v)))
+      throw_at(tok.loc(t), "{} \"{}\" for {}, expected a finite number", std::isfinite(v) ? "out-of-range number" : "non-finite number", t.text, directive);
+    return float(v);
+  }
   if (t.kind == Token::Bare) throw_at(tok.loc(t), "bad number \"{}\" for {}, expected a number", t.text, directive);
   throw_at(tok.loc(t), "{} for {}, expected a number", Tokenizer::describe(t), directive);
 }
@@ -230,9 +286,10 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
       vec3 eye(v[0], v[1], v[2]), look(v[3], v[4], v[5]), up(v[6], v[7], v[8]);
       vec3 dir = look - eye;
       if (glm::length(dir) == 0.0f) throw_at(loc, "LookAt with the eye at the look-at point, expected distinct points");
+      if (!(glm::length(up) > 0.0f)) throw_at(loc, "LookAt with a zero up vector, expected a non-zero up vector");
       dir = glm::normalize(dir);
       vec3 right = glm::cross(glm::normalize(up), dir);
-      if (glm::length(right) == 0.0f) throw_at(loc, "LookAt with the up vector along the view direction, expected them not parallel");
+      if (!(glm::length(right) > 0.0f)) throw_at(loc, "LookAt with the up vector along the view direction, expected them not parallel");
       right = glm::normalize(right);
       vec3 new_up = glm::cross(dir, right);
       // pbrt-v4's left-handed camera frame: x right, y up, z forward.
@@ -323,10 +380,12 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
       if (object_ >= 0) throw_at(loc, "ObjectInstance inside an object definition, expected ObjectEnd first");
       auto it = objects_.find(name);
       if (it == objects_.end()) throw_at(loc, "unknown object \"{}\", expected a name defined by ObjectBegin", name);
-      scene_.instances.push_back({it->second, gs_.ctm});
+      if (!is_usable(gs_.ctm)) warn_at(loc, "ObjectInstance \"{}\" under a transform that is not invertible or not finite; instance ignored", name);
+      else scene_.instances.push_back({it->second, gs_.ctm});
     } else if (d == "Include" || d == "Import") {
       if (d == "Import") need_world(loc, d);
       std::string path = resolve(base_dir, string_arg(tok, d));
+      IncludeGuard guard(includes_, path, loc, d);
       auto sub = Tokenizer::from_file(path, &loc);
       std::string dir = dir_of(path);
       if (d == "Include") {
@@ -448,6 +507,9 @@ void SceneParser::finish(const SourceLoc& end) {
 // ---------------------------------------------------------------- options
 
 void SceneParser::camera(const std::string& type, ParamList& params, const SourceLoc& loc) {
+  if (!is_usable(gs_.ctm))
+    throw_at(loc, "the camera transform is not invertible or not finite (a zero scale, a zero Transform, a huge "
+                  "value?), expected an invertible transform");
   named_coords_["camera"] = gs_.ctm.inverse();
   scene_.camera.render_from_camera = gs_.ctm.inverse();
   read_camera(type, params, loc, scene_.camera);
@@ -725,6 +787,12 @@ bool SceneParser::bilinear_mesh(const ParamList& params, const SourceLoc& loc, T
 }
 
 void SceneParser::shape(const std::string& type, ParamList& params, const SourceLoc& loc, const std::string& base_dir) {
+  if (!is_usable(gs_.ctm)) {
+    warn_at(loc, "shape \"{}\" under a transform that is not invertible or not finite (a zero scale?); shape ignored",
+            type);
+    params.mark_all_used();
+    return;
+  }
   Shape s;
   s.loc = loc;
   TriangleMesh mesh;

@@ -27,11 +27,16 @@ Tokenizer::Tokenizer(std::string text, std::string filename) : text_(std::move(t
 }
 
 std::unique_ptr<Tokenizer> Tokenizer::from_file(const std::string& path, const SourceLoc* included_from) {
+  // Only regular files are opened: a FIFO would block open() for ever, a
+  // device would read without end.
   std::error_code ec;
-  bool is_dir = std::filesystem::is_directory(path, ec);
-  std::FILE* f = is_dir ? nullptr : std::fopen(path.c_str(), "rb");
+  auto status = std::filesystem::status(path, ec);
+  bool irregular = !ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status);
+  std::FILE* f = irregular ? nullptr : std::fopen(path.c_str(), "rb");
   if (!f) {
-    std::string why = is_dir ? "it is a directory" : std::strerror(errno);
+    std::string why = std::filesystem::is_directory(status) ? "it is a directory"
+                      : irregular                           ? "it is not a regular file"
+                                                            : std::strerror(errno);
     if (included_from) throw_at(*included_from, "cannot open \"{}\": {}, expected a readable file", path, why);
     throw Error(fmt::format("{}: error: cannot open the scene file: {}", path, why));
   }

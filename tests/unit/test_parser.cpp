@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sys/stat.h>
 
 using namespace theia;
 using theia::test::TempDir;
@@ -799,4 +800,70 @@ TEST(Parser, ParsesLargeMeshesQuickly) {
   ASSERT_EQ(s.meshes[0].p.size(), size_t(kVerts));
   EXPECT_EQ(s.meshes[0].p[kVerts - 1], vec3(0.125f, -1.5e-3f, float(kVerts - 1)));
   EXPECT_LT(seconds, 2.0);
+}
+
+// ---------------------------------------------------------------- hostile input
+
+TEST(Parser, TransformArgumentsMustBeFinite) {
+  EXPECT_EQ(error_of("Translate 0 0 nan\nWorldBegin"),
+            "test.pbrt:1:15: error: non-finite number \"nan\" for Translate, expected a finite number");
+  EXPECT_EQ(error_of("Scale 1 inf 1\nWorldBegin"),
+            "test.pbrt:1:9: error: non-finite number \"inf\" for Scale, expected a finite number");
+  EXPECT_EQ(error_of("Rotate 1e39 0 0 1\nWorldBegin"),
+            "test.pbrt:1:8: error: out-of-range number \"1e39\" for Rotate, expected a finite number");
+  EXPECT_EQ(error_of("LookAt 0 0 -5  0 0 0  0 0 0\nWorldBegin"),
+            "test.pbrt:1:1: error: LookAt with a zero up vector, expected a non-zero up vector");
+}
+
+TEST(Parser, TheCameraTransformMustBeInvertible) {
+  const std::string expected =
+      "error: the camera transform is not invertible or not finite (a zero scale, a zero Transform, a huge value?), "
+      "expected an invertible transform";
+  EXPECT_EQ(error_of("Scale 0 0 0\nCamera \"perspective\"\nWorldBegin"), "test.pbrt:2:1: " + expected);
+  EXPECT_EQ(error_of("Transform [0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0]\nCamera \"perspective\"\nWorldBegin"),
+            "test.pbrt:2:1: " + expected);
+  EXPECT_EQ(error_of("Scale 1e15 1e15 1e15\nScale 1e15 1 1\nCamera \"perspective\"\nWorldBegin"),
+            "test.pbrt:3:1: " + expected);
+  EXPECT_EQ(error_of("Scale 2 2 2\nCamera \"perspective\"\nWorldBegin"), "no error");
+}
+
+TEST(Parser, ShapesUnderADegenerateTransformAreDroppedWithAWarning) {
+  std::string text = std::string("WorldBegin\nAttributeBegin\nScale 0 0 0\n") + kTri +
+                     "\nShape \"sphere\"\nAttributeEnd\n" + kTri + "\n";
+  EXPECT_EQ(warnings_of(text), 2);
+  Scene s = parse(text);
+  EXPECT_EQ(s.shapes.size(), 1u);  // the triangle after AttributeEnd
+}
+
+TEST(Parser, IncludeCyclesAreErrorsNamingTheChain) {
+  TempDir dir;
+  std::string self = dir.write("self.pbrt", "Include \"self.pbrt\"\n");
+  dir.write("a.pbrt", "WorldBegin\nInclude \"b.pbrt\"\n");
+  dir.write("b.pbrt", "\n  Include \"a.pbrt\"\n");
+  auto error_loading = [](const std::string& path) {
+    try {
+      load_scene(path);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string d = fs::weakly_canonical(dir.path).string();
+  EXPECT_EQ(error_loading(self), d + "/self.pbrt:1:1: error: Include cycle: " + d + "/self.pbrt -> " + d +
+                                     "/self.pbrt, expected files that do not include themselves");
+  EXPECT_EQ(error_loading(dir.file("a.pbrt")), d + "/b.pbrt:2:3: error: Include cycle: " + d + "/a.pbrt -> " + d +
+                                                   "/b.pbrt -> " + d + "/a.pbrt, expected files that do not include themselves");
+  // The same file twice, not nested, is no cycle.
+  dir.write("twice.pbrt", "WorldBegin\nInclude \"part.pbrt\"\nInclude \"part.pbrt\"\n");
+  dir.write("part.pbrt", kTri);
+  EXPECT_EQ(load_scene(dir.file("twice.pbrt")).shapes.size(), 2u);
+}
+
+TEST(Parser, OnlyRegularFilesAreOpened) {
+  TempDir dir;
+  const std::string fifo = dir.file("fifo.pbrt");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Opening a FIFO would block for ever; the parser must refuse it instead.
+  EXPECT_EQ(error_of("Include \"fifo.pbrt\"", dir.path.string()),
+            "test.pbrt:1:1: error: cannot open \"" + fifo + "\": it is not a regular file, expected a readable file");
 }

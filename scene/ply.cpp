@@ -81,6 +81,12 @@ class BodyReader {
       : path_(path), p_(p), end_(end), ascii_(f == Format::Ascii),
         swap_((f == Format::BinaryBE) == (std::endian::native == std::endian::little)) {}
 
+  // Bytes left in the body, and the fewest one value of type t takes (an
+  // ASCII value is at least a digit and a separator): what a count in the
+  // header or a list length must fit in before anything is allocated for it.
+  size_t remaining() const { return size_t(end_ - p_); }
+  size_t min_bytes(Scalar t) const { return ascii_ ? 2 : scalar_size(t); }
+
   double read(Scalar t, const char* what) {
     if (ascii_) return read_ascii(what);
     size_t n = scalar_size(t);
@@ -230,6 +236,16 @@ TriangleMesh read_ply(const std::string& path) {
   bool has_n = false, has_uv = false;
   int skipped_faces = 0;
   std::vector<double> list_values;
+  size_t claimed = 0;  // the body's smallest size the header implies
+  for (const Element& e : elements) {
+    size_t per_item = 0;
+    for (const Property& p : e.props) per_item += in.min_bytes(p.is_list ? p.count_type : p.type);
+    if (per_item > 0 && e.count > (in.remaining() - std::min(claimed, in.remaining())) / per_item)
+      throw_error("{}: error: the header claims {} {} elements (at least {} bytes each), but the file holds only {} "
+                  "bytes after its header, expected the counts the data has", path, e.count, e.name, per_item,
+                  in.remaining());
+    claimed += e.count * per_item;
+  }
   for (const Element& e : elements) {
     bool is_vertex = e.name == "vertex", is_face = e.name == "face";
     if (is_vertex) {
@@ -250,6 +266,9 @@ TriangleMesh read_ply(const std::string& path) {
         if (!p.is_list) {
           double v = in.read(p.type, e.name.c_str());
           if (!is_vertex) continue;
+          if (p.slot != Slot::None && !std::isfinite(float(v)))
+            throw_error("{}: error: vertex {} has a non-finite or out-of-range {} ({}), expected finite values", path, i,
+                        p.name, v);
           switch (p.slot) {
             case Slot::X: mesh.p[i].x = float(v); break;
             case Slot::Y: mesh.p[i].y = float(v); break;
@@ -265,6 +284,9 @@ TriangleMesh read_ply(const std::string& path) {
         }
         double count = in.read(p.count_type, e.name.c_str());
         if (count < 0) throw_error("{}: error: negative list length in the {} data", path, e.name);
+        if (count > double(in.remaining() / in.min_bytes(p.type)))
+          throw_error("{}: error: unexpected end of file in the {} data: a list of {} values, {} bytes left, expected "
+                      "more values", path, e.name, count, in.remaining());
         list_values.resize(size_t(count));
         for (double& v : list_values) v = in.read(p.type, e.name.c_str());
         if (!is_face || !p.is_face_indices) continue;

@@ -160,7 +160,9 @@ TEST(Ply, TruncatedBinaryIsAnError) {
   TempDir dir;
   std::string full = make_ply(Fmt::LE, true, true);
   std::string path = dir.write("cut.ply", full.substr(0, full.size() - 6));
-  EXPECT_EQ(error_of(path), path + ": error: unexpected end of file in the face data, expected more values");
+  // The last face's list of 3 indices (12 bytes) finds 10 bytes left: refused before it is read.
+  EXPECT_EQ(error_of(path),
+            path + ": error: unexpected end of file in the face data: a list of 3 values, 10 bytes left, expected more values");
 }
 
 TEST(Ply, IndexOutOfRangeIsAnError) {
@@ -178,4 +180,35 @@ TEST(Ply, MalformedHeaderAndMissingFileAreErrors) {
   EXPECT_EQ(error_of(nope), nope + ": error: cannot open the PLY file: No such file or directory");
   std::string notply = dir.write("x.ply", "hello\n");
   EXPECT_EQ(error_of(notply), notply + ": error: not a PLY file, expected \"ply\" on the first line");
+}
+
+TEST(Ply, CountsTheFileCannotHoldAreErrorsBeforeAnyAllocation) {
+  TempDir dir;
+  // A header claiming 1e8 vertices over a 24-byte body: refused from the
+  // file size, not after allocating 1.2 GB for the positions.
+  std::string path = dir.write(
+      "huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 100000000\nproperty float x\nproperty float y\n"
+                  "property float z\nend_header\n" + std::string(24, '\0'));
+  EXPECT_EQ(error_of(path), path + ": error: the header claims 100000000 vertex elements (at least 12 bytes each), "
+                                   "but the file holds only 24 bytes after its header, expected the counts the data has");
+  // A list length past the bytes that are left.
+  std::string body;
+  for (float v : {0.0f, 0.0f, 0.0f}) body.append(reinterpret_cast<const char*>(&v), 4);
+  int32_t n = 1000000000;
+  body.append(reinterpret_cast<const char*>(&n), 4);
+  std::string list = dir.write(
+      "list.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                  "property float z\nelement face 1\nproperty list int int vertex_indices\nend_header\n" + body);
+  EXPECT_EQ(error_of(list), list + ": error: unexpected end of file in the face data: a list of 1000000000 values, 0 "
+                                   "bytes left, expected more values");
+}
+
+TEST(Ply, NonFiniteVerticesAreErrors) {
+  TempDir dir;
+  std::string path = dir.write("nan.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                          "property float z\nend_header\n0 0 0\n1 nan 0\n");
+  EXPECT_EQ(error_of(path), path + ": error: vertex 1 has a non-finite or out-of-range y (nan), expected finite values");
+  std::string big = dir.write("big.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                         "property float z\nend_header\n0 0 1e39\n");
+  EXPECT_EQ(error_of(big), big + ": error: vertex 0 has a non-finite or out-of-range z (1e+39), expected finite values");
 }

@@ -168,25 +168,33 @@ const Param* ParamList::find_any(std::string_view name, std::initializer_list<Pa
   return nullptr;
 }
 
+// A parameter read as one value (or one point) must have exactly that many,
+// as pbrt-v4 insists: extra values are a mistake, not something to ignore.
+static const Param* with_count(const Param* p, size_t have, size_t expected) {
+  if (p && have != expected) throw_at(p->loc, "{} has {} values, expected {}", p->label(), have, expected);
+  return p;
+}
+
 float ParamList::get_float(std::string_view name, float def) const {
   const Param* p = find(name, ParamType::Float);
-  return p ? float(p->numbers[0]) : def;
+  return with_count(p, p ? p->numbers.size() : 0, 1) ? float(p->numbers[0]) : def;
 }
 int ParamList::get_int(std::string_view name, int def) const {
   const Param* p = find(name, ParamType::Integer);
-  return p ? int(p->numbers[0]) : def;
+  return with_count(p, p ? p->numbers.size() : 0, 1) ? int(p->numbers[0]) : def;
 }
 bool ParamList::get_bool(std::string_view name, bool def) const {
   const Param* p = find(name, ParamType::Bool);
-  return p ? p->bools[0] != 0 : def;
+  return with_count(p, p ? p->bools.size() : 0, 1) ? p->bools[0] != 0 : def;
 }
 std::string ParamList::get_string(std::string_view name, const std::string& def) const {
   const Param* p = find(name, ParamType::String);
-  return p ? p->strings[0] : def;
+  return with_count(p, p ? p->strings.size() : 0, 1) ? p->strings[0] : def;
 }
 vec3 ParamList::get_point3(std::string_view name, vec3 def) const {
   const Param* p = find(name, ParamType::Point3);
-  return p ? vec3(float(p->numbers[0]), float(p->numbers[1]), float(p->numbers[2])) : def;
+  return with_count(p, p ? p->numbers.size() : 0, 3) ? vec3(float(p->numbers[0]), float(p->numbers[1]), float(p->numbers[2]))
+                                                      : def;
 }
 std::span<const double> ParamList::get_floats(std::string_view name) const {
   const Param* p = find(name, ParamType::Float);

@@ -430,9 +430,15 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
       ParamList params = parse_params(tok);
       if (d == "Sampler") {
         scene_.settings.spp = params.get_int("pixelsamples", scene_.settings.spp);
+        if (scene_.settings.spp <= 0)
+          throw_at(params.find("pixelsamples", ParamType::Integer)->loc, "\"integer pixelsamples\" is {}, expected a "
+                   "positive count", scene_.settings.spp);
         log_info("{}: note: theia uses its own sampler; of Sampler \"{}\" only pixelsamples is used", format_loc(loc), type);
       } else if (d == "Integrator") {
         scene_.settings.max_depth = params.get_int("maxdepth", scene_.settings.max_depth);
+        if (scene_.settings.max_depth < 0)
+          throw_at(params.find("maxdepth", ParamType::Integer)->loc, "\"integer maxdepth\" is {}, expected zero or more",
+                   scene_.settings.max_depth);
         log_info("{}: note: theia has its own integrator; of Integrator \"{}\" only maxdepth is used", format_loc(loc), type);
       } else {
         log_info("{}: note: Accelerator \"{}\" ignored; theia uses Embree", format_loc(loc), type);

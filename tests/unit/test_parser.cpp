@@ -867,3 +867,14 @@ TEST(Parser, OnlyRegularFilesAreOpened) {
   EXPECT_EQ(error_of("Include \"fifo.pbrt\"", dir.path.string()),
             "test.pbrt:1:1: error: cannot open \"" + fifo + "\": it is not a regular file, expected a readable file");
 }
+
+TEST(Parser, SingleValuedParametersTakeOneValueAndCountsMustMakeSense) {
+  EXPECT_EQ(error_of("Camera \"perspective\" \"float fov\" [45 50]\nWorldBegin"),
+            "test.pbrt:1:22: error: \"float fov\" has 2 values, expected 1");
+  EXPECT_EQ(error_of("Integrator \"volpath\" \"integer maxdepth\" [-1]\nWorldBegin"),
+            "test.pbrt:1:22: error: \"integer maxdepth\" is -1, expected zero or more");
+  EXPECT_EQ(error_of("Sampler \"zsobol\" \"integer pixelsamples\" [0]\nWorldBegin"),
+            "test.pbrt:1:18: error: \"integer pixelsamples\" is 0, expected a positive count");
+  EXPECT_EQ(error_of("WorldBegin\nLightSource \"point\" \"point3 from\" [0 0 0 1 1 1]"),
+            "test.pbrt:2:21: error: \"point3 from\" has 6 values, expected 3");
+}

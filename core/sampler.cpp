@@ -1,9 +1,5 @@
 #include "core/sampler.h"
 
-#include "core/hash.h"
-
-#include <array>
-
 namespace theia {
 
 namespace {
@@ -60,80 +56,29 @@ constexpr std::array<SobolByteTables, kSobolDimensions> make_sobol_byte_tables()
 
 constexpr auto kSobolByteTables = make_sobol_byte_tables();
 
-// Per pair k of a pixel: the seeds of the index shuffle and of the two scrambles.
-struct PairSeeds {
-  uint32_t shuffle, scramble[2];
-};
-
-inline PairSeeds pair_seeds(const SamplerKey& key, uint32_t pair) {
-  uint64_t h = hash(key.seed, key.pixel, pair);
-  // One more cheap multiply-xorshift decorrelates the third seed from the first two.
-  uint64_t h2 = (h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ull;
-  return {uint32_t(h), {uint32_t(h >> 32), uint32_t(h2 >> 32)}};
-}
-
-// Burley's hash on bit-reversed values: bit i of the result depends only on
-// bits 0..i of x, which after reversal are the more significant digits.
-inline uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
-  x += seed;
-  x ^= x * 0x6c50b47cu;
-  x ^= x * 0xb82f1e52u;
-  x ^= x * 0xc7afe638u;
-  x ^= x * 0x8d22f6e6u;
-  return x;
-}
-
-inline uint32_t reverse_bits_fast(uint32_t x) {
-  x = __builtin_bswap32(x);
-  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
-  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
-  return ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
-}
-
-inline uint32_t sobol_fast(uint32_t index, uint32_t dim) {
-  const SobolByteTables& t = kSobolByteTables[dim];
-  return t[0][index & 0xffu] ^ t[1][(index >> 8) & 0xffu] ^ t[2][(index >> 16) & 0xffu] ^ t[3][index >> 24];
-}
-
-inline float to_sample(uint32_t x) { return std::min(to_unit_float(x), kOneMinusEpsilon); }
-
-// Owen-scrambling the index permutes the samples so that any 2^m prefix is
-// one aligned block of 2^m Sobol points, i.e. a full net.
-inline uint32_t shuffled_index(uint32_t sample, uint32_t seed) {
-  return reverse_bits_fast(laine_karras_permutation(reverse_bits_fast(sample), seed));
-}
-
-// Dimension 0 of Sobol is the bit reversal of the index, so its nested
-// scramble reverse(LK(reverse(reverse(i)))) needs only one reversal.
-inline float component0(uint32_t index, uint32_t seed) {
-  return to_sample(reverse_bits_fast(laine_karras_permutation(index, seed)));
-}
-inline float component1(uint32_t index, uint32_t seed) {
-  uint32_t x = reverse_bits_fast(sobol_fast(index, 1));
-  return to_sample(reverse_bits_fast(laine_karras_permutation(x, seed)));
-}
-
 }  // namespace
 
-uint32_t reverse_bits(uint32_t x) { return reverse_bits_fast(x); }
+namespace sampler_detail {
 
-uint32_t sobol_sample(uint32_t index, uint32_t dim) { return dim == 0 ? reverse_bits(index) : sobol_fast(index, dim); }
-
-uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
-  return reverse_bits_fast(laine_karras_permutation(reverse_bits_fast(x), seed));
+constexpr std::array<std::array<uint32_t, 256>, 4> make_sobol1_reversed() {
+  // Byte k of y is the bit-reversed byte 3 - k of the index.
+  std::array<std::array<uint32_t, 256>, 4> t{};
+  for (uint32_t k = 0; k < 4; ++k)
+    for (uint32_t b = 0; b < 256; ++b) {
+      uint32_t index_byte = reverse_bits(b) >> 24;
+      t[k][b] = reverse_bits(kSobolByteTables[1][3 - k][index_byte]);
+    }
+  return t;
 }
 
-float sample_1d(const SamplerKey& key, uint32_t dimension) {
-  PairSeeds s = pair_seeds(key, dimension >> 1);
-  uint32_t index = shuffled_index(key.sample, s.shuffle);
-  return (dimension & 1u) ? component1(index, s.scramble[1]) : component0(index, s.scramble[0]);
-}
+constinit const std::array<std::array<uint32_t, 256>, 4> kSobol1Reversed = make_sobol1_reversed();
 
-vec2 sample_2d(const SamplerKey& key, uint32_t dimension) {
-  if (dimension & 1u) return {sample_1d(key, dimension), sample_1d(key, dimension + 1)};
-  PairSeeds s = pair_seeds(key, dimension >> 1);
-  uint32_t index = shuffled_index(key.sample, s.shuffle);
-  return {component0(index, s.scramble[0]), component1(index, s.scramble[1])};
+}  // namespace sampler_detail
+
+uint32_t sobol_sample(uint32_t index, uint32_t dim) {
+  if (dim == 0) return reverse_bits(index);
+  const SobolByteTables& t = kSobolByteTables[dim];
+  return t[0][index & 0xffu] ^ t[1][(index >> 8) & 0xffu] ^ t[2][(index >> 16) & 0xffu] ^ t[3][index >> 24];
 }
 
 }  // namespace theia

@@ -10,10 +10,16 @@
 //  - any prefix of 2^m samples of a pixel is a (0,m,2)-net in every pair and
 //    stratified in every single dimension, whatever m;
 //  - different pairs, pixels and seeds are decorrelated (independent scrambles).
+//
+// sample_1d and sample_2d are inline: a path vertex draws several dimensions
+// of one key, and inlined the compiler shares the key's hashing of (seed,
+// pixel) and its bit-reversed sample index between them.
 #pragma once
 
+#include "core/hash.h"
 #include "core/math.h"
 
+#include <array>
 #include <cstdint>
 
 namespace theia {
@@ -25,12 +31,12 @@ struct SamplerKey {
 };
 
 // Value of `dimension` in [0, 1).
-float sample_1d(const SamplerKey& key, uint32_t dimension);
+inline float sample_1d(const SamplerKey& key, uint32_t dimension);
 
 // (sample_1d(key, dimension), sample_1d(key, dimension + 1)).  With an even
 // dimension the two form one jointly stratified 2D pattern; with an odd one
 // they come from two different pairs and are only individually stratified.
-vec2 sample_2d(const SamplerKey& key, uint32_t dimension);
+inline vec2 sample_2d(const SamplerKey& key, uint32_t dimension);
 
 // ---------------------------------------------------------------- building blocks
 
@@ -39,10 +45,90 @@ vec2 sample_2d(const SamplerKey& key, uint32_t dimension);
 uint32_t sobol_sample(uint32_t index, uint32_t dim);
 inline constexpr uint32_t kSobolDimensions = 4;
 
-uint32_t reverse_bits(uint32_t x);
+constexpr uint32_t reverse_bits(uint32_t x) {
+  x = __builtin_bswap32(x);
+  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  return ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+}
+
+// Burley's hash on bit-reversed values: bit i of the result depends only on
+// bits 0..i of x, which after reversal are the more significant digits.
+constexpr uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
+  x += seed;
+  x ^= x * 0x6c50b47cu;
+  x ^= x * 0xb82f1e52u;
+  x ^= x * 0xc7afe638u;
+  x ^= x * 0x8d22f6e6u;
+  return x;
+}
+
 // Owen scrambling in base 2 of a 32-bit fixed-point fraction: each bit is
 // flipped by a hash of the bits above it (Laine-Karras permutation on the
 // reversed bits, with Burley's constants).
-uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed);
+constexpr uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
+  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
+// ---------------------------------------------------------------- the sampler
+
+namespace sampler_detail {
+
+// Sobol dimension 1 of the bit-reversed index, bit-reversed, one byte of the
+// unreversed index at a time: table[k][b] is the XOR of the reversed
+// direction numbers that byte value b at byte position k selects.  Both
+// reversals fold into the table (reversal distributes over XOR).
+extern const std::array<std::array<uint32_t, 256>, 4> kSobol1Reversed;
+
+inline uint32_t reversed_sobol1_of_reversed(uint32_t y) {
+  const auto& t = kSobol1Reversed;
+  return t[0][y & 0xffu] ^ t[1][(y >> 8) & 0xffu] ^ t[2][(y >> 16) & 0xffu] ^ t[3][y >> 24];
+}
+
+// Per pair k of a pixel: the seeds of the index shuffle and of the two scrambles.
+struct PairSeeds {
+  uint32_t shuffle, scramble[2];
+};
+
+inline PairSeeds pair_seeds(const SamplerKey& key, uint32_t pair) {
+  uint64_t h = hash(key.seed, key.pixel, pair);
+  // One more cheap multiply-xorshift decorrelates the third seed from the first two.
+  uint64_t h2 = (h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ull;
+  return {uint32_t(h), {uint32_t(h >> 32), uint32_t(h2 >> 32)}};
+}
+
+inline float to_sample(uint32_t x) { return std::min(to_unit_float(x), kOneMinusEpsilon); }
+
+// The pair's sample index is Owen-scrambled, which permutes the samples so
+// that any 2^m prefix is one aligned block of 2^m Sobol points, a full net:
+// index = reverse(y).  y is what the components need: dimension 0 of Sobol
+// is the reversal of the index, so its scramble is reverse(LK(index)), and
+// dimension 1 reads y through kSobol1Reversed.
+inline uint32_t reversed_index(const SamplerKey& key, uint32_t shuffle) {
+  return laine_karras_permutation(reverse_bits(key.sample), shuffle);
+}
+inline float component0(uint32_t y, uint32_t seed) {
+  return to_sample(reverse_bits(laine_karras_permutation(reverse_bits(y), seed)));
+}
+inline float component1(uint32_t y, uint32_t seed) {
+  return to_sample(reverse_bits(laine_karras_permutation(reversed_sobol1_of_reversed(y), seed)));
+}
+
+}  // namespace sampler_detail
+
+inline float sample_1d(const SamplerKey& key, uint32_t dimension) {
+  using namespace sampler_detail;
+  PairSeeds s = pair_seeds(key, dimension >> 1);
+  uint32_t y = reversed_index(key, s.shuffle);
+  return (dimension & 1u) ? component1(y, s.scramble[1]) : component0(y, s.scramble[0]);
+}
+
+inline vec2 sample_2d(const SamplerKey& key, uint32_t dimension) {
+  using namespace sampler_detail;
+  if (dimension & 1u) return {sample_1d(key, dimension), sample_1d(key, dimension + 1)};
+  PairSeeds s = pair_seeds(key, dimension >> 1);
+  uint32_t y = reversed_index(key, s.shuffle);
+  return {component0(y, s.scramble[0]), component1(y, s.scramble[1])};
+}
 
 }  // namespace theia

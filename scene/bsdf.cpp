@@ -182,13 +182,14 @@ void set_lobes(BSDF& b) {
       break;
     case BxDFKind::CoatedDiffuse:
       b.lobe_count = 1;
-      b.lobes[0] = {flags, 1.0f, x.diffuse.r};
+      b.lobes[0] = {flags, 1.0f, x.coated_diffuse.base.r};
       break;
-    case BxDFKind::CoatedConductor:
+    case BxDFKind::CoatedConductor: {
+      const CoatedConductorBxDF& c = x.coated_conductor;
       b.lobe_count = 1;
-      b.lobes[0] = {flags, std::max(x.dielectric.distrib.roughness(), x.conductor.distrib.roughness()),
-                    conductor_fresnel(1.0f, x.conductor)};
+      b.lobes[0] = {flags, std::max(c.top.distrib.roughness(), c.base.distrib.roughness()), conductor_fresnel(1.0f, c.base)};
       break;
+    }
     case BxDFKind::Hair:
       // One glossy lobe over the whole sphere; its albedo is the colour the
       // absorption stands for (the inverse of pbrt-v4's SigmaAFromReflectance).
@@ -232,50 +233,42 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
     return c;
   };
   switch (bsdf.kind) {
-    case MaterialKind::Diffuse:
-      x.kind = BxDFKind::Diffuse;
-      x.diffuse.r = reflectance(RGB(0.5f));
+    case MaterialKind::Diffuse: x = DiffuseBxDF{reflectance(RGB(0.5f))}; break;
+    case MaterialKind::Conductor: {
+      ConductorBxDF c = conductor(m->conductor_eta, m->conductor_k, m->reflectance);
+      c.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
+      x = c;
       break;
-    case MaterialKind::Conductor:
-      x.kind = BxDFKind::Conductor;
-      x.conductor = conductor(m->conductor_eta, m->conductor_k, m->reflectance);
-      x.conductor.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
-      break;
+    }
     case MaterialKind::Dielectric:
-      x.kind = BxDFKind::Dielectric;
-      x.dielectric.eta = m->eta;
-      x.dielectric.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
+      x = DielectricBxDF{distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc), m->eta};
       break;
-    case MaterialKind::ThinDielectric:
-      x.kind = BxDFKind::ThinDielectric;
-      x.thin.eta = m->eta;
-      break;
+    case MaterialKind::ThinDielectric: x = ThinDielectricBxDF{m->eta}; break;
     case MaterialKind::DiffuseTransmission:
-      x.kind = BxDFKind::DiffuseTransmission;
-      x.diffuse_transmission.r = glm::clamp(m->scale * tex_rgb(scene, m->reflectance, tc, RGB(0.25f)), RGB(0.0f), RGB(1.0f));
-      x.diffuse_transmission.t = glm::clamp(m->scale * tex_rgb(scene, m->transmittance, tc, RGB(0.25f)), RGB(0.0f), RGB(1.0f));
+      x = DiffuseTransmissionBxDF{
+          glm::clamp(m->scale * tex_rgb(scene, m->reflectance, tc, RGB(0.25f)), RGB(0.0f), RGB(1.0f)),
+          glm::clamp(m->scale * tex_rgb(scene, m->transmittance, tc, RGB(0.25f)), RGB(0.0f), RGB(1.0f))};
       break;
     case MaterialKind::CoatedDiffuse:
     case MaterialKind::CoatedConductor: {
-      bool diffuse = bsdf.kind == MaterialKind::CoatedDiffuse;
-      x.kind = diffuse ? BxDFKind::CoatedDiffuse : BxDFKind::CoatedConductor;
-      x.dielectric.eta = m->eta == 0.0f ? 1.0f : m->eta;
-      x.dielectric.distrib = distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc);
-      if (diffuse) {
-        x.diffuse.r = reflectance(RGB(0.5f));
+      DielectricBxDF top{distribution(scene, m->uroughness, m->vroughness, m->remap_roughness, tc),
+                         m->eta == 0.0f ? 1.0f : m->eta};
+      LayerParams layer;
+      layer.thickness = std::max(tex_float(scene, m->thickness, tc, 0.01f), 0.0f);
+      layer.g = std::clamp(tex_float(scene, m->g, tc, 0.0f), -0.99f, 0.99f);
+      layer.albedo = glm::clamp(tex_rgb(scene, m->albedo, tc, RGB(0.0f)), RGB(0.0f), RGB(1.0f));
+      layer.max_depth = m->max_depth;
+      layer.n_samples = m->n_samples;
+      if (bsdf.kind == MaterialKind::CoatedDiffuse) {
+        x = CoatedDiffuseBxDF{top, DiffuseBxDF{reflectance(RGB(0.5f))}, layer};
       } else {
         // The base sits in the coating's medium: its index is relative to the coat's (pbrt-v4).
-        x.conductor = conductor(m->conductor_eta, m->conductor_k, m->reflectance);
-        x.conductor.eta /= x.dielectric.eta;
-        x.conductor.k /= x.dielectric.eta;
-        x.conductor.distrib =
-            distribution(scene, m->conductor_uroughness, m->conductor_vroughness, m->remap_roughness, tc);
+        ConductorBxDF base = conductor(m->conductor_eta, m->conductor_k, m->reflectance);
+        base.eta /= top.eta;
+        base.k /= top.eta;
+        base.distrib = distribution(scene, m->conductor_uroughness, m->conductor_vroughness, m->remap_roughness, tc);
+        x = CoatedConductorBxDF{top, base, layer};
       }
-      x.layer.thickness = std::max(tex_float(scene, m->thickness, tc, 0.01f), 0.0f);
-      x.layer.g = std::clamp(tex_float(scene, m->g, tc, 0.0f), -0.99f, 0.99f);
-      x.layer.albedo = glm::clamp(tex_rgb(scene, m->albedo, tc, RGB(0.0f)), RGB(0.0f), RGB(1.0f));
-      x.layer.max_depth = m->max_depth;
-      x.layer.n_samples = m->n_samples;
       break;
     }
     case MaterialKind::Hair: {
@@ -290,9 +283,8 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
       else
         sigma_a = hair_sigma_a_from_concentration(std::max(tex_float(scene, m->eumelanin, tc, 0.0f), 0.0f),
                                                   std::max(tex_float(scene, m->pheomelanin, tc, 0.0f), 0.0f));
-      x.kind = BxDFKind::Hair;
       bsdf.shading = hair_frame(bsdf.shading, si.dpdu);
-      x.hair = make_hair_bxdf(hair_offset(scene, si, bsdf.shading), m->eta, sigma_a,
+      x = make_hair_bxdf(hair_offset(scene, si, bsdf.shading), m->eta, sigma_a,
                               tex_float(scene, m->beta_m, tc, 0.3f), beta_n, tex_float(scene, m->hair_alpha, tc, 2.0f));
       break;
     }

@@ -74,9 +74,10 @@ std::optional<BxDFSample> sample_of(const ConductorBxDF& b, const vec3& wo, floa
   float cos_o = std::abs(wo.z), cos_i = std::abs(wi.z);
   if (cos_i == 0.0f || cos_o == 0.0f) return std::nullopt;
   s.wi = wi;
-  s.pdf = b.distrib.pdf(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm)));
+  const float d_wm = b.distrib.D(wm), lambda_o = b.distrib.lambda(wo);
+  s.pdf = b.distrib.pdf(wo, wm, d_wm, lambda_o) / (4.0f * std::abs(glm::dot(wo, wm)));
   RGB F = conductor_fresnel(std::abs(glm::dot(wo, wm)), b);
-  s.f = b.distrib.D(wm) * F * b.distrib.G(wo, wi) / (4.0f * cos_i * cos_o);
+  s.f = d_wm * F * b.distrib.G(lambda_o, wi) / (4.0f * cos_i * cos_o);
   s.flags = kBxDFReflection | kBxDFGlossy;
   return s;
 }
@@ -167,15 +168,17 @@ std::optional<BxDFSample> sample_of(const DielectricBxDF& b, const vec3& wo, flo
   if (uc < pr / (pr + pt)) {
     s.wi = reflect(wo, wm);
     if (!same_hemisphere(wo, s.wi)) return std::nullopt;
-    s.pdf = b.distrib.pdf(wo, wm) / (4.0f * std::abs(glm::dot(wo, wm))) * pr / (pr + pt);
-    s.f = RGB(b.distrib.D(wm) * b.distrib.G(wo, s.wi) * R / (4.0f * s.wi.z * wo.z));
+    const float d_wm = b.distrib.D(wm), lambda_o = b.distrib.lambda(wo);
+    s.pdf = b.distrib.pdf(wo, wm, d_wm, lambda_o) / (4.0f * std::abs(glm::dot(wo, wm))) * pr / (pr + pt);
+    s.f = RGB(d_wm * b.distrib.G(lambda_o, s.wi) * R / (4.0f * s.wi.z * wo.z));
     s.flags = kBxDFReflection | kBxDFGlossy;
     return s;
   }
   if (!refract(wo, wm, b.eta, &s.eta, &s.wi) || same_hemisphere(wo, s.wi) || s.wi.z == 0.0f) return std::nullopt;
+  const float d_wm = b.distrib.D(wm), lambda_o = b.distrib.lambda(wo);
   float denom = sqr(glm::dot(s.wi, wm) + glm::dot(wo, wm) / s.eta);
-  s.pdf = b.distrib.pdf(wo, wm) * std::abs(glm::dot(s.wi, wm)) / denom * pt / (pr + pt);
-  float ft = T * b.distrib.D(wm) * b.distrib.G(wo, s.wi) *
+  s.pdf = b.distrib.pdf(wo, wm, d_wm, lambda_o) * std::abs(glm::dot(s.wi, wm)) / denom * pt / (pr + pt);
+  float ft = T * d_wm * b.distrib.G(lambda_o, s.wi) *
              std::abs(glm::dot(s.wi, wm) * glm::dot(wo, wm) / (s.wi.z * wo.z * denom));
   if (mode == TransportMode::Radiance) ft /= sqr(s.eta);
   s.f = RGB(ft);
@@ -238,24 +241,62 @@ std::optional<BxDFSample> sample_of(const DiffuseTransmissionBxDF& b, const vec3
   return s;
 }
 
+// A sample the path can use: the same test for every entry point.
+std::optional<BxDFSample> usable_or_none(const std::optional<BxDFSample>& s) {
+  if (!s || s->pdf == 0.0f || is_black(s->f) || s->wi.z == 0.0f || !is_finite(s->f) || !std::isfinite(s->pdf))
+    return std::nullopt;
+  return s;
+}
+
 }  // namespace
 
-// The layered walk lives in its own file; it needs the single-layer functions.
+// The layered walk lives in its own file; it calls the typed entry points below.
 namespace layered {
-RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode);
-float pdf(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode);
-std::optional<BxDFSample> sample(const BxDF& b, vec3 wo, float uc, vec2 u, TransportMode mode);
+RGB f(const CoatedDiffuseBxDF& b, vec3 wo, vec3 wi, TransportMode mode);
+RGB f(const CoatedConductorBxDF& b, vec3 wo, vec3 wi, TransportMode mode);
+float pdf(const CoatedDiffuseBxDF& b, vec3 wo, vec3 wi, TransportMode mode);
+float pdf(const CoatedConductorBxDF& b, vec3 wo, vec3 wi, TransportMode mode);
+std::optional<BxDFSample> sample(const CoatedDiffuseBxDF& b, vec3 wo, float uc, vec2 u, TransportMode mode);
+std::optional<BxDFSample> sample(const CoatedConductorBxDF& b, vec3 wo, float uc, vec2 u, TransportMode mode);
 }  // namespace layered
 
-// Dispatch over the single-layer kinds (also what the layered walk calls).
+RGB bxdf_f(const DielectricBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode) { return f_of(b, wo, wi, mode); }
+float bxdf_pdf(const DielectricBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t flags) {
+  return pdf_of(b, wo, wi, mode, flags);
+}
+std::optional<BxDFSample> bxdf_sample(const DielectricBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
+                                      uint8_t flags) {
+  return usable_or_none(sample_of(b, wo, uc, u, mode, flags));
+}
+RGB bxdf_f(const DiffuseBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode) { return f_of(b, wo, wi, mode); }
+float bxdf_pdf(const DiffuseBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t flags) {
+  return pdf_of(b, wo, wi, mode, flags);
+}
+std::optional<BxDFSample> bxdf_sample(const DiffuseBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
+                                      uint8_t flags) {
+  return usable_or_none(sample_of(b, wo, uc, u, mode, flags));
+}
+RGB bxdf_f(const ConductorBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode) { return f_of(b, wo, wi, mode); }
+float bxdf_pdf(const ConductorBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t flags) {
+  return pdf_of(b, wo, wi, mode, flags);
+}
+std::optional<BxDFSample> bxdf_sample(const ConductorBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
+                                      uint8_t flags) {
+  return usable_or_none(sample_of(b, wo, uc, u, mode, flags));
+}
+uint8_t bxdf_flags(const DielectricBxDF& b) { return flags_of(b); }
+uint8_t bxdf_flags(const DiffuseBxDF& b) { return flags_of(b); }
+uint8_t bxdf_flags(const ConductorBxDF& b) { return flags_of(b); }
+
+// Dispatch on the kind.
 RGB bxdf_f(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode) {
   switch (b.kind) {
     case BxDFKind::Diffuse: return f_of(b.diffuse, wo, wi, mode);
     case BxDFKind::Conductor: return f_of(b.conductor, wo, wi, mode);
     case BxDFKind::Dielectric: return f_of(b.dielectric, wo, wi, mode);
     case BxDFKind::DiffuseTransmission: return f_of(b.diffuse_transmission, wo, wi, mode);
-    case BxDFKind::CoatedDiffuse:
-    case BxDFKind::CoatedConductor: return layered::f(b, wo, wi, mode);
+    case BxDFKind::CoatedDiffuse: return layered::f(b.coated_diffuse, wo, wi, mode);
+    case BxDFKind::CoatedConductor: return layered::f(b.coated_conductor, wo, wi, mode);
     case BxDFKind::Hair: return hair_f(b.hair, wo, wi);
     case BxDFKind::ThinDielectric:
     case BxDFKind::None: break;
@@ -269,8 +310,9 @@ float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode
     case BxDFKind::Conductor: return pdf_of(b.conductor, wo, wi, mode, flags);
     case BxDFKind::Dielectric: return pdf_of(b.dielectric, wo, wi, mode, flags);
     case BxDFKind::DiffuseTransmission: return pdf_of(b.diffuse_transmission, wo, wi, mode, flags);
-    case BxDFKind::CoatedDiffuse:
-    case BxDFKind::CoatedConductor: return (flags & kSampleReflection) ? layered::pdf(b, wo, wi, mode) : 0.0f;
+    case BxDFKind::CoatedDiffuse: return (flags & kSampleReflection) ? layered::pdf(b.coated_diffuse, wo, wi, mode) : 0.0f;
+    case BxDFKind::CoatedConductor:
+      return (flags & kSampleReflection) ? layered::pdf(b.coated_conductor, wo, wi, mode) : 0.0f;
     case BxDFKind::Hair: return flags == kSampleAll ? hair_pdf(b.hair, wo, wi) : 0.0f;
     case BxDFKind::ThinDielectric:
     case BxDFKind::None: break;
@@ -288,8 +330,10 @@ std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, v
     case BxDFKind::ThinDielectric: s = sample_of(b.thin, wo, uc, u, mode, flags); break;
     case BxDFKind::DiffuseTransmission: s = sample_of(b.diffuse_transmission, wo, uc, u, mode, flags); break;
     case BxDFKind::CoatedDiffuse:
+      if (flags & kSampleReflection) s = layered::sample(b.coated_diffuse, wo, uc, u, mode);
+      break;
     case BxDFKind::CoatedConductor:
-      if (flags & kSampleReflection) s = layered::sample(b, wo, uc, u, mode);
+      if (flags & kSampleReflection) s = layered::sample(b.coated_conductor, wo, uc, u, mode);
       break;
     case BxDFKind::Hair:
       // pbrt-v4 ignores the sample flags; the fibre's lobes cannot be split by
@@ -306,9 +350,7 @@ std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, v
       break;
     case BxDFKind::None: break;
   }
-  if (!s || s->pdf == 0.0f || is_black(s->f) || s->wi.z == 0.0f || !is_finite(s->f) || !std::isfinite(s->pdf))
-    return std::nullopt;
-  return s;
+  return usable_or_none(s);
 }
 
 uint8_t bxdf_flags(const BxDF& b) {
@@ -321,11 +363,12 @@ uint8_t bxdf_flags(const BxDF& b) {
       return (is_black(b.diffuse_transmission.r) ? 0 : kBxDFReflection | kBxDFDiffuse) |
              (is_black(b.diffuse_transmission.t) ? 0 : kBxDFTransmission | kBxDFDiffuse);
     case BxDFKind::CoatedDiffuse: return kBxDFReflection | kBxDFDiffuse | kBxDFGlossy |
-                                         (b.dielectric.distrib.effectively_smooth() ? kBxDFSpecular : 0);
+                                         (b.coated_diffuse.top.distrib.effectively_smooth() ? kBxDFSpecular : 0);
     case BxDFKind::CoatedConductor: {
+      const CoatedConductorBxDF& c = b.coated_conductor;
       uint8_t f = kBxDFReflection | kBxDFGlossy;
-      if (b.dielectric.distrib.effectively_smooth() && b.conductor.distrib.effectively_smooth()) f = kBxDFReflection | kBxDFSpecular;
-      else if (b.dielectric.distrib.effectively_smooth()) f |= kBxDFSpecular;
+      if (c.top.distrib.effectively_smooth() && c.base.distrib.effectively_smooth()) f = kBxDFReflection | kBxDFSpecular;
+      else if (c.top.distrib.effectively_smooth()) f |= kBxDFSpecular;
       return f;
     }
     case BxDFKind::Hair: return kBxDFReflection | kBxDFTransmission | kBxDFGlossy;

@@ -16,6 +16,7 @@
 #include "scene/microfacet.h"
 
 #include <optional>
+#include <type_traits>
 
 namespace theia {
 
@@ -80,18 +81,45 @@ struct LayerParams {
   int n_samples = 1;
 };
 
-// One BxDF; only the members its kind names are meaningful.  Coated kinds
-// use `dielectric` as the top interface and `diffuse` / `conductor` below.
+// The layered kinds: a dielectric coat (`top`) over an opaque base.
+struct CoatedDiffuseBxDF {
+  DielectricBxDF top;
+  DiffuseBxDF base;
+  LayerParams layer;
+};
+struct CoatedConductorBxDF {
+  DielectricBxDF top;
+  ConductorBxDF base;
+  LayerParams layer;
+};
+
+// One BxDF as a tagged union: `kind` names the one member that is live.
+// Built from the variant it holds (`BxDF b = DielectricBxDF{...}`), so the
+// tag and the member cannot disagree; a BSDF is made per shading point, and
+// this keeps it as small as its largest variant (hair) rather than the sum.
 struct BxDF {
   BxDFKind kind = BxDFKind::None;
-  DiffuseBxDF diffuse;
-  ConductorBxDF conductor;
-  DielectricBxDF dielectric;
-  ThinDielectricBxDF thin;
-  DiffuseTransmissionBxDF diffuse_transmission;
-  LayerParams layer;
-  HairBxDF hair;
+  union {
+    DiffuseBxDF diffuse;
+    ConductorBxDF conductor;
+    DielectricBxDF dielectric;
+    ThinDielectricBxDF thin;
+    DiffuseTransmissionBxDF diffuse_transmission;
+    CoatedDiffuseBxDF coated_diffuse;
+    CoatedConductorBxDF coated_conductor;
+    HairBxDF hair;
+  };
+  BxDF() : diffuse{} {}
+  BxDF(const DiffuseBxDF& b) : kind(BxDFKind::Diffuse), diffuse(b) {}
+  BxDF(const ConductorBxDF& b) : kind(BxDFKind::Conductor), conductor(b) {}
+  BxDF(const DielectricBxDF& b) : kind(BxDFKind::Dielectric), dielectric(b) {}
+  BxDF(const ThinDielectricBxDF& b) : kind(BxDFKind::ThinDielectric), thin(b) {}
+  BxDF(const DiffuseTransmissionBxDF& b) : kind(BxDFKind::DiffuseTransmission), diffuse_transmission(b) {}
+  BxDF(const CoatedDiffuseBxDF& b) : kind(BxDFKind::CoatedDiffuse), coated_diffuse(b) {}
+  BxDF(const CoatedConductorBxDF& b) : kind(BxDFKind::CoatedConductor), coated_conductor(b) {}
+  BxDF(const HairBxDF& b) : kind(BxDFKind::Hair), hair(b) {}
 };
+static_assert(std::is_trivially_copyable_v<BxDF>);
 
 struct BxDFSample {
   RGB f{0.0f};
@@ -112,5 +140,24 @@ float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode
 std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, vec2 u,
                                       TransportMode mode = TransportMode::Radiance,
                                       uint8_t sample_flags = kSampleAll);
+
+// The same for one known variant, without the dispatch: what the layered walk
+// (scene/layered.cpp) calls for its coat and base.  bxdf_sample's overloads
+// reject unusable samples exactly as the generic one does.
+RGB bxdf_f(const DielectricBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode);
+float bxdf_pdf(const DielectricBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t sample_flags);
+std::optional<BxDFSample> bxdf_sample(const DielectricBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
+                                      uint8_t sample_flags);
+RGB bxdf_f(const DiffuseBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode);
+float bxdf_pdf(const DiffuseBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t sample_flags);
+std::optional<BxDFSample> bxdf_sample(const DiffuseBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
+                                      uint8_t sample_flags);
+RGB bxdf_f(const ConductorBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode);
+float bxdf_pdf(const ConductorBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t sample_flags);
+std::optional<BxDFSample> bxdf_sample(const ConductorBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
+                                      uint8_t sample_flags);
+uint8_t bxdf_flags(const DielectricBxDF& b);
+uint8_t bxdf_flags(const DiffuseBxDF& b);
+uint8_t bxdf_flags(const ConductorBxDF& b);
 
 }  // namespace theia

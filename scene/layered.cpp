@@ -29,19 +29,14 @@ float transmittance(float dz, const vec3& w) {
   return std::exp(-std::abs(dz / w.z));
 }
 
+// The coat and the base of a layered BxDF, by reference, with the flags the
+// walk branches on.
+template <typename Coated>
 struct Layers {
-  BxDF top, bottom;
+  const DielectricBxDF& top;
+  const decltype(Coated::base)& bottom;
   bool top_specular, bottom_specular, top_nonspecular, bottom_nonspecular;
-  explicit Layers(const BxDF& b) {
-    top.kind = BxDFKind::Dielectric;
-    top.dielectric = b.dielectric;
-    if (b.kind == BxDFKind::CoatedDiffuse) {
-      bottom.kind = BxDFKind::Diffuse;
-      bottom.diffuse = b.diffuse;
-    } else {
-      bottom.kind = BxDFKind::Conductor;
-      bottom.conductor = b.conductor;
-    }
+  explicit Layers(const Coated& c) : top(c.top), bottom(c.base) {
     uint8_t tf = bxdf_flags(top), bf = bxdf_flags(bottom);
     top_specular = tf & kBxDFSpecular;
     bottom_specular = bf & kBxDFSpecular;
@@ -60,7 +55,8 @@ bool usable(const std::optional<BxDFSample>& s) { return s && !is_black(s->f) &&
 // paths while sample() takes them: f fell short of its own sampling by ~45%
 // (a forward-scattering medium over a smooth conductor under a smooth coat;
 // tests/unit/test_layered_chi2.cpp).  They are added here in closed form.
-RGB add_mirror_chains(const Layers& L, const LayerParams& lp, const vec3& w_in, float z, float thickness,
+template <typename Coated>
+RGB add_mirror_chains(const Layers<Coated>& L, const LayerParams& lp, const vec3& w_in, float z, float thickness,
                       const vec3& up, const RGB& direct, TransportMode mode) {
   vec3 down(up.x, up.y, -up.z);
   // The specular sample weights (f |cos| / pdf) of each bounce; u is unused.
@@ -74,23 +70,22 @@ RGB add_mirror_chains(const Layers& L, const LayerParams& lp, const vec3& w_in, 
   return (direct + via_base) / (RGB(1.0f) - top_r * base_r * tr * tr);
 }
 
-}  // namespace
-
 // Both bases are opaque, so light leaves on the side it arrived: wo and wi in
 // opposite hemispheres scatter nothing, and the walk always exits at the top.
-RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
+template <typename Coated>
+RGB walk_f(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
   if (wo.z < 0.0f) {
     wo = -wo;
     wi = -wi;
   }
   if (!same_hemisphere(wo, wi)) return RGB(0.0f);
-  const Layers L(b);
+  const Layers<Coated> L(b);
   const LayerParams& lp = b.layer;
   const float thickness = std::max(lp.thickness, std::numeric_limits<float>::min());
   const int n_samples = std::max(lp.n_samples, 1);
   const bool has_medium = !is_black(lp.albedo);
-  const BxDF& exit = L.top;
-  const BxDF& non_exit = L.bottom;
+  const DielectricBxDF& exit = L.top;
+  const auto& non_exit = L.bottom;
   const float exit_z = thickness;
 
   RGB result = float(n_samples) * bxdf_f(L.top, wo, wi, mode);
@@ -101,6 +96,7 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
     if (!usable(wos)) continue;
     auto wis = bxdf_sample(exit, wi, r(), vec2(r(), r()), !mode, kSampleTransmission);
     if (!usable(wis)) continue;
+    const float tr_wis = transmittance(thickness, wis->wi);
     RGB beta = wos->f * std::abs(wos->wi.z) / wos->pdf;
     float z = thickness;
     vec3 w = wos->wi;
@@ -123,9 +119,10 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
         float zp = w.z > 0.0f ? z + dz : z - dz;
         if (0.0f < zp && zp < thickness) {
           // Scattering in the medium: NEE through the exit along wis, then a phase sample.
+          const float phase = henyey_greenstein(glm::dot(-w, -wis->wi), lp.g);
           float wt = 1.0f;
-          if (!L.top_specular) wt = power_heuristic(1, wis->pdf, 1, henyey_greenstein(glm::dot(-w, -wis->wi), lp.g));
-          RGB nee(henyey_greenstein(glm::dot(-w, -wis->wi), lp.g) * wt * transmittance(zp - exit_z, wis->wi));
+          if (!L.top_specular) wt = power_heuristic(1, wis->pdf, 1, phase);
+          RGB nee(phase * wt * transmittance(zp - exit_z, wis->wi));
           if (L.top_specular && L.bottom_specular) nee = add_mirror_chains(L, lp, -w, zp, thickness, -wis->wi, nee, mode);
           result += beta * lp.albedo * nee * wis->f / wis->pdf;
           float phase_pdf;
@@ -155,9 +152,9 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
         // At the base: NEE along wis, then sample the base.
         if (L.bottom_nonspecular) {
           float wt = 1.0f;
-          if (!L.top_specular) wt = power_heuristic(1, wis->pdf, 1, bxdf_pdf(non_exit, -w, -wis->wi, mode));
+          if (!L.top_specular) wt = power_heuristic(1, wis->pdf, 1, bxdf_pdf(non_exit, -w, -wis->wi, mode, kSampleAll));
           result += beta * bxdf_f(non_exit, -w, -wis->wi, mode) * std::abs(wis->wi.z) * wt *
-                    transmittance(thickness, wis->wi) * wis->f / wis->pdf;
+                    tr_wis * wis->f / wis->pdf;
         }
         auto bs = bxdf_sample(non_exit, -w, r(), vec2(r(), r()), mode, kSampleReflection);
         if (!usable(bs)) break;
@@ -178,13 +175,14 @@ RGB f(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
   return result / float(n_samples);
 }
 
-std::optional<BxDFSample> sample(const BxDF& b, vec3 wo, float uc, vec2 u, TransportMode mode) {
+template <typename Coated>
+std::optional<BxDFSample> walk_sample(const Coated& b, vec3 wo, float uc, vec2 u, TransportMode mode) {
   bool flip = wo.z < 0.0f;
   if (flip) wo = -wo;
-  const Layers L(b);
+  const Layers<Coated> L(b);
   const LayerParams& lp = b.layer;
   const float thickness = std::max(lp.thickness, std::numeric_limits<float>::min());
-  auto bs = bxdf_sample(L.top, wo, uc, u, mode);
+  auto bs = bxdf_sample(L.top, wo, uc, u, mode, kSampleAll);
   if (!usable(bs)) return std::nullopt;
   if (bs->is_reflection()) {
     if (flip) bs->wi = -bs->wi;
@@ -226,8 +224,8 @@ std::optional<BxDFSample> sample(const BxDF& b, vec3 wo, float uc, vec2 u, Trans
       z = (z == thickness) ? 0.0f : thickness;
       f *= transmittance(thickness, w);
     }
-    const BxDF& iface = (z == 0.0f) ? L.bottom : L.top;
-    bs = bxdf_sample(iface, -w, r(), vec2(r(), r()), mode);
+    auto sample_iface = [&](const auto& iface) { return bxdf_sample(iface, -w, r(), vec2(r(), r()), mode, kSampleAll); };
+    bs = (z == 0.0f) ? sample_iface(L.bottom) : sample_iface(L.top);
     if (!usable(bs)) return std::nullopt;
     f *= bs->f;
     pdf *= bs->pdf;
@@ -248,17 +246,18 @@ std::optional<BxDFSample> sample(const BxDF& b, vec3 wo, float uc, vec2 u, Trans
   return std::nullopt;
 }
 
-float pdf(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
+template <typename Coated>
+float walk_pdf(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
   if (wo.z < 0.0f) {
     wo = -wo;
     wi = -wi;
   }
   if (!same_hemisphere(wo, wi)) return 0.0f;
-  const Layers L(b);
+  const Layers<Coated> L(b);
   const int n_samples = std::max(b.layer.n_samples, 1);
   WalkRng r{hash(hash_dir(wi), hash_dir(wo), 1u)};
-  const BxDF& t_iface = L.top;
-  const BxDF& r_iface = L.bottom;
+  const DielectricBxDF& t_iface = L.top;
+  const auto& r_iface = L.bottom;
   const bool t_nonspecular = L.top_nonspecular, r_nonspecular = L.bottom_nonspecular;
   // Unlike pbrt-v4, which adds the reflection-only and the TRT densities
   // unweighted (so its pdf integrates to about 2), both terms are weighted by
@@ -274,22 +273,35 @@ float pdf(const BxDF& b, vec3 wo, vec3 wi, TransportMode mode) {
     auto wis = bxdf_sample(t_iface, wi, r(), vec2(r(), r()), !mode, kSampleTransmission);
     if (!usable(wos) || wos->is_reflection() || !usable(wis)) continue;
     if (!t_nonspecular) {
-      pdf_sum += bxdf_pdf(r_iface, -wos->wi, -wis->wi, mode);
+      pdf_sum += bxdf_pdf(r_iface, -wos->wi, -wis->wi, mode, kSampleAll);
       continue;
     }
-    auto rs = bxdf_sample(r_iface, -wos->wi, r(), vec2(r(), r()), mode);
+    auto rs = bxdf_sample(r_iface, -wos->wi, r(), vec2(r(), r()), mode, kSampleAll);
     if (!usable(rs)) continue;
     if (!r_nonspecular) {
-      pdf_sum += bxdf_pdf(t_iface, -rs->wi, wi, mode);
+      pdf_sum += bxdf_pdf(t_iface, -rs->wi, wi, mode, kSampleAll);
     } else {
-      float r_pdf = bxdf_pdf(r_iface, -wos->wi, -wis->wi, mode);
+      float r_pdf = bxdf_pdf(r_iface, -wos->wi, -wis->wi, mode, kSampleAll);
       pdf_sum += power_heuristic(1, wis->pdf, 1, r_pdf) * r_pdf;
-      float t_pdf = bxdf_pdf(t_iface, -rs->wi, wi, mode);
+      float t_pdf = bxdf_pdf(t_iface, -rs->wi, wi, mode, kSampleAll);
       pdf_sum += power_heuristic(1, rs->pdf, 1, t_pdf) * t_pdf;
     }
   }
   // Mixed with a uniform density so that it is never zero where f is not.
   return 0.1f * kInv4Pi + 0.9f * pdf_sum / float(n_samples);
+}
+
+}  // namespace
+
+RGB f(const CoatedDiffuseBxDF& b, vec3 wo, vec3 wi, TransportMode mode) { return walk_f(b, wo, wi, mode); }
+RGB f(const CoatedConductorBxDF& b, vec3 wo, vec3 wi, TransportMode mode) { return walk_f(b, wo, wi, mode); }
+float pdf(const CoatedDiffuseBxDF& b, vec3 wo, vec3 wi, TransportMode mode) { return walk_pdf(b, wo, wi, mode); }
+float pdf(const CoatedConductorBxDF& b, vec3 wo, vec3 wi, TransportMode mode) { return walk_pdf(b, wo, wi, mode); }
+std::optional<BxDFSample> sample(const CoatedDiffuseBxDF& b, vec3 wo, float uc, vec2 u, TransportMode mode) {
+  return walk_sample(b, wo, uc, u, mode);
+}
+std::optional<BxDFSample> sample(const CoatedConductorBxDF& b, vec3 wo, float uc, vec2 u, TransportMode mode) {
+  return walk_sample(b, wo, uc, u, mode);
 }
 
 }  // namespace theia::layered

@@ -102,12 +102,16 @@ struct TrowbridgeReitz {
     return (std::sqrt(1.0f + alpha2 * t2) - 1.0f) * 0.5f;
   }
   float G1(const vec3& w) const { return 1.0f / (1.0f + lambda(w)); }
-  float G(const vec3& wo, const vec3& wi) const { return 1.0f / (1.0f + lambda(wo) + lambda(wi)); }
+  float G(const vec3& wo, const vec3& wi) const { return G(lambda(wo), wi); }
   // Distribution of normals visible from w, and the density sample_wm draws them with.
-  float D(const vec3& w, const vec3& wm) const {
-    return G1(w) / std::abs(w.z) * D(wm) * std::abs(glm::dot(w, wm));
-  }
+  float D(const vec3& w, const vec3& wm) const { return pdf(w, wm, D(wm), lambda(w)); }
   float pdf(const vec3& w, const vec3& wm) const { return D(w, wm); }
+  // The same from D(wm) and lambda(w) already at hand: a sampled normal needs
+  // both its pdf and f, and each of D and lambda costs square roots and divisions.
+  float pdf(const vec3& w, const vec3& wm, float d_wm, float lambda_w) const {
+    return 1.0f / (1.0f + lambda_w) / std::abs(w.z) * d_wm * std::abs(glm::dot(w, wm));
+  }
+  float G(float lambda_wo, const vec3& wi) const { return 1.0f / (1.0f + lambda_wo + lambda(wi)); }
 
   // Visible-normal sampling (Heitz 2018), as pbrt-v4 does it.
   vec3 sample_wm(const vec3& w, vec2 u) const {

@@ -13,51 +13,34 @@ inline vec3 dir_at(float theta, float phi = 0.3f) {
 }
 
 inline BxDF conductor(float ax, float ay, RGB eta = RGB(0.2f, 0.9f, 1.1f), RGB k = RGB(3.9f, 2.4f, 2.2f)) {
-  BxDF b;
-  b.kind = BxDFKind::Conductor;
-  b.conductor.distrib = {ax, ay};
-  b.conductor.eta = eta;
-  b.conductor.k = k;
-  return b;
+  return ConductorBxDF{{ax, ay}, eta, k};
 }
 // A conductor whose Fresnel term is 1 to float precision (k >> 1).
 inline BxDF perfect_mirror(float alpha) { return conductor(alpha, alpha, RGB(1.0f), RGB(1e4f)); }
-inline BxDF dielectric(float alpha, float eta) {
-  BxDF b;
-  b.kind = BxDFKind::Dielectric;
-  b.dielectric.distrib = {alpha, alpha};
-  b.dielectric.eta = eta;
-  return b;
-}
-inline BxDF diffuse(RGB r) {
-  BxDF b;
-  b.kind = BxDFKind::Diffuse;
-  b.diffuse.r = r;
-  return b;
-}
-inline BxDF diffuse_transmission(RGB r, RGB t) {
-  BxDF b;
-  b.kind = BxDFKind::DiffuseTransmission;
-  b.diffuse_transmission = {r, t};
-  return b;
-}
+inline BxDF dielectric(float alpha, float eta) { return DielectricBxDF{{alpha, alpha}, eta}; }
+inline BxDF diffuse(RGB r) { return DiffuseBxDF{r}; }
+inline BxDF diffuse_transmission(RGB r, RGB t) { return DiffuseTransmissionBxDF{r, t}; }
 inline BxDF coated_diffuse(float alpha, RGB r, RGB albedo = RGB(0.0f)) {
-  BxDF b;
-  b.kind = BxDFKind::CoatedDiffuse;
-  b.dielectric.distrib = {alpha, alpha};
-  b.dielectric.eta = 1.5f;
-  b.diffuse.r = r;
-  b.layer.albedo = albedo;
-  return b;
+  LayerParams layer;
+  layer.albedo = albedo;
+  return CoatedDiffuseBxDF{DielectricBxDF{{alpha, alpha}, 1.5f}, DiffuseBxDF{r}, layer};
 }
-inline BxDF coated_conductor(float coat_alpha, float base_alpha) {
-  BxDF b = conductor(base_alpha, base_alpha);
-  b.kind = BxDFKind::CoatedConductor;
-  b.conductor.eta /= 1.5f;
-  b.conductor.k /= 1.5f;
-  b.dielectric.distrib = {coat_alpha, coat_alpha};
-  b.dielectric.eta = 1.5f;
-  return b;
+// pbrt-v4's coatedconductor divides the conductor's eta and k by the coat's.
+inline BxDF coated_conductor(float coat_alpha, float base_alpha, float eta = 1.5f) {
+  ConductorBxDF base = conductor(base_alpha, base_alpha).conductor;
+  base.eta /= eta;
+  base.k /= eta;
+  return CoatedConductorBxDF{DielectricBxDF{{coat_alpha, coat_alpha}, eta}, base, LayerParams{}};
+}
+// The coat and the medium of either layered kind.
+inline DielectricBxDF& coat_of(BxDF& b) {
+  return b.kind == BxDFKind::CoatedDiffuse ? b.coated_diffuse.top : b.coated_conductor.top;
+}
+inline const DielectricBxDF& coat_of(const BxDF& b) {
+  return b.kind == BxDFKind::CoatedDiffuse ? b.coated_diffuse.top : b.coated_conductor.top;
+}
+inline LayerParams& layer_of(BxDF& b) {
+  return b.kind == BxDFKind::CoatedDiffuse ? b.coated_diffuse.layer : b.coated_conductor.layer;
 }
 
 // Monte Carlo albedo from the BxDF's own samples: mean and standard error of

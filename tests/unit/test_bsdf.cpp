@@ -52,9 +52,7 @@ vec3 wo_of(const Case& c) {
 // nearly-smooth coat's highlight from making the estimate hopelessly noisy.
 template <typename G>
 glm::dvec3 layered_integral(const BxDF& b, const vec3& wo, int n, const G& g) {
-  BxDF coat;
-  coat.kind = BxDFKind::Dielectric;
-  coat.dielectric = b.dielectric;
+  BxDF coat = coat_of(b);
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<float> u01(0.0f, 0.99999994f);
   glm::dvec3 sum(0.0);
@@ -175,10 +173,7 @@ TEST(BxDFFurnace, SmoothDielectricThinDielectricAndMirrorAreLossless) {
   std::vector<std::pair<std::string, BxDF>> cases;
   for (float eta : {1.0001f, 1.33f, 1.5f, 4.0f}) {
     cases.push_back({fmt::format("smooth dielectric {}", eta), dielectric(0.0f, eta)});
-    BxDF t;
-    t.kind = BxDFKind::ThinDielectric;
-    t.thin.eta = eta;
-    cases.push_back({fmt::format("thin dielectric {}", eta), t});
+    cases.push_back({fmt::format("thin dielectric {}", eta), ThinDielectricBxDF{eta}});
   }
   cases.push_back({"mirror", conductor(0.0f, 0.0f, RGB(1.0f), RGB(1e4f))});
   for (auto& [name, b] : cases)
@@ -238,10 +233,7 @@ TEST(BxDFReciprocity, ReflectionIsSymmetricAndRefractionScalesByEtaSquared) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<float> u01(0.0f, 1.0f);
   std::vector<BxDF> reflective = {conductor(0.3f, 0.3f), conductor(0.1f, 0.6f), dielectric(0.4f, 1.5f)};
-  BxDF d;
-  d.kind = BxDFKind::Diffuse;
-  d.diffuse.r = RGB(0.5f);
-  reflective.push_back(d);
+  reflective.push_back(diffuse(RGB(0.5f)));
   int checked = 0;
   for (const BxDF& b : reflective)
     for (int i = 0; i < 2000; ++i) {
@@ -288,7 +280,7 @@ TEST(LayeredBxDF, SamplingWeightsAgreeWithEvaluationAndConserveEnergy) {
       Estimate e = albedo_by_sampling(c.b, wo, 10'000, TransportMode::Radiance);
       for (int ch = 0; ch < 3; ++ch) EXPECT_LE(e.mean[ch], 1.0f + 5.0f * e.stderr_max) << c.name;
       // Where the coat is smooth, f holds only the walk's non-specular part.
-      if (c.b.dielectric.distrib.effectively_smooth()) continue;
+      if (coat_of(c.b).distrib.effectively_smooth()) continue;
       glm::dvec3 q = layered_integral(c.b, wo, 20'000, [&](vec3 wi) {
         return glm::dvec3(bxdf_f(c.b, wo, wi, TransportMode::Radiance)) * double(std::abs(wi.z));
       });

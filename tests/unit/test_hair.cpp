@@ -20,10 +20,7 @@ using namespace theia;
 namespace {
 
 BxDF hair(float h, RGB sigma_a, float beta_m, float beta_n, float alpha = 2.0f) {
-  BxDF b;
-  b.kind = BxDFKind::Hair;
-  b.hair = make_hair_bxdf(h, 1.55f, sigma_a, beta_m, beta_n, alpha);
-  return b;
+  return make_hair_bxdf(h, 1.55f, sigma_a, beta_m, beta_n, alpha);
 }
 
 float luminance_avg(RGB c) { return (c.x + c.y + c.z) / 3.0f; }

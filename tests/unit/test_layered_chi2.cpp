@@ -44,23 +44,18 @@ struct Case {
 };
 
 BxDF with_coat(BxDF b, float alpha, float eta) {
-  b.dielectric.distrib = {alpha, alpha};
-  b.dielectric.eta = eta;
+  coat_of(b) = DielectricBxDF{{alpha, alpha}, eta};
   return b;
 }
 BxDF coated_diffuse_case(float alpha, float eta) { return with_coat(coated_diffuse(alpha, RGB(0.8f, 0.5f, 0.2f)), alpha, eta); }
-// pbrt-v4's coatedconductor divides the conductor's eta and k by the coat's.
 BxDF coated_conductor_case(float alpha, float eta, float base_alpha = 0.2f) {
-  BxDF b = with_coat(conductor(base_alpha, base_alpha), alpha, eta);
-  b.kind = BxDFKind::CoatedConductor;
-  b.conductor.eta /= eta;
-  b.conductor.k /= eta;
-  return b;
+  return coated_conductor(alpha, base_alpha, eta);
 }
 BxDF with_medium(BxDF b, float thickness, float albedo, float g) {
-  b.layer.thickness = thickness;
-  b.layer.albedo = RGB(albedo);
-  b.layer.g = g;
+  LayerParams& layer = layer_of(b);
+  layer.thickness = thickness;
+  layer.albedo = RGB(albedo);
+  layer.g = g;
   return b;
 }
 
@@ -121,8 +116,9 @@ std::vector<Case> sweep() {
 // the coat's width, half of it (the coat-base-coat path through a rough coat
 // is narrower than the coat's reflection), and the conductor base's.
 std::vector<DirectionLobe> lobes_for(const Case& c) {
-  std::vector<float> alphas = {c.bxdf.dielectric.distrib.alpha_x, 0.5f * c.bxdf.dielectric.distrib.alpha_x};
-  if (c.bxdf.kind == BxDFKind::CoatedConductor) alphas.push_back(c.bxdf.conductor.distrib.alpha_x);
+  const float coat_alpha = coat_of(c.bxdf).distrib.alpha_x;
+  std::vector<float> alphas = {coat_alpha, 0.5f * coat_alpha};
+  if (c.bxdf.kind == BxDFKind::CoatedConductor) alphas.push_back(c.bxdf.coated_conductor.base.distrib.alpha_x);
   const float side = c.wo.z > 0.0f ? 1.0f : -1.0f;
   std::vector<DirectionLobe> lobes = {
       {[side](vec2 u, float) -> std::optional<vec3> { return sample_cosine_hemisphere(u) * side; },
@@ -187,9 +183,9 @@ TEST(Chi2LayeredBxDF, SamplingAgreesWithEvaluationAcrossRoughnessIorAngleAndMedi
     // is not a mirror, only the coat's own reflection, each of weight 1 with
     // probability F (so a binomial count).
     const BxDF& b = c.bxdf;
-    bool mirror_base = b.kind == BxDFKind::CoatedConductor && b.conductor.distrib.effectively_smooth();
-    if (b.dielectric.distrib.effectively_smooth() && !mirror_base) {
-      double fresnel = fresnel_dielectric(std::abs(c.wo.z), b.dielectric.eta), n = st.n_samples;
+    bool mirror_base = b.kind == BxDFKind::CoatedConductor && b.coated_conductor.base.distrib.effectively_smooth();
+    if (coat_of(b).distrib.effectively_smooth() && !mirror_base) {
+      double fresnel = fresnel_dielectric(std::abs(c.wo.z), coat_of(b).eta), n = st.n_samples;
       double z = (spec.weight / n - fresnel) / std::sqrt(fresnel * (1.0 - fresnel) / n);
       EXPECT_GE(chi2_p_value(z * z, 1), sidak_level(kSignificance, 2 * st.n_tests))
           << c.name << ": specular weight " << spec.weight / n << " (" << spec.count << " samples), Fresnel " << fresnel;

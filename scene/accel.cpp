@@ -264,6 +264,7 @@ struct Accel::Impl {
   std::vector<int> top_instance;     // top-level geometry id -> instance index (-1 for shapes)
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
   std::vector<int> instance_prototype;        // Scene instance -> prototype
+  std::vector<glm::dmat4> render_from_instance, instance_from_render;  // per Scene instance
   std::atomic<int64_t> embree_bytes{0};
   std::atomic<int64_t> embree_peak{0};
   std::mutex error_mutex;
@@ -475,6 +476,8 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
     if (inst.prototype < 0 || size_t(inst.prototype) >= scene.prototypes.size())
       throw_error("object instance {} names prototype {}, which does not exist", i, inst.prototype);
     I.instance_prototype[i] = inst.prototype;
+    I.render_from_instance.push_back(glm::dmat4(inst.render_from_instance.m));
+    I.instance_from_render.push_back(glm::inverse(I.render_from_instance.back()));
     if (I.proto_shape[size_t(inst.prototype)].empty()) continue;  // nothing to trace
     RTCGeometry geom = rtcNewGeometry(I.device, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(geom, I.prototypes[size_t(inst.prototype)]);
@@ -576,6 +579,9 @@ int Accel::instance_index(const Hit& hit) const {
   return impl_->top_instance[hit.inst];
 }
 
+const glm::dmat4& Accel::render_from_instance(int i) const { return impl_->render_from_instance[size_t(i)]; }
+const glm::dmat4& Accel::instance_from_render(int i) const { return impl_->instance_from_render[size_t(i)]; }
+
 Bounds3 Accel::bounds() const {
   RTCBounds b;
   rtcGetSceneBounds(impl_->top, &b);
@@ -589,7 +595,8 @@ Bounds3 Accel::bounds() const {
 size_t Accel::memory_bytes() const {
   int64_t embree = std::max<int64_t>(impl_->embree_bytes.load(), 0);
   size_t own = impl_->quadrics.size() * sizeof(QuadricGeom) + impl_->filter_geoms.size() * sizeof(FilterGeom) +
-               (impl_->top_shape.size() + impl_->top_instance.size()) * sizeof(int);
+               (impl_->top_shape.size() + impl_->top_instance.size()) * sizeof(int) +
+               (impl_->render_from_instance.size() + impl_->instance_from_render.size()) * sizeof(glm::dmat4);
   for (const auto& t : impl_->proto_shape) own += t.size() * sizeof(int);
   return size_t(embree) + own + impl_->curve_bytes;
 }

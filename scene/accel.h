@@ -80,6 +80,10 @@ class Accel {
 
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
   int instance_index(const Hit& hit) const;  // index into Scene::instances, or -1
+  // Scene instance i's render_from_instance and its inverse, in double, as
+  // hit points are carried back to render space (computed once, not per hit).
+  const glm::dmat4& render_from_instance(int i) const;
+  const glm::dmat4& instance_from_render(int i) const;
   Bounds3 bounds() const;                    // render-space bounds of all geometry
   size_t memory_bytes() const;               // what the built scene keeps allocated (Embree + tables)
 

@@ -360,7 +360,7 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
     vec3 o = ray.o, d = ray.d;
     if (int inst = accel.instance_index(hit); inst >= 0) {
       // Embree found the hit with the ray in instance space, where t is the same.
-      dmat4 inv = glm::inverse(dmat4(scene.instances[size_t(inst)].render_from_instance.m));
+      const dmat4& inv = accel.instance_from_render(inst);
       o = vec3(dvec3(inv * dvec4(dvec3(ray.o), 1.0)));
       d = vec3(dmat3(inv) * dvec3(ray.d));
     }
@@ -373,12 +373,12 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   int inst = accel.instance_index(hit);
   if (inst >= 0) {
     const Transform& t = scene.instances[size_t(inst)].render_from_instance;
-    dmat4 m(t.m);
+    const dmat4& m = accel.render_from_instance(inst);
     dvec3 p_inst(si.p), e_inst(si.p_error);
     dvec3 p = dvec3(m * dvec4(p_inst, 1.0));
     // Embree carries rays into instance space with its own float inverse;
     // widen the bound by that mapping's error so spawned rays clear the surface.
-    dvec3 e_back = transform_error(glm::inverse(m), p, dvec3(0.0));
+    dvec3 e_back = transform_error(accel.instance_from_render(inst), p, dvec3(0.0));
     si.p = vec3(p);
     si.p_error = vec3(transform_error(m, p_inst, e_inst + e_back));
     si.ng = glm::normalize(t.normal(si.ng));

@@ -1,13 +1,27 @@
 #include "core/image.h"
 
 #include "core/log.h"
+#include "core/oiio_module.h"
 
-#include <OpenImageIO/imageio.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfThreading.h>
+#include <OpenEXR/ImfVersion.h>
+#include <dlfcn.h>
+#include <png.h>
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <string_view>
 #include <system_error>
+#include <thread>
 
 namespace theia {
 
@@ -36,63 +50,160 @@ float srgb8_to_linear(uint8_t v) {
   return table[v];
 }
 
-ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw_error("{}: no such file", path);
-  OIIO::ImageSpec config;
-  // Keep straight alpha as stored: textures and metrics want the file's values,
-  // not OpenImageIO's premultiplied conversion of PNG/TGA.
-  config.attribute("oiio:UnassociatedAlpha", 1);
-  auto in = OIIO::ImageInput::open(path, &config);
-  if (!in) {
-    std::string why = OIIO::geterror();
-    throw_error("{}: cannot read image ({})", path, why.empty() ? "unknown format" : why);
+namespace {
+
+// ---------------------------------------------------------------- OpenEXR
+
+bool is_exr_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char magic[4] = {};
+  return f.read(magic, sizeof(magic)) && Imf::isImfMagic(magic);
+}
+
+// OpenEXR (de)compresses blocks on its own thread pool, which is empty until
+// asked for; OpenImageIO, which wrote theia's EXRs before, sized it to the cores.
+void start_exr_threads() {
+  static std::once_flag once;
+  std::call_once(once, [] { Imf::setGlobalThreadCount(int(std::max(1u, std::thread::hardware_concurrency()))); });
+}
+
+bool iequals(std::string_view a, std::string_view b) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) == std::tolower(static_cast<unsigned char>(y));
+         });
+}
+
+struct ExrChannel {
+  std::string name, layer, suffix;  // "albedo.R" -> "albedo", "R"; "R" -> "", "R"
+  int rank = 0;
+  Imf::PixelType type = Imf::FLOAT;
+};
+
+// OpenEXR lists channels alphabetically (B G R).  They are presented in the
+// order OpenImageIO gave them, so that positional readers keep working: by
+// layer, and within a layer the colour channels, then alpha and depth (or,
+// in a layer holding X with Y or Z, a vector: colour, X Y Z, then alpha),
+// then the rest by name.
+void sort_exr_channels(std::vector<ExrChannel>& chans) {
+  static constexpr std::string_view colour_order[] = {"R", "Red", "G", "Green", "B", "Blue", "Y", "real", "imag", "A",
+                                                "Alpha", "AR", "RA", "AG", "GA", "AB", "BA", "Z", "Depth", "Zback"};
+  static constexpr std::string_view vector_order[] = {"R",    "Red", "G",  "Green", "B",  "Blue", "X",
+                                                "Y",    "Z",   "real", "imag", "A", "Alpha", "AR",
+                                                "RA",   "AG",  "GA", "AB",    "BA", "Depth", "Zback"};
+  auto by_layer = [](const ExrChannel& a, const ExrChannel& b) { return a.layer < b.layer; };
+  std::stable_sort(chans.begin(), chans.end(), by_layer);
+  for (auto first = chans.begin(); first != chans.end();) {
+    auto last = std::find_if(first, chans.end(), [&](const ExrChannel& c) { return c.layer != first->layer; });
+    auto has = [&](std::string_view s) {
+      return std::any_of(first, last, [&](const ExrChannel& c) { return iequals(c.suffix, s); });
+    };
+    bool is_vector = has("X") && (has("Y") || has("Z"));
+    for (auto c = first; c != last; ++c) {
+      auto find_rank = [&](const auto& order) {
+        for (size_t i = 0; i < std::size(order); ++i)
+          if (iequals(c->suffix, order[i])) return int(i);
+        return int(std::size(order));
+      };
+      c->rank = is_vector ? find_rank(vector_order) : find_rank(colour_order);
+    }
+    std::sort(first, last, [](const ExrChannel& a, const ExrChannel& b) {
+      return a.rank != b.rank ? a.rank < b.rank : a.suffix < b.suffix;
+    });
+    first = last;
   }
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
-    throw_error("{}: unsupported image shape {}x{}x{} with {} channels", path, spec.width, spec.height,
-                spec.depth, spec.nchannels);
+}
+
+// The first part of a scanline or tiled file, every channel as float.
+ImageBuffer read_exr(const std::string& path, ImageFileInfo* info) {
+  start_exr_threads();
+  Imf::InputFile file(path.c_str());
+  const Imf::Header& header = file.header();
+  const Imath::Box2i dw = header.dataWindow();
+  int width = dw.max.x - dw.min.x + 1, height = dw.max.y - dw.min.y + 1;
+  if (width <= 0 || height <= 0 || header.channels().begin() == header.channels().end())
+    throw_error("{}: unsupported image shape {}x{} without channels", path, width, height);
+  if (info) {
+    info->format_name = "openexr";
+    info->float_pixels = false;
+    for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
+      info->float_pixels |= it.channel().type != Imf::UINT;
+  }
+  std::vector<ExrChannel> chans;
+  for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
+    // Luminance-chroma files (Y RY BY); OpenImageIO 2.4 refused them too.
+    if (it.channel().xSampling != 1 || it.channel().ySampling != 1)
+      throw_error("{}: subsampled channel {} is not supported", path, it.name());
+    ExrChannel c;
+    c.name = it.name();
+    size_t dot = c.name.rfind('.');
+    c.layer = dot == std::string::npos ? std::string() : c.name.substr(0, dot);
+    c.suffix = dot == std::string::npos ? c.name : c.name.substr(dot + 1);
+    c.type = it.channel().type;
+    chans.push_back(std::move(c));
+  }
+  sort_exr_channels(chans);
 
   ImageBuffer img;
-  img.width = spec.width;
-  img.height = spec.height;
-  img.channels.reserve(size_t(spec.nchannels));
-  for (int c = 0; c < spec.nchannels; ++c) {
-    std::string name = c < int(spec.channelnames.size()) ? spec.channelnames[size_t(c)] : std::string();
-    img.channels.push_back(name.empty() ? fmt::format("channel{}", c) : name);
-  }
-  img.data.resize(img.pixel_count() * size_t(spec.nchannels));
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.data.data()))
-    throw_error("{}: cannot read pixels ({})", path, in->geterror());
-  if (info) {
-    info->format_name = in->format_name();
-    auto bt = OIIO::TypeDesc::BASETYPE(spec.format.basetype);
-    info->float_pixels = bt == OIIO::TypeDesc::HALF || bt == OIIO::TypeDesc::FLOAT || bt == OIIO::TypeDesc::DOUBLE;
-  }
-  in->close();
+  img.width = width;
+  img.height = height;
+  for (const ExrChannel& c : chans) img.channels.push_back(c.name);
+  img.data.resize(img.pixel_count() * chans.size());
+  const size_t x_stride = sizeof(float) * chans.size(), y_stride = x_stride * size_t(width);
+  Imf::FrameBuffer fb;
+  for (size_t k = 0; k < chans.size(); ++k)
+    fb.insert(chans[k].name, Imf::Slice::Make(Imf::FLOAT, &img.data[k], dw, x_stride, y_stride));
+  file.setFrameBuffer(fb);
+  file.readPixels(dw.min.y, dw.max.y);
   return img;
 }
 
-namespace {
+Imf::Compression exr_compression(const std::string& path, const char* name) {
+  static constexpr std::pair<const char*, Imf::Compression> methods[] = {
+      {"none", Imf::NO_COMPRESSION}, {"rle", Imf::RLE_COMPRESSION},     {"zips", Imf::ZIPS_COMPRESSION},
+      {"zip", Imf::ZIP_COMPRESSION}, {"piz", Imf::PIZ_COMPRESSION},     {"pxr24", Imf::PXR24_COMPRESSION},
+      {"b44", Imf::B44_COMPRESSION}, {"b44a", Imf::B44A_COMPRESSION},   {"dwaa", Imf::DWAA_COMPRESSION},
+      {"dwab", Imf::DWAB_COMPRESSION}};
+  for (const auto& [n, c] : methods)
+    if (std::string_view(name) == n) return c;
+  throw_error("{}: unknown OpenEXR compression '{}'", path, name);
+}
+
+// ---------------------------------------------------------------- OpenImageIO, on first use
+
+OiioReadImage oiio_reader(const std::string& path) {
+  struct Module {
+    OiioReadImage read = nullptr;
+    std::string error;
+  };
+  // Found through the executable's run path (the build tree, or beside it).
+  static const Module module = [] {
+    Module m;
+    void* handle = dlopen(kOiioModuleFile, RTLD_NOW | RTLD_LOCAL);
+    if (handle) m.read = reinterpret_cast<OiioReadImage>(dlsym(handle, kOiioReadImageSymbol));
+    if (!m.read) m.error = dlerror();
+    return m;
+  }();
+  if (!module.read)
+    throw_error("{}: this format is read through OpenImageIO, whose module {} cannot be loaded ({})", path,
+                kOiioModuleFile, module.error);
+  return module.read;
+}
+
+// ---------------------------------------------------------------- writing
 
 // Writes through a temporary file and renames it over `path`, so readers never
 // see a partial file and an existing output survives a failed write.
-void write_atomic(const std::string& path, const char* format, const OIIO::ImageSpec& spec, OIIO::TypeDesc type,
-                  const void* pixels) {
+// `write_to(tmp)` reports failure by throwing.
+template <typename WriteTo>
+void write_atomic(const std::string& path, WriteTo&& write_to) {
   std::string tmp = path + ".tmp";
-  // Named by format, not by extension: "x.exr.tmp" has no extension OIIO knows.
-  auto out = OIIO::ImageOutput::create(format);
-  if (!out) throw_error("{}: no OpenImageIO writer for {} ({})", path, format, OIIO::geterror());
   std::error_code ec;
-  auto fail = [&](const std::string& why) {
-    out.reset();
+  try {
+    write_to(tmp);
+  } catch (const std::exception& e) {
     fs::remove(tmp, ec);
-    throw_error("{}: cannot write image ({})", path, why);
-  };
-  if (!out->open(tmp, spec)) fail(out->geterror());
-  if (!out->write_image(type, pixels)) fail(out->geterror());
-  if (!out->close()) fail(out->geterror());
-  out.reset();
+    throw_error("{}: cannot write image ({})", path, e.what());
+  }
   fs::rename(tmp, path, ec);
   if (ec) {
     fs::remove(tmp, ec);
@@ -111,16 +222,49 @@ void check_buffer(const std::string& path, const ImageBuffer& img) {
 
 }  // namespace
 
-void write_exr(const std::string& path, const ImageBuffer& img, const char* compression) {
-  check_buffer(path, img);
-  OIIO::ImageSpec spec(img.width, img.height, img.num_channels(), OIIO::TypeDesc::FLOAT);
-  spec.channelnames = img.channels;
-  spec.alpha_channel = img.channel_index("A");
-  spec.z_channel = -1;
-  spec.attribute("compression", compression);
-  write_atomic(path, "openexr", spec, OIIO::TypeDesc::FLOAT, img.data.data());
+ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw_error("{}: no such file", path);
+  if (is_exr_file(path)) {
+    try {
+      return read_exr(path, info);
+    } catch (const Error&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw_error("{}: cannot read image ({})", path, e.what());
+    }
+  }
+  ImageBuffer img;
+  ImageFileInfo file_info;
+  std::string why;
+  if (!oiio_reader(path)(path.c_str(), img, file_info, why)) throw_error("{}: cannot read image ({})", path, why);
+  if (info) *info = std::move(file_info);
+  return img;
 }
 
+void write_exr(const std::string& path, const ImageBuffer& img, const char* compression) {
+  check_buffer(path, img);
+  Imf::Header header(img.width, img.height);
+  header.compression() = exr_compression(path, compression);
+  const size_t x_stride = sizeof(float) * img.channels.size(), y_stride = x_stride * size_t(img.width);
+  Imf::FrameBuffer fb;
+  for (size_t k = 0; k < img.channels.size(); ++k) {
+    header.channels().insert(img.channels[k], Imf::Channel(Imf::FLOAT));
+    // OpenEXR's slices take a mutable base pointer, but writing only reads it.
+    char* base = const_cast<char*>(reinterpret_cast<const char*>(&img.data[k]));
+    fb.insert(img.channels[k], Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
+  }
+  start_exr_threads();
+  write_atomic(path, [&](const std::string& tmp) {
+    Imf::OutputFile out(tmp.c_str(), header);
+    out.setFrameBuffer(fb);
+    out.writePixels(img.height);
+  });
+}
+
+// libpng itself rather than OpenImageIO: every render writes this preview,
+// and loading OpenImageIO for it would cost each render the start-up the
+// module exists to avoid.
 void write_png_srgb(const std::string& path, const ImageBuffer& img, int r, int g, int b) {
   check_buffer(path, img);
   for (int c : {r, g, b})
@@ -134,9 +278,14 @@ void write_png_srgb(const std::string& path, const ImageBuffer& img, int r, int 
     px[3 * i + 1] = linear_to_srgb8(p[g]);
     px[3 * i + 2] = linear_to_srgb8(p[b]);
   }
-  OIIO::ImageSpec spec(img.width, img.height, 3, OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", "sRGB");
-  write_atomic(path, "png", spec, OIIO::TypeDesc::UINT8, px.data());
+  write_atomic(path, [&](const std::string& tmp) {
+    png_image png{};
+    png.version = PNG_IMAGE_VERSION;
+    png.width = png_uint_32(img.width);
+    png.height = png_uint_32(img.height);
+    png.format = PNG_FORMAT_RGB;  // 8-bit: libpng tags it sRGB
+    if (!png_image_write_to_file(&png, tmp.c_str(), 0, px.data(), 0, nullptr)) throw std::runtime_error(png.message);
+  });
 }
 
 }  // namespace theia

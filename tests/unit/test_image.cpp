@@ -2,6 +2,7 @@
 #include "core/log.h"
 #include "tests/test_util.h"
 
+#include <OpenEXR/ImfRgbaFile.h>
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
@@ -120,6 +121,7 @@ TEST_F(ImageFiles, PngPreviewIsSrgbEncodedAndClamped) {
 
   auto in = OIIO::ImageInput::open(path);
   ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().get_string_attribute("oiio:ColorSpace"), "sRGB");  // the file's sRGB chunk
   ASSERT_EQ(in->spec().nchannels, 3);
   ASSERT_EQ(in->spec().format, OIIO::TypeDesc::UINT8);
   std::vector<uint8_t> px(3 * 2 * 3);
@@ -130,6 +132,102 @@ TEST_F(ImageFiles, PngPreviewIsSrgbEncodedAndClamped) {
     EXPECT_EQ(px[size_t(3 * i + 1)], expected[i]) << "pixel " << i;
     EXPECT_EQ(px[size_t(3 * i + 2)], 188);
   }
+}
+
+// EXR files are read with OpenEXR itself, and must come back as OpenImageIO
+// reads them: the same channel order (colour first within a layer, not
+// OpenEXR's alphabetical B G R), the same values, the data window's size.
+void expect_read_as_openimageio_reads(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  ASSERT_TRUE(in) << OIIO::geterror();
+  const OIIO::ImageSpec& spec = in->spec();
+  std::vector<float> expected(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
+  ASSERT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, expected.data())) << in->geterror();
+  ImageFileInfo info;
+  ImageBuffer img = read_image_file(path, &info);
+  EXPECT_EQ(info.format_name, "openexr");
+  EXPECT_TRUE(info.float_pixels);
+  EXPECT_EQ(img.width, spec.width);
+  EXPECT_EQ(img.height, spec.height);
+  EXPECT_EQ(img.channels, spec.channelnames);
+  EXPECT_EQ(img.data, expected);
+}
+
+TEST_F(ImageFiles, ExrChannelOrderAndValuesMatchOpenImageIO) {
+  // Layers, a vector layer (X Y Z) and alpha; written in a scrambled order.
+  std::vector<std::string> names = {"depth.Z", "B", "N.Z", "albedo.G", "A", "R", "N.X", "G", "albedo.B",
+                                    "N.Y", "albedo.R", "Z", "custom"};
+  ImageBuffer img(4, 3, names);
+  for (size_t i = 0; i < img.data.size(); ++i) img.data[i] = 0.1f * float(i) - 2.0f;
+  write_exr(file("layers.exr"), img);
+  expect_read_as_openimageio_reads(file("layers.exr"));
+  ImageBuffer back = read_image_file(file("layers.exr"));
+  EXPECT_EQ(back.channels, (std::vector<std::string>{"R", "G", "B", "A", "Z", "custom", "N.X", "N.Y", "N.Z",
+                                                     "albedo.R", "albedo.G", "albedo.B", "depth.Z"}));
+}
+
+TEST_F(ImageFiles, ReadsHalfTiledAndWindowedExrAsOpenImageIODoes) {
+  // Half RGBA with a data window away from the origin, as another program would write it.
+  std::vector<float> px(5 * 3 * 4);
+  for (size_t i = 0; i < px.size(); ++i) px[i] = 0.25f * float(i) - 3.0f;
+  OIIO::ImageSpec spec(5, 3, 4, OIIO::TypeDesc::HALF);
+  spec.x = 7;
+  spec.y = -2;
+  std::string windowed = file("windowed.exr");
+  auto out = OIIO::ImageOutput::create(windowed);
+  ASSERT_TRUE(out && out->open(windowed, spec)) << OIIO::geterror();
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, px.data()));
+  ASSERT_TRUE(out->close());
+  expect_read_as_openimageio_reads(windowed);
+  EXPECT_EQ(read_image_file(windowed).data, px);  // all exact in half
+
+  // Tiled float.
+  OIIO::ImageSpec tiled(9, 7, 3, OIIO::TypeDesc::FLOAT);
+  tiled.tile_width = tiled.tile_height = 4;
+  std::vector<float> tpx(9 * 7 * 3);
+  for (size_t i = 0; i < tpx.size(); ++i) tpx[i] = std::sin(float(i));
+  std::string tpath = file("tiled.exr");
+  out = OIIO::ImageOutput::create(tpath);
+  ASSERT_TRUE(out && out->open(tpath, tiled)) << OIIO::geterror();
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, tpx.data()));
+  ASSERT_TRUE(out->close());
+  expect_read_as_openimageio_reads(tpath);
+  EXPECT_EQ(read_image_file(tpath).data, tpx);
+}
+
+TEST_F(ImageFiles, SubsampledExrIsRefusedNamingTheFile) {
+  // Luminance-chroma: RY and BY at half resolution.
+  const int w = 4, h = 4;
+  std::vector<Imf::Rgba> px(size_t(w * h), Imf::Rgba(0.5f, 0.25f, 0.125f, 1.0f));
+  std::string path = file("yc.exr");
+  {
+    Imf::RgbaOutputFile out(path.c_str(), w, h, Imf::WRITE_YCA);
+    out.setFrameBuffer(px.data(), 1, w);
+    out.writePixels(h);
+  }
+  try {
+    read_image_file(path);
+    FAIL() << "expected theia::Error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(path + ": subsampled channel", 0), 0u) << e.what();
+  }
+}
+
+TEST_F(ImageFiles, ExrCompressionIsChosenByNameAndLossless) {
+  ImageBuffer img(6, 5, {"R", "G", "B"});
+  for (size_t i = 0; i < img.data.size(); ++i) img.data[i] = std::cos(float(i)) * 1000.0f;
+  for (const char* method : {"none", "zip", "zips", "piz", "rle"}) {
+    std::string path = file(std::string(method) + ".exr");
+    write_exr(path, img, method);
+    EXPECT_EQ(read_image_file(path).data, img.data) << method;
+  }
+  try {
+    write_exr(file("bad.exr"), img, "lzma");
+    FAIL() << "expected theia::Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("lzma"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(file("bad.exr")));
 }
 
 TEST_F(ImageFiles, ReadsPfmWithRowZeroAtTheTop) {

@@ -1,25 +1,23 @@
 #include "app/render.h"
 
 #include "app/progress.h"
-#include "cachepoints/light_sampler.h"
+#include "checkpoint/fingerprint.h"
+#include "core/hash.h"
 #include "core/log.h"
 #include "core/metrics.h"
 #include "core/stats.h"
-#include "guiding/sd_tree.h"
-#include "radiance_recorder/recorder.h"
-#include "scene/parser.h"
 #include "scene/mipmap.h"
+#include "scene/parser.h"
 #include "scene/texture.h"
-#include "checkpoint/fingerprint.h"
-#include "core/hash.h"
 #include "scheduler/driver.h"
 #include "wavefront/engine.h"
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include <array>
 #include <chrono>
-#include <cstring>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -28,294 +26,152 @@ namespace theia {
 
 namespace fs = std::filesystem;
 
-static void check_config(const RenderConfig& c) {
+// 2^32 and more would overflow the engine's 32-bit path slots and ray counts.
+static constexpr size_t kMaxEngineSize = size_t(1) << 32;
+
+void check(const RenderOptions& c) {
   if (c.spp == 0 || c.spp < -1) throw_error("--spp must be positive, got {}", c.spp);
   if (c.max_depth < -1) throw_error("--max-depth must be zero or positive, got {}", c.max_depth);
   if (c.threads < 0) throw_error("--threads must be zero (all cores) or positive, got {}", c.threads);
-  if (c.batch_size == 0) throw_error("--batch-size must be positive");
-  if (c.max_paths == 0) throw_error("--max-paths must be positive");
-  if (c.recorder_debug_bounce < -1) throw_error("--recorder-debug-bounce must be zero or positive, got {}", c.recorder_debug_bounce);
+  if (c.batch_size >= kMaxEngineSize)
+    throw_error("--batch-size must be 0 (auto) or below 2^32, got {}", c.batch_size);
+  if (c.max_paths >= kMaxEngineSize) throw_error("--max-paths must be 0 (auto) or below 2^32, got {}", c.max_paths);
   if (c.throughput_reset_bounce < -1)
     throw_error("--throughput-reset-bounce must be zero or positive, got {}", c.throughput_reset_bounce);
-  if (!(c.recorder_budget >= 0.0f)) throw_error("--recorder-budget must be zero (off) or positive, got {}", c.recorder_budget);
-  if (!(c.recorder_vertex_skip >= 0.0f && c.recorder_vertex_skip < 1.0f))
-    throw_error("--recorder-vertex-skip must be in [0, 1), got {}", c.recorder_vertex_skip);
-  if (!(c.recorder_min_distance >= 0.0f))
-    throw_error("--recorder-min-distance must be zero or positive, got {}", c.recorder_min_distance);
-  if ((c.recorder_debug || c.recorder_debug_bounce >= 0) && !c.checkpoint_dir.empty())
+}
+
+void check_config(const RenderConfig& c) {
+  check(static_cast<const RenderOptions&>(c));
+  check(static_cast<const LightSamplerOptions&>(c));
+  check(static_cast<const SchedulingOptions&>(c));
+  check(c.recorder);
+  check(c.guiding);
+  check(c.caustics);
+  check(c.checkpoint);
+  if (RecorderFeature::debug_layers(c.recorder) && !c.checkpoint.dir.empty())
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
-  if (!(c.guiding_fraction >= 0.0f && c.guiding_fraction < 1.0f))
-    throw_error("--guiding-fraction must be in [0, 1) (the BSDF must keep some share, or directions the guide "
-                "has not learned would never be sampled), got {}", c.guiding_fraction);
-  if (!(c.guiding_min_roughness >= 0.0f))
-    throw_error("--guiding-min-roughness must be zero or positive, got {}", c.guiding_min_roughness);
-  if (!(c.guiding_spatial_threshold > 0.0f && std::isfinite(c.guiding_spatial_threshold)))
-    throw_error("--guiding-spatial-threshold must be positive, got {}", c.guiding_spatial_threshold);
-  if (!(c.caustic_roughness >= 0.0f && c.caustic_roughness <= 1.0f))
-    throw_error("--caustic-roughness must be in [0, 1], got {}", c.caustic_roughness);
-  if (!c.schedule.empty() && c.schedule != "regular" && c.schedule != "guiding")
-    throw_error("--schedule {}: expected regular or guiding", c.schedule);
-  if (c.checkpoint_first_ideal <= 0)
-    throw_error("--checkpoint-first must be positive, got {}", c.checkpoint_first_ideal);
 }
 
-// Guiding learns between iterations, so it wants its small early iterations.
-static std::string schedule_name(const RenderConfig& c) {
-  return !c.schedule.empty() ? c.schedule : c.guiding ? "guiding" : "regular";
+uint64_t options_fingerprint(const RenderConfig& c) {
+  RenderConfig declared = c;
+  OptionFingerprintText text;
+  declare_render_options(text, declared);
+  return hash_bytes(text.text.data(), text.text.size());
 }
 
-static ScheduleOptions schedule_options(const RenderConfig& c) {
-  ScheduleOptions o = schedule_name(c) == "guiding" ? guiding_schedule() : regular_schedule();
-  if (c.iteration_first >= 0) o.first_size = c.iteration_first;
-  if (c.iteration_repeat >= 0) o.repeat_first = c.iteration_repeat;
-  if (c.iteration_max >= 0) o.max_size = c.iteration_max;
-  if (c.iteration_growth != 0.0) o.growth = c.iteration_growth;
+// The options with the scene's choices filled in (spp, maximum depth) and
+// the schedule named: what the render, its fingerprint and its log use.
+static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
+  RenderConfig c = config;
+  if (c.spp < 0) c.spp = scene.settings.spp;
+  if (c.max_depth < 0) c.max_depth = scene.settings.max_depth;
+  if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
+  c.schedule = schedule_name(c, c.guiding.enabled);
+  return c;
+}
+
+// Read before the render clock starts: the reference is not part of the render.
+static ImageBuffer read_reference(const std::string& path, const Scene& scene) {
+  if (path.empty()) return {};
+  ImageBuffer reference = read_image_file(path);
+  if (reference.width != scene.film.width || reference.height != scene.film.height)
+    throw_error("--reference {}: the image is {}x{}, the film is {}x{}", path, reference.width, reference.height,
+                scene.film.width, scene.film.height);
+  if (reference.channels.size() < 3)
+    throw_error("--reference {}: expected an RGB image, found {} channel(s)", path, reference.channels.size());
+  return reference;
+}
+
+static std::unique_ptr<tbb::global_control> limit_threads(int threads) {
+  if (threads <= 0) return nullptr;
+  return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
+}
+
+// The caustic pass's light paths cannot be counted with per-pixel sample
+// ranges (adaptive sampling) or by the recorder's debug comparisons, which
+// see camera paths only; it has nothing to do below maximum depth 2.
+static std::string caustics_conflict(const RenderConfig& c) {
+  if (c.adaptive.enabled) return "adaptive sampling";
+  if (RecorderFeature::debug_layers(c.recorder)) return "recorder debug layers";
+  if (c.throughput_reset_bounce >= 0) return "--throughput-reset-bounce";
+  if (c.max_depth < 2) return "a maximum depth below 2 (no camera path reaches a light through a caster)";
+  return {};
+}
+
+// Every feature, built in the order they feed each other (guiding's trainer
+// takes the recorder's samples).
+struct Features {
+  LightSamplerFeature light_sampler;
+  GuidingFeature guiding;
+  RecorderFeature recorder;
+  CausticsFeature caustics;
+  AdaptiveFeature adaptive;
+
+  Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule)
+      : light_sampler(*rs.light_sampler),
+        guiding(c.guiding, rs.accel.bounds()),
+        recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, guiding.trainer()),
+        caustics(c.caustics, caustics_conflict(c), c.seed, rs),
+        adaptive(c.adaptive, rs.scene.film.width, rs.scene.film.height, schedule, c.spp) {}
+  std::array<Feature*, 5> all() { return {&light_sampler, &guiding, &recorder, &caustics, &adaptive}; }
+};
+
+// Batch size and pool size 0 (auto): the engine sizes them from the frame (engine_sizes).
+static EngineOptions engine_options(const RenderConfig& c) {
+  EngineOptions o;
+  o.max_depth = c.max_depth;
+  o.seed = c.seed;
+  o.batch_size = c.batch_size;
+  o.max_paths = c.max_paths;
+  o.sort = c.sort;
+  o.throughput_reset_bounce = c.throughput_reset_bounce;
+  o.stop = c.stop;
+  o.footprint_spp = c.spp;
   return o;
 }
 
-// The options that change the image; threads, batch size, pool size and
-// sorting change only the floating-point summation order.
-static uint64_t options_fingerprint(const RenderConfig& c, int spp, int max_depth, const ScheduleOptions& s) {
-  std::string text = fmt::format("{} {} {} {} {} {} {} {} {} {} {}", spp, max_depth, c.seed, c.light_sampler,
-                                 s.first_size, s.repeat_first, s.growth, s.max_size, c.combine,
-                                 c.checkpoint_first_ideal, c.adaptive);
-  if (c.caustics) text += fmt::format(" caustics {}", c.caustic_roughness);
-  if (c.guiding)
-    text += fmt::format(" guiding {} {} {} {} {} {}", c.guiding_fraction, c.guiding_min_roughness,
-                        c.guiding_spatial_threshold, c.recorder_budget, c.recorder_vertex_skip, c.recorder_min_distance);
-  return hash_bytes(text.data(), text.size());
+static IterationConfig iteration_config(const RenderConfig& c, const Scene& scene) {
+  IterationConfig ic;
+  ic.schedule = schedule_options(c.schedule, c.iteration);
+  ic.total_spp = c.spp;
+  ic.combination = parse_combination(c.combine);
+  ic.seed = c.seed;
+  ic.checkpoint = c.checkpoint;
+  ic.resume = c.resume;
+  ic.scene_hash = scene_fingerprint(scene);
+  ic.options_hash = options_fingerprint(c);
+  ic.stop = c.stop;
+  return ic;
 }
 
-// The recorder's training samples, as the SD-tree takes them: scalar
-// (luminance) radiance, only from directions that had a density (a delta
-// lobe's sample says nothing about a directional distribution).  The key
-// names the vertex, so the field's spatial jitter is a function of the path.
-class SDTreeTrainer final : public TrainingSampleSink {
- public:
-  explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
-  void consume(std::span<const TrainingSample> samples) override {
-    for (const TrainingSample& s : samples) {
-      if (s.flags & kVertexDelta) continue;
-      tree_.add_sample(s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags));
-    }
-  }
+// Error against run time (--reference): the render clock (accel build
+// onwards, scene loading excluded) does not count the time spent measuring.
+struct ReferenceEvaluation {
+  const ImageBuffer& reference;
+  Combination combination;
+  std::chrono::steady_clock::time_point wall_start, render_start;
+  double seconds = 0.0;
 
- private:
-  SDTree& tree_;
+  nlohmann::json operator()(const IterationInfo& it, const ImageAccumulator& acc) {
+    auto te = std::chrono::steady_clock::now();
+    ImageBuffer image = acc.resolve(combination);
+    nlohmann::json e = {{"spp_total", it.spp_end},
+                        {"wall_seconds", seconds_since(wall_start)},
+                        {"render_seconds", seconds_since(render_start) - seconds},
+                        {"rel_mse", rel_mse(image, reference)},
+                        {"rmse", rmse(image, reference)},
+                        {"mape", mape(image, reference)},
+                        {"dropped_samples", acc.total.dropped.load()}};
+    seconds += seconds_since(te);
+    e["evaluation_seconds"] = seconds;
+    return e;
+  }
 };
 
-RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
-  check_config(config);
-  std::unique_ptr<tbb::global_control> threads;
-  if (config.threads > 0)
-    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, config.threads);
-
-  const int spp = config.spp > 0 ? config.spp : scene.settings.spp;
-  const int max_depth = config.max_depth >= 0 ? config.max_depth : scene.settings.max_depth;
-  if (spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, spp);
-
-  const auto wall_start = config.wall_start.value_or(std::chrono::steady_clock::now());
-  // Read before the render clock starts: the reference is not part of the render.
-  ImageBuffer reference;
-  if (!config.reference_path.empty()) {
-    reference = read_image_file(config.reference_path);
-    if (reference.width != scene.film.width || reference.height != scene.film.height)
-      throw_error("--reference {}: the image is {}x{}, the film is {}x{}", config.reference_path, reference.width,
-                  reference.height, scene.film.width, scene.film.height);
-    if (reference.channels.size() < 3)
-      throw_error("--reference {}: expected an RGB image, found {} channel(s)", config.reference_path,
-                  reference.channels.size());
-  }
-
-  auto t0 = std::chrono::steady_clock::now();
-  RenderableScene rs(scene, config.light_sampler);
-  Film film(scene.film.width, scene.film.height);
-
-  EngineOptions opt;
-  EngineHooks hooks;
-  opt.max_depth = max_depth;
-  opt.seed = config.seed;
-  opt.batch_size = config.batch_size;
-  opt.max_paths = config.max_paths;
-  opt.sort = config.sort;
-  opt.throughput_reset_bounce = config.throughput_reset_bounce;
-
-  // Guiding: the field the engine samples, trained from the recorder's samples.
-  std::unique_ptr<SDTree> sd_tree;
-  std::unique_ptr<SDTreeTrainer> trainer;
-  if (config.guiding) {
-    SDTreeOptions go;
-    go.selection_probability = config.guiding_fraction;
-    go.spatial_threshold = config.guiding_spatial_threshold;
-    sd_tree = std::make_unique<SDTree>(rs.accel.bounds(), go);
-    trainer = std::make_unique<SDTreeTrainer>(*sd_tree);
-    hooks.guide = sd_tree.get();
-    opt.guiding_min_roughness = config.guiding_min_roughness;
-  }
-  // The caustic pass (on by default) stays off where its light paths could
-  // not be counted: per-pixel sample ranges (adaptive sampling) and the
-  // recorder's debug comparisons, which see camera paths only.
-  std::unique_ptr<CausticTracer> caustics;
-  std::string caustics_off;
-  if (!config.caustics) caustics_off = "--no-caustics";
-  else if (config.adaptive) caustics_off = "adaptive sampling";
-  else if (config.recorder_debug || config.recorder_debug_bounce >= 0) caustics_off = "recorder debug layers";
-  else if (config.throughput_reset_bounce >= 0) caustics_off = "--throughput-reset-bounce";
-  else if (max_depth < 2) caustics_off = "a maximum depth below 2 (no camera path reaches a light through a caster)";
-  if (caustics_off.empty()) {
-    caustics = std::make_unique<CausticTracer>(rs.scene, rs.accel, rs.lights, rs.camera, rs.filter,
-                                               CausticOptions{config.caustic_roughness, config.seed});
-    caustics_off = caustics->inactive_reason();
-    if (caustics->active()) hooks.caustics = caustics.get();
-  }
-  // The recorder costs nothing unless a debug buffer or guiding consumes it.
-  std::unique_ptr<RadianceRecorder> recorder;
-  if (config.recorder_debug || config.recorder_debug_bounce >= 0 || config.guiding) {
-    RecorderOptions ro;
-    ro.vertex_budget = config.recorder_budget;
-    ro.vertex_skip_probability = config.recorder_vertex_skip;
-    ro.min_distance = config.recorder_min_distance;
-    ro.seed = config.seed;
-    ro.width = scene.film.width;
-    ro.height = scene.film.height;
-    ro.debug_primary = config.recorder_debug;
-    ro.debug_bounce = config.recorder_debug_bounce;
-    recorder = std::make_unique<RadianceRecorder>(ro, trainer.get());
-  }
-  opt.stop = config.stop;
-  // Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
-  opt.alpha_spp = config.adaptive ? uint32_t(spp) : 0;
-  opt.footprint_spp = spp;
-  const ScheduleOptions schedule = schedule_options(config);
-  hooks.observer = recorder.get();
-  WavefrontEngine engine(rs, film, opt, hooks);
-
-  IterationConfig ic;
-  ic.schedule = schedule;
-  ic.total_spp = spp;
-  ic.combination = parse_combination(config.combine);
-  ic.seed = config.seed;
-  ic.checkpoint_dir = config.checkpoint_dir;
-  ic.resume_required = config.resume;
-  ic.checkpoint_every_iteration = config.checkpoint_every_iteration;
-  ic.checkpoint_first_ideal = config.checkpoint_first_ideal;
-  ic.scene_hash = scene_fingerprint(scene);
-  ic.options_hash = options_fingerprint(config, spp, max_depth, ic.schedule);
-  ic.stop = config.stop;
-  std::unique_ptr<AdaptiveSampler> adaptive;
-  if (config.adaptive) {
-    adaptive = std::make_unique<AdaptiveSampler>(film.width, film.height, make_schedule(schedule, spp), uint32_t(spp));
-    ic.adaptive = adaptive.get();
-  }
-  const std::vector<int> cumulative = cumulative_spp(make_schedule(ic.schedule, spp));
-  ProgressBar bar(config.progress);
+// The engine's share of the log: time per phase, rays, paths, memory.
+static void write_engine_log(nlohmann::json& log, const WavefrontEngine& engine, const RenderableScene& rs,
+                             const Film& film) {
   const EngineStats& st = engine.stats();
-  ic.progress = [&](int it, double fraction) {
-    double before = it > 0 ? cumulative[size_t(it) - 1] : 0;
-    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / spp, st.total_rays());
-    if (config.on_iteration_progress) config.on_iteration_progress(it, fraction);
-  };
-  // Subsystems register their between-iteration work here, one line each
-  // (guiding update, cache-point update, adaptive sampler, recorder skip rate).
-  IterationTasks tasks;
-  if (recorder) {
-    tasks.on_begin([&](const IterationInfo&) { recorder->begin_iteration(); });
-    tasks.on_end([&](const IterationInfo&) { recorder->end_iteration(); });
-    tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [&](const IterationInfo&) { recorder->update_skip_rate(); });
-  }
-  // The caustic pass's switch-off counters survive a resume, so a resumed
-  // render switches it off (or not) where an uninterrupted one does.
-  if (hooks.caustics)
-    ic.participants.push_back({"caustics", 1,
-                               [&] {
-                                 ByteWriter w;
-                                 w.put(caustics->stats());
-                                 w.put(int32_t(caustics->passes()));
-                                 return w.bytes;
-                               },
-                               [&](const CheckpointSection& section) {
-                                 ByteReader r(section.bytes, "checkpoint section 'caustics'");
-                                 CausticStats cs = r.get<CausticStats>();
-                                 int passes = r.get<int32_t>();
-                                 caustics->restore_stats(cs, passes);
-                               }});
-  // The field learns from each iteration's samples (handed over by the
-  // recorder at the iteration's end); the next iteration samples it.
-  if (sd_tree) {
-    tasks.add(BetweenIterationSlot::GuidingUpdate,
-              [&](const IterationInfo& it) { sd_tree->update(double(it.spp_end - it.spp_begin)); });
-    // A resumed render continues the field and the skip rate exactly where
-    // the interrupted one left them, so it trains and guides the same.
-    ic.participants.push_back({"guiding", 1,
-                               [&] {
-                                 ByteWriter w;
-                                 w.put_vector(sd_tree->serialize());
-                                 RadianceRecorder::ResumeState st = recorder->resume_state();
-                                 w.put(st.skip_rate);
-                                 w.put(st.iteration_paths);
-                                 w.put(st.iteration_events);
-                                 w.put_vector(st.samples);
-                                 return w.bytes;
-                               },
-                               [&](const CheckpointSection& section) {
-                                 ByteReader r(section.bytes, "checkpoint section 'guiding'");
-                                 std::vector<uint8_t> tree = r.get_vector<uint8_t>();
-                                 *sd_tree = SDTree::deserialize(tree);
-                                 RadianceRecorder::ResumeState st;
-                                 st.skip_rate = r.get<double>();
-                                 st.iteration_paths = r.get<uint64_t>();
-                                 st.iteration_events = r.get<uint64_t>();
-                                 st.samples = r.get_vector<TrainingSample>();
-                                 recorder->restore(st);
-                               }});
-  }
-  // Error against run time: the render clock (accel build onwards, scene loading
-  // excluded) does not count the time spent here measuring the error.
-  double evaluation_seconds = 0.0;
-  if (!config.reference_path.empty())
-    ic.evaluate = [&](const IterationInfo& it, const ImageAccumulator& acc) {
-      auto te = std::chrono::steady_clock::now();
-      ImageBuffer image = acc.resolve(ic.combination);
-      nlohmann::json e = {{"spp_total", it.spp_end},
-                          {"wall_seconds", seconds_since(wall_start)},
-                          {"render_seconds", seconds_since(t0) - evaluation_seconds},
-                          {"rel_mse", rel_mse(image, reference)},
-                          {"rmse", rmse(image, reference)},
-                          {"mape", mape(image, reference)},
-                          {"dropped_samples", acc.total.dropped.load()}};
-      evaluation_seconds += seconds_since(te);
-      e["evaluation_seconds"] = evaluation_seconds;
-      return e;
-    };
-  IterationResult iterations = render_iterations(engine, film, tasks, ic);
-  RenderResult result;
-  result.image = std::move(iterations.image);
-  // The recorder's debug buffers sum over every iteration: they share the
-  // combined film's per-pixel weight (compare them with --combine equal).
-  std::vector<FilmLayer> layers;
-  if (recorder && config.recorder_debug) layers.push_back({"recorder", recorder->debug_primary()});
-  if (recorder && config.recorder_debug_bounce >= 0)
-    layers.push_back({fmt::format("recorder_bounce{}", config.recorder_debug_bounce), recorder->debug_bounce()});
-  if (!iterations.interrupted) append_film_layers(result.image, layers, iterations.weight);
-  result.interrupted = iterations.interrupted;
-
-  nlohmann::json& log = result.log;
-  log["scheduler"] = iterations.log;
-  log["scene"] = scene.path;
-  log["resolution"] = {scene.film.width, scene.film.height};
-  log["options"] = {{"spp", spp},
-                    {"max_depth", max_depth},
-                    {"seed", config.seed},
-                    {"threads", config.threads > 0 ? config.threads : tbb::info::default_concurrency()},
-                    {"batch_size", config.batch_size},
-                    {"max_paths", config.max_paths},
-                    {"sort", config.sort},
-                    {"light_sampler", rs.light_sampler->name()},
-                    {"schedule", schedule_name(config)},
-                    {"guiding", config.guiding},
-                    {"caustics", config.caustics},
-                    {"combine", config.combine},
-                    {"adaptive", config.adaptive}};
   nlohmann::json phases;
   for (size_t p = 0; p < size_t(Phase::Count); ++p) phases[kPhaseNames[p]] = st.phases.seconds[p];
   phases["accel_build"] = rs.accel_seconds;
@@ -333,59 +189,87 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   log["paths"] = {{"count", st.paths},
                   {"vertices", st.path_vertices},
                   {"average_length", st.paths ? double(st.path_vertices) / double(st.paths) : 0.0},
-                  {"peak_live", st.peak_live_paths}};
+                  {"peak_live", st.peak_live_paths},
+                  {"pool", engine.sizes().max_paths},
+                  {"batch_size", engine.sizes().batch_size}};
   log["memory"] = {{"peak_rss", peak_rss_bytes()},
                    {"accel", rs.accel.memory_bytes()},
                    {"film", film.memory_bytes()},
-                   {"textures", texture_memory_bytes(scene)},
-                   {"texture_mips", mip_memory_bytes(scene)},
+                   {"textures", texture_memory_bytes(rs.scene)},
+                   {"texture_mips", mip_memory_bytes(rs.scene)},
                    {"wavefront", engine.memory_bytes()},
                    {"peak_queued_rays", st.peak_queued_rays},
                    {"peak_queued_shadow_rays", st.peak_queued_shadow_rays}};
-  if (recorder) {
-    RecorderStats rs = recorder->stats();
-    log["recorder"] = {{"vertex_bytes", RadianceRecorder::vertex_bytes()},
-                       {"peak_live_vertices", rs.peak_live_vertices},
-                       {"peak_bytes", recorder->peak_bytes()},
-                       {"blocks", rs.peak_blocks},
-                       {"paths", rs.paths},
-                       {"skipped_paths", rs.skipped_paths},
-                       {"path_skip_rate", rs.path_skip_rate},
-                       {"vertex_events", rs.vertex_events},
-                       {"recorded_vertices", rs.recorded},
-                       {"skipped_vertices", rs.skipped_vertices},
-                       {"merged_vertices", rs.merged_vertices},
-                       {"dropped", rs.dropped}};
-    log["memory"]["recorder"] = recorder->peak_bytes();
-  }
-  if (sd_tree) {
-    SDTreeStats gs = sd_tree->stats();
-    log["guiding"] = {{"fraction", config.guiding_fraction},
-                      {"min_roughness", config.guiding_min_roughness},
-                      {"spatial_threshold", config.guiding_spatial_threshold},
-                      {"spatial_leaves", gs.spatial_leaves},
-                      {"quadtree_nodes", gs.quadtree_nodes},
-                      {"bytes", sd_tree->memory_bytes()}};
-    log["memory"]["guiding"] = sd_tree->memory_bytes();
-  }
-  {
-    CausticStats cs = caustics ? caustics->stats() : CausticStats{};
-    log["caustics"] = {{"traced", hooks.caustics != nullptr},
-                       {"off_because", caustics_off},
-                       {"switched_off_after_passes", cs.switched_off_after},
-                       {"caster_roughness", config.caustic_roughness},
-                       {"paths", cs.paths},
-                       {"caster_hits", cs.caster_hits},
-                       {"receiver_hits", cs.receiver_hits},
-                       {"splats", cs.splats},
-                       {"dropped", cs.dropped},
-                       {"seconds", cs.seconds}};
-  }
-  if (config.throughput_reset_bounce >= 0) log["options"]["throughput_reset_bounce"] = config.throughput_reset_bounce;
-  if (!config.reference_path.empty()) log["reference"] = config.reference_path;
+}
+
+// log["options"]: every option under its one name, as the render used it.
+static nlohmann::json options_log(const RenderConfig& c) {
+  RenderConfig used = c;
+  if (used.threads <= 0) used.threads = tbb::info::default_concurrency();
+  OptionLog log;
+  declare_render_options(log, used);
+  return log.json;
+}
+
+static RenderResult make_result(IterationResult iterations, Features& features, const RenderConfig& c,
+                                const WavefrontEngine& engine, const RenderableScene& rs, const Film& film) {
+  RenderResult result;
+  result.image = std::move(iterations.image);
+  result.interrupted = iterations.interrupted;
+  // The recorder's debug buffers sum over every iteration: they share the
+  // combined film's per-pixel weight (compare them with --combine equal).
+  if (!iterations.interrupted) append_film_layers(result.image, features.recorder.layers(), iterations.weight);
+  nlohmann::json& log = result.log;
+  write_engine_log(log, engine, rs, film);
+  log["scheduler"] = iterations.log;
+  log["scene"] = rs.scene.path;
+  log["resolution"] = {rs.scene.film.width, rs.scene.film.height};
+  log["options"] = options_log(c);
+  for (Feature* f : features.all()) f->write_log(log);
+  if (!c.reference_path.empty()) log["reference"] = c.reference_path;
   log["dropped_samples"] = iterations.dropped_samples;
   log["warnings"] = warning_count();
   return result;
+}
+
+// Builds every feature, hands their hooks, tasks and checkpoint sections to
+// the engine and the scheduler, renders the iterations, collects the log.
+RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
+  check_config(config);
+  const RenderConfig c = resolve(config, scene);
+  const auto threads = limit_threads(c.threads);
+  const auto wall_start = c.wall_start.value_or(std::chrono::steady_clock::now());
+  const ImageBuffer reference = read_reference(c.reference_path, scene);
+
+  const auto render_start = std::chrono::steady_clock::now();
+  RenderableScene rs(scene, c.light_sampler);
+  Film film(scene.film.width, scene.film.height);
+  IterationConfig ic = iteration_config(c, scene);
+  const std::vector<int> sizes = make_schedule(ic.schedule, c.spp);
+  Features features(c, rs, sizes);
+  EngineOptions engine_opt = engine_options(c);
+  EngineHooks hooks{.observer = features.recorder.recorder()};
+  IterationTasks tasks;
+  for (Feature* f : features.all()) {
+    f->configure(engine_opt, hooks);
+    f->add_tasks(tasks);
+    f->add_participants(ic.participants);
+  }
+  WavefrontEngine engine(rs, film, engine_opt, hooks);
+  ic.adaptive = features.adaptive.sampler();
+
+  ProgressBar bar(c.progress);
+  const std::vector<int> cumulative = cumulative_spp(sizes);
+  ic.progress = [&](int it, double fraction) {
+    double before = it > 0 ? cumulative[size_t(it) - 1] : 0;
+    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / c.spp, engine.stats().total_rays());
+    if (c.on_iteration_progress) c.on_iteration_progress(it, fraction);
+  };
+  ReferenceEvaluation evaluation{reference, ic.combination, wall_start, render_start};
+  if (!c.reference_path.empty()) ic.evaluate = std::ref(evaluation);
+
+  IterationResult iterations = render_iterations(engine, film, tasks, ic);
+  return make_result(std::move(iterations), features, c, engine, rs, film);
 }
 
 static void write_text_atomically(const std::string& path, const std::string& text) {
@@ -417,10 +301,10 @@ int run_render(const RenderConfig& in) {
 
   RenderResult result = render_scene(scene, config);
   if (result.interrupted) {
-    if (config.checkpoint_dir.empty())
+    if (config.checkpoint.dir.empty())
       log_warning("stopped before the end; without --checkpoint-dir nothing was kept");
     else
-      log_info("stopped before the end; state saved in {}; run the same command to resume", config.checkpoint_dir);
+      log_info("stopped before the end; state saved in {}; run the same command to resume", config.checkpoint.dir);
     return kExitInterrupted;
   }
   std::string png = fs::path(config.output).replace_extension(".png").string();

@@ -3,6 +3,7 @@
 // in-process; the command line calls run_render().
 #pragma once
 
+#include "app/features.h"
 #include "core/image.h"
 #include "scene/scene.h"
 
@@ -16,17 +17,36 @@
 
 namespace theia {
 
-struct RenderConfig {
+// The render's own options (no group: --spp, options.spp).
+struct RenderOptions {
+  int spp = -1;                      // -1: the scene's Sampler pixelsamples
+  int threads = 0;                   // 0: all cores
+  uint32_t seed = 0;
+  int max_depth = -1;                // -1: the scene's Integrator maxdepth
+  size_t batch_size = 0;             // 0: auto (the engine sizes it from the frame and thread count)
+  size_t max_paths = 0;              // 0: auto
+  bool sort = true;
+  int throughput_reset_bounce = -1;  // >= 0: the beauty is the "throughput reset at bounce N" image
+};
+
+template <class V>
+void declare_options(V& v, RenderOptions& o) {
+  v.image("spp", o.spp, "Samples per pixel (-1: the scene's)");
+  v.order("threads", o.threads, "Worker threads (0: all cores)");
+  v.image("seed", o.seed, "Random seed");
+  v.image("max_depth", o.max_depth, "Maximum path depth (-1: the scene's)");
+  v.order("batch_size", o.batch_size, "Rays per wavefront batch (0: sized from the frame and thread count)");
+  v.order("max_paths", o.max_paths, "Capacity of the path-state pool (0: sized from the frame and thread count)");
+  v.order("sort", o.sort, "Sort rays and hits (--sort on|off, --no-sort)");
+  v.image("throughput_reset_bounce", o.throughput_reset_bounce,
+          "Render the 'throughput reset at bounce N' image as the beauty (-1: off)");
+}
+void check(const RenderOptions& o);
+
+struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions {
+  // What to render and where to write it: not options of the image.
   std::string scene_path;
   std::string output;               // .exr path; empty: the scene's Film filename
-  int spp = -1;                     // -1: the scene's Sampler pixelsamples
-  int threads = 0;                  // 0: all cores
-  uint32_t seed = 0;
-  int max_depth = -1;               // -1: the scene's Integrator maxdepth
-  size_t batch_size = size_t(1) << 16;
-  size_t max_paths = size_t(1) << 19;
-  bool sort = true;
-  std::string light_sampler = "power";
   std::string log_path;             // empty: OUTPUT with .json
   // --reference: at every iteration boundary log wall and render time, cumulative spp and
   // relMSE / RMSE / MAPE against this image (linear sRGB, the film's size).  Empty: none.
@@ -35,42 +55,50 @@ struct RenderConfig {
   // render_scene was called.
   std::optional<std::chrono::steady_clock::time_point> wall_start;
   bool progress = false;            // progress bar (the command line turns it on for a terminal)
-  // Radiance recorder (radiance_recorder/): built only when something consumes it.
-  bool recorder_debug = false;      // layer "recorder": primary-hit samples re-splatted (== beauty)
-  int recorder_debug_bounce = -1;   // >= 0: layer "recorder_bounceN", compare with throughput_reset_bounce
-  float recorder_budget = 4.0f;     // vertices per path (path skip rate from the last iteration); 0: off
-  float recorder_vertex_skip = 0.0f;// stochastic vertex-skipping probability
-  float recorder_min_distance = 0.0f;
-  int throughput_reset_bounce = -1; // >= 0: the beauty is the "throughput reset at bounce N" image
-
-  // Path guiding (guiding/): an SD-tree trained from the recorder after every
-  // iteration and sampled, mixed with the BSDF, in the next.
-  bool guiding = false;
-  float guiding_fraction = 0.5f;            // probability of sampling the guide where it applies
-  float guiding_min_roughness = 0.05f;      // guide only BSDFs with a lobe rougher than this
-  float guiding_spatial_threshold = 4000.0f;// SD-tree leaf split: this many samples times 2^(k/2)
-
-  // Directly seen caustics traced from the lights (wavefront/caustics.h).
-  bool caustics = true;
-  float caustic_roughness = 0.1f;   // casters: conductors and dielectrics no rougher than this
-
-  // Iterations (scheduler/schedule.h): a named schedule, then any of its
-  // numbers overridden (-1 / 0: keep the schedule's).
-  std::string schedule;              // regular | guiding; empty: guiding with --guiding, else regular
-  int iteration_first = -1, iteration_repeat = -1, iteration_max = -1;
-  double iteration_growth = 0.0;
-  std::string combine = "equal";     // equal | inverse-variance
-  bool adaptive = false;             // adaptive sampling, alpha at a fixed spp per pixel
-  // Checkpoints (checkpoint/checkpoint.h); none without a directory.
-  std::string checkpoint_dir;
-  bool resume = false;               // fail unless a checkpoint is found
-  bool checkpoint_every_iteration = false;
-  int checkpoint_first_ideal = 4;
   // Raised to stop early (the command line's SIGTERM/SIGINT handler).
   const std::atomic<bool>* stop = nullptr;
   // Called with (iteration, fraction of its camera samples generated).
   std::function<void(int, double)> on_iteration_progress;
+
+  // The features' options (app/features.h), each under its group's name.
+  RecorderOptions recorder;
+  GuidingOptions guiding;
+  CausticsOptions caustics;
+  AdaptiveOptions adaptive;
+  IterationOptions iteration;
+  CheckpointOptions checkpoint;
 };
+
+// Every option, group by group: the one list the command line, the log and
+// the checkpoint fingerprint are made from (app/options.h).
+template <class V>
+void declare_render_options(V& v, RenderConfig& c) {
+  v.group = "";
+  declare_options(v, static_cast<RenderOptions&>(c));
+  declare_options(v, static_cast<LightSamplerOptions&>(c));
+  declare_options(v, static_cast<SchedulingOptions&>(c));
+  v.group = "recorder";
+  declare_options(v, c.recorder);
+  v.group = "guiding";
+  declare_options(v, c.guiding);
+  v.group = "caustics";
+  declare_options(v, c.caustics);
+  v.group = "adaptive";
+  declare_options(v, c.adaptive);
+  v.group = "iteration";
+  declare_options(v, c.iteration);
+  v.group = "checkpoint";
+  declare_options(v, c.checkpoint);
+  v.group = "";
+}
+
+// Every option's validation (each struct's check, then the combinations that
+// would give a wrong image); throws theia::Error naming the flag.
+void check_config(const RenderConfig& c);
+
+// The hash a checkpoint must match to be resumed: every image option, by name, as
+// render_scene resolves them (spp and maximum depth from the scene, the schedule named).
+uint64_t options_fingerprint(const RenderConfig& c);
 
 // `theia render` exits with this when a stop was requested (SIGTERM, SIGINT)
 // before the render finished: the state is in the checkpoint (if any), and

@@ -1,10 +1,10 @@
-// How a shading point chooses which light to sample for next-event estimation.
-//
-// The wavefront sees only this interface.  The baseline samplers (uniform and
-// power-proportional) live here; cache points, which learn a per-region
-// distribution with visibility, will implement the same interface.
+// The baseline light samplers: uniform and power-proportional.  The
+// interface the wavefront calls is core/light_sampler.h (included here so
+// that code naming this header keeps working); cache points, which learn a
+// per-region distribution with visibility, will implement it beside these.
 #pragma once
 
+#include "core/light_sampler.h"
 #include "core/sampling.h"
 #include "scene/lights.h"
 
@@ -13,20 +13,6 @@
 #include <string>
 
 namespace theia {
-
-struct SampledLight {
-  int light = -1;
-  float pmf = 0.0f;
-};
-
-class LightSampler {
- public:
-  virtual ~LightSampler() = default;
-  virtual std::optional<SampledLight> sample(const LightSampleContext& ctx, float u) const = 0;
-  // Probability that sample(ctx, .) returns `light`.
-  virtual float pmf(const LightSampleContext& ctx, int light) const = 0;
-  virtual const char* name() const = 0;
-};
 
 class UniformLightSampler final : public LightSampler {
  public:

@@ -43,6 +43,16 @@ struct SDTreeOptions {
   bool directional_filter = true;
 };
 
+// The options a render sets, each once (flags --guiding-NAME; see
+// app/options.h for what image means); the others keep their defaults.
+template <class V>
+void declare_options(V& v, SDTreeOptions& o) {
+  v.image("spatial_threshold", o.spatial_threshold,
+          "SD-tree: split a spatial leaf after this many samples times sqrt(spp of the iteration)");
+  v.image("selection_probability", o.selection_probability,
+          "Probability of sampling the guide rather than the BSDF where it applies, in [0, 1)");
+}
+
 struct SDTreeStats {
   size_t spatial_leaves = 0;
   size_t quadtree_nodes = 0;  // sampling + building, all leaves

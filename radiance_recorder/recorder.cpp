@@ -104,7 +104,7 @@ RadianceRecorder::RadianceRecorder(const RecorderOptions& options, TrainingSampl
   blocks_ = std::make_unique<std::atomic<Block*>[]>(opt_.max_blocks);
   for (uint32_t b = 0; b < opt_.max_blocks; ++b) blocks_[b].store(nullptr, std::memory_order_relaxed);
   size_t pixels = size_t(std::max(opt_.width, 0)) * size_t(std::max(opt_.height, 0));
-  if (opt_.debug_primary) debug_primary_.assign(3 * pixels, 0.0f);
+  if (opt_.debug) debug_primary_.assign(3 * pixels, 0.0f);
   if (opt_.debug_bounce >= 0) debug_bounce_.assign(3 * pixels, 0.0f);
 }
 

@@ -92,10 +92,23 @@ struct RecorderOptions {
   uint32_t seed = 0;
   // Debug buffers (section 4.1); width * height pixels, RGB sums.
   int width = 0, height = 0;
-  bool debug_primary = false;
+  bool debug = false;                  // the primary-hit buffer (equals the beauty)
   int debug_bounce = -1;               // >= 0: also the N-th bounce buffer
   uint32_t max_blocks = 1u << 16;      // hard cap on storage: 2^16 blocks = 268M vertices
 };
+
+// The options a render sets, each once (flags --recorder-NAME; see
+// app/options.h for what image / output mean); the others are set by the
+// renderer (seed, film size) or keep their defaults.
+template <class V>
+void declare_options(V& v, RecorderOptions& o) {
+  v.image("vertex_budget", o.vertex_budget, "Recorded vertices per path (path skipping); 0: off");
+  v.image("vertex_skip_probability", o.vertex_skip_probability, "Probability of skipping a path vertex, in [0, 1)");
+  v.image("min_distance", o.min_distance, "Closer than this to its parent, a vertex is merged into the parent");
+  v.image("debug", o.debug, "Write the recorder's primary-hit debug layer 'recorder' (equals the beauty)");
+  v.image("debug_bounce", o.debug_bounce,
+          "Also write layer 'recorder_bounceN' (compare with --throughput-reset-bounce N); -1: none");
+}
 
 struct RecorderStats {
   uint64_t paths = 0, skipped_paths = 0;

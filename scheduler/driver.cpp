@@ -90,14 +90,14 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
 
 void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<int>& sizes, Position& pos,
              ImageAccumulator& acc, Film& partial) {
-  const std::string what = checkpoint_bin_path(cfg.checkpoint_dir, c.generation);
+  const std::string what = checkpoint_bin_path(cfg.checkpoint.dir, c.generation);
   if (c.scene_hash != cfg.scene_hash)
     throw_error("{}: this checkpoint was written for a different scene (the scene file or something it loads has "
                 "changed); refusing to resume. Remove the checkpoints or use another --checkpoint-dir",
                 what);
   if (c.options_hash != cfg.options_hash)
-    throw_error("{}: this checkpoint was written with different image-affecting options (spp, seed, max depth, "
-                "light sampler, schedule or combination); refusing to resume. Use the same options, remove the "
+    throw_error("{}: this checkpoint was written with different image-affecting options (all but threads, "
+                "batch size, pool size, sorting and the checkpoint options); refusing to resume. Use the same options, remove the "
                 "checkpoints or use another --checkpoint-dir",
                 what);
   const CheckpointSection* s = c.find(kSchedulerSection);
@@ -153,23 +153,23 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   const std::vector<int> sizes = make_schedule(cfg.schedule, cfg.total_spp);
   const std::vector<int> cumulative = cumulative_spp(sizes);
   const std::vector<bool> planned =
-      checkpoint_iterations(cumulative, cfg.checkpoint_first_ideal, cfg.checkpoint_every_iteration);
-  const bool checkpoints = !cfg.checkpoint_dir.empty();
-  if (cfg.resume_required && !checkpoints) throw_error("--resume needs --checkpoint-dir");
+      checkpoint_iterations(cumulative, cfg.checkpoint.first, cfg.checkpoint.every_iteration);
+  const bool checkpoints = !cfg.checkpoint.dir.empty();
+  if (cfg.resume && !checkpoints) throw_error("--resume needs --checkpoint-dir");
 
   ImageAccumulator acc(film.width, film.height);
   Position pos;
   film.clear();
   bool resumed = false;
   if (checkpoints) {
-    if (auto c = read_latest_checkpoint(cfg.checkpoint_dir)) {
+    if (auto c = read_latest_checkpoint(cfg.checkpoint.dir)) {
       restore(*c, cfg, sizes, pos, acc, film);
       resumed = true;
       log_info("resuming from {} at iteration {} of {} ({} camera samples of it done)",
-               checkpoint_bin_path(cfg.checkpoint_dir, c->generation), pos.iteration + 1, sizes.size(),
+               checkpoint_bin_path(cfg.checkpoint.dir, c->generation), pos.iteration + 1, sizes.size(),
                pos.camera_done);
-    } else if (cfg.resume_required) {
-      throw_error("--resume: no checkpoint in {}", cfg.checkpoint_dir);
+    } else if (cfg.resume) {
+      throw_error("--resume: no checkpoint in {}", cfg.checkpoint.dir);
     }
   }
   const int first_iteration = pos.iteration;
@@ -179,7 +179,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   auto write = [&] {
     ScopedTimer timer(checkpoint_seconds);
     ++pos.generation;
-    write_checkpoint(cfg.checkpoint_dir, make_checkpoint(cfg, sizes, pos, acc, film));
+    write_checkpoint(cfg.checkpoint.dir, make_checkpoint(cfg, sizes, pos, acc, film));
     ++checkpoints_written;
   };
   auto stop_requested = [&] { return cfg.stop && cfg.stop->load(); };
@@ -263,8 +263,8 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
                 {"iterations", iterations},
                 {"between_iteration_seconds", slot_seconds},
                 {"checkpoint",
-                 {{"dir", cfg.checkpoint_dir},
-                  {"skipping", !cfg.checkpoint_every_iteration},
+                 {{"dir", cfg.checkpoint.dir},
+                  {"skipping", !cfg.checkpoint.every_iteration},
                   {"written", checkpoints_written},
                   {"seconds", checkpoint_seconds},
                   {"wall_seconds", wall},
@@ -272,7 +272,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   if (checkpoints)
     log_info("checkpoints: {} written, {:.3f} s = {:.2f}% of {:.2f} s wall ({})", checkpoints_written,
              checkpoint_seconds, wall > 0 ? 100.0 * checkpoint_seconds / wall : 0.0, wall,
-             cfg.checkpoint_every_iteration ? "after every iteration" : "with skipping");
+             cfg.checkpoint.every_iteration ? "after every iteration" : "with skipping");
   return result;
 }
 

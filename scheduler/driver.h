@@ -18,16 +18,30 @@
 
 namespace theia {
 
+// Where and when checkpoints are written (flags --checkpoint-dir,
+// --checkpoint-every-iteration, --checkpoint-first).  None of them changes
+// the image, so a render may resume with others.
+struct CheckpointOptions {
+  std::string dir;               // empty: no checkpoints
+  bool every_iteration = false;  // a checkpoint after every iteration instead of skipping
+  int first = 4;                 // skipping: ideal checkpoints at cumulative spp first, 2 first, 4 first ... total
+};
+
+template <class V>
+void declare_options(V& v, CheckpointOptions& o) {
+  v.output("dir", o.dir, "Write checkpoints here; if it holds one, resume from it (exit code 75 when stopped)");
+  v.output("every_iteration", o.every_iteration,
+           "Checkpoint after every iteration instead of at FIRST, 2 FIRST, 4 FIRST ... spp (skipping)");
+  v.output("first", o.first, "Cumulative spp of the first ideal checkpoint");
+}
+
 struct IterationConfig {
   ScheduleOptions schedule = regular_schedule();
   int total_spp = 16;
   Combination combination = Combination::Equal;
   uint32_t seed = 0;
-  // Checkpoints: none when checkpoint_dir is empty.
-  std::string checkpoint_dir;
-  bool resume_required = false;          // --resume: fail if there is nothing to resume
-  bool checkpoint_every_iteration = false;
-  int checkpoint_first_ideal = 4;        // skipping: ideal checkpoints at 4 8 16 ... total spp
+  CheckpointOptions checkpoint;          // none when checkpoint.dir is empty
+  bool resume = false;                   // --resume: fail if there is nothing to resume
   uint64_t scene_hash = 0, options_hash = 0;
   std::vector<CheckpointParticipant> participants;
   // Adaptive sampling: iterations render its per-pixel ranges; it plans the next between iterations.

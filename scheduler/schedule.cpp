@@ -11,21 +11,21 @@ namespace theia {
 
 std::vector<int> make_schedule(const ScheduleOptions& o, int total_spp) {
   if (total_spp <= 0) throw_error("the schedule needs a positive total spp, got {}", total_spp);
-  if (o.first_size <= 0) throw_error("the first iteration size must be positive, got {}", o.first_size);
-  if (o.max_size < o.first_size)
-    throw_error("the maximum iteration size ({}) is below the first size ({})", o.max_size, o.first_size);
-  if (o.repeat_first < 1) throw_error("the first iteration size must be used at least once, got {}", o.repeat_first);
+  if (o.first <= 0) throw_error("the first iteration size must be positive, got {}", o.first);
+  if (o.max < o.first)
+    throw_error("the maximum iteration size ({}) is below the first size ({})", o.max, o.first);
+  if (o.repeat < 1) throw_error("the first iteration size must be used at least once, got {}", o.repeat);
   if (!(o.growth >= 1.0) || !std::isfinite(o.growth))
     throw_error("the iteration growth factor must be at least 1, got {}", o.growth);
   std::vector<int> sizes;
   int done = 0;
-  double size = o.first_size;
+  double size = o.first;
   while (done < total_spp) {
-    int n = int(std::min<double>(std::floor(size), o.max_size));
+    int n = int(std::min<double>(std::floor(size), o.max));
     n = std::min(n, total_spp - done);
     sizes.push_back(n);
     done += n;
-    if (int(sizes.size()) >= o.repeat_first) size = std::min<double>(size * o.growth, o.max_size);
+    if (int(sizes.size()) >= o.repeat) size = std::min<double>(size * o.growth, o.max);
   }
   return sizes;
 }

@@ -14,13 +14,15 @@
 
 namespace theia {
 
-// first_size repeated `repeat_first` times, then each iteration `growth` times
-// the previous one, capped at max_size; the last one shortened to hit the total.
+// Iteration sizes in spp: `first` repeated `repeat` times, then each iteration
+// `growth` times the previous one, capped at `max`; the last one shortened to
+// hit the total.  The command line's --iteration-first, --iteration-repeat,
+// --iteration-growth and --iteration-max override these fields by name.
 struct ScheduleOptions {
-  int first_size = 16;
-  int repeat_first = 2;
+  int first = 16;
+  int repeat = 2;
   double growth = 2.0;
-  int max_size = 256;
+  int max = 256;
 };
 
 // Hyperion's batch schedule: 16 16 32 64 128 256 256 ...

@@ -35,6 +35,13 @@ struct CausticOptions {
   uint32_t seed = 0;
 };
 
+// The options a render sets (flags --caustics-NAME; see app/options.h);
+// the seed is the render's.
+template <class V>
+void declare_options(V& v, CausticOptions& o) {
+  v.image("caster_roughness", o.caster_roughness, "Caustic casters: conductors and dielectrics no rougher than this");
+}
+
 struct CausticStats {
   uint64_t paths = 0, caster_hits = 0, receiver_hits = 0, splats = 0;
   uint64_t dropped = 0;  // light paths ended by a non-finite throughput or value (never splatted)

@@ -336,6 +336,7 @@ uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function
 }
 
 const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }
+EngineSizes WavefrontEngine::sizes() const { return impl_->sizes; }
 size_t WavefrontEngine::memory_bytes() const { return impl_->memory_bytes(); }
 
 }  // namespace theia

@@ -160,6 +160,8 @@ class WavefrontEngine {
                   uint64_t first_camera_sample = 0);
 
   const EngineStats& stats() const;
+  // The pool and batch sizes in use (engine_sizes of the options).
+  EngineSizes sizes() const;
   // Memory the engine holds for paths and queues at their peak.
   size_t memory_bytes() const;
 

@@ -50,9 +50,9 @@ AttributeEnd
 RenderConfig adaptive_config(int spp, bool adaptive) {
   RenderConfig c;
   c.spp = spp;
-  c.adaptive = adaptive;
-  c.iteration_first = 4;  // 4 8 16 32 ...: several iterations to adapt over
-  c.iteration_repeat = 1;
+  c.adaptive.enabled = adaptive;
+  c.iteration.first = 4;  // 4 8 16 32 ...: several iterations to adapt over
+  c.iteration.repeat = 1;
   return c;
 }
 
@@ -122,7 +122,7 @@ TEST(AdaptiveSampling, AlphaOnlyRaysKeepMemoryBounded) {
   c.schedule = "guiding";
   c.max_paths = 4096;
   RenderResult uniform = render_scene(s, c);
-  c.adaptive = true;
+  c.adaptive.enabled = true;
   RenderResult adaptive = render_scene(s, c);
   const uint64_t pixels = 48 * 32, colour = 64 * pixels;
   uint64_t alpha_only = adaptive.log["rays"]["camera"].get<uint64_t>() - colour;

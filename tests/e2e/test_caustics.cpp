@@ -16,7 +16,7 @@ const std::string kMirrorRoom = mirror_room_scene(32, 24, 0.1f);
 
 RenderResult render(const Scene& scene, int spp, bool caustics, uint32_t seed = 0, int threads = 0) {
   RenderConfig c = quick_config(spp);
-  c.caustics = caustics;
+  c.caustics.enabled = caustics;
   c.seed = seed;
   c.threads = threads;
   return render_scene(scene, c);
@@ -66,8 +66,8 @@ TEST(Caustics, ImageIndependentOfThreadCount) {
 TEST(Caustics, InactiveWithoutACasterAndTheImageIsUnchanged) {
   Scene scene = load_test_scene(mirror_room_scene(32, 24, 0.5f));
   RenderConfig c = quick_config(8);
-  c.caustics = true;
-  c.caustic_roughness = 0.1f;
+  c.caustics.enabled = true;
+  c.caustics.caster_roughness = 0.1f;
   RenderResult on = render_scene(scene, c), off = render(scene, 8, false);
   EXPECT_EQ(on.log["caustics"]["splats"].get<uint64_t>(), 0u);
   EXPECT_LT(max_relative_difference(on.image, off.image), 1e-6);
@@ -77,7 +77,7 @@ TEST(Caustics, InactiveWithoutACasterAndTheImageIsUnchanged) {
   RenderConfig d1 = quick_config(8);
   d1.max_depth = 1;
   RenderResult a = render_scene(shallow, d1);
-  d1.caustics = false;
+  d1.caustics.enabled = false;
   RenderResult b = render_scene(shallow, d1);
   EXPECT_FALSE(a.log["caustics"]["traced"].get<bool>());
   EXPECT_LT(max_relative_difference(a.image, b.image), 1e-6);

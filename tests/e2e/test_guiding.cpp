@@ -15,7 +15,7 @@ const std::string kCornell = std::string(THEIA_SCENES) + "/cornell-box/scene.pbr
 
 RenderConfig guided_config(int spp, uint32_t seed = 0) {
   RenderConfig c = quick_config(spp);
-  c.guiding = true;
+  c.guiding.enabled = true;
   c.seed = seed;
   return c;
 }

@@ -46,7 +46,7 @@ RecordedRender render_recorded(const Scene& scene, const EngineOptions& opt, Rec
     }
   }
   if (rec) {
-    if (ro.debug_primary) film.layers.push_back({"recorder", rec->debug_primary()});
+    if (ro.debug) film.layers.push_back({"recorder", rec->debug_primary()});
     if (ro.debug_bounce >= 0) film.layers.push_back({"bounce", rec->debug_bounce()});
     out.stats = rec->stats();
   }
@@ -110,7 +110,7 @@ TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyOnCornellBox) {
   EngineOptions opt;
   opt.batch_size = 4096;
   RecorderOptions ro;
-  ro.debug_primary = true;
+  ro.debug = true;
   RecordedRender r = render_recorded(scene, opt, ro, 1, 4);
   EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4);
   EXPECT_GT(image_mean(layer(r.image, "recorder")).x, 0.05f);
@@ -122,7 +122,7 @@ TEST(RecorderDebug, VirtualLightsEmitWithoutOccluding) {
   EngineOptions opt;
   opt.batch_size = 4096;
   RecorderOptions ro;
-  ro.debug_primary = true;
+  ro.debug = true;
   Scene scene = virtual_lights_scene();
   RecordedRender r = render_recorded(scene, opt, ro, 1, 16);
   ImageBuffer beauty = layer(r.image, "");
@@ -155,7 +155,7 @@ TEST(RecorderDebug, SkippingIsNoisierButConverges) {
   EngineOptions opt;
   opt.batch_size = 4096;
   RecorderOptions ro;
-  ro.debug_primary = true;
+  ro.debug = true;
   ro.vertex_budget = 2.0f;            // path skipping from the second iteration on
   ro.vertex_skip_probability = 0.5f;  // and vertex skipping throughout
   auto error_at = [&](int iterations, RecorderStats* st) {
@@ -231,8 +231,8 @@ TEST(RecorderMemory, PeakDoesNotGrowWithPathLength) {
 TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyAcrossSchedulerIterations) {
   Scene scene = cornell(24);
   RenderConfig c = quick_config(32);
-  c.recorder_debug = true;
-  c.recorder_budget = 0.0f;  // no path skipping: the buffers must agree exactly
+  c.recorder.debug = true;
+  c.recorder.vertex_budget = 0.0f;  // no path skipping: the buffers must agree exactly
   RenderResult r = render_scene(scene, c);
   ASSERT_EQ(r.log["scheduler"]["iterations"].size(), 2u);
   EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4);

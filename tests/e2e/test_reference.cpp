@@ -33,9 +33,9 @@ const char* kScene = R"(
 
 RenderConfig iterations_4_4_8_16(int spp) {
   RenderConfig c = quick_config(spp);
-  c.iteration_first = 4;
-  c.iteration_repeat = 2;
-  c.iteration_growth = 2.0;
+  c.iteration.first = 4;
+  c.iteration.repeat = 2;
+  c.iteration.growth = 2.0;
   return c;
 }
 

@@ -1,17 +1,23 @@
 // Stopping and resuming the `theia` binary as a render farm does: SIGTERM in
 // different iterations (at a boundary and in the middle), checkpoint files
 // damaged, the scene or options changed between runs.
+#include "app/options.h"
 #include "checkpoint/checkpoint.h"
+#include "core/log.h"
 #include "core/image.h"
 #include "render_helpers.h"
+#include "tests/test_util.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 
 namespace fs = std::filesystem;
@@ -251,4 +257,162 @@ TEST(Resume, CausticPassResumesExactly) {
   nlohmann::json log = nlohmann::json::parse(std::ifstream((dir / "out.json").string()));
   EXPECT_GT(log["caustics"]["splats"].get<uint64_t>(), 0u);
   fs::remove_all(dir);
+}
+
+// A checkpoint is resumed only with the options it was written with, where
+// they change the image: every image option, changed alone, is refused; the
+// options that change only summation order or where checkpoints go resume.
+// The options come from the same declarations the command line binds
+// (app/options.h), so an option added without a case here fails the test.
+// In-process, through the command line's parser: fast.
+namespace {
+
+// 8 spp in iterations of 2 4 2; a small pool so an iteration takes several generations.
+const std::vector<std::string> kBase = {"--spp", "8", "--iteration-first", "2", "--iteration-repeat", "1",
+                                        "--max-paths", "256", "--batch-size", "128"};
+
+// Each image option and a valid value other than kBase's (or the default).
+const std::map<std::string, std::vector<std::string>> kChanged = {
+    {"--spp", {"9"}},
+    {"--seed", {"1"}},
+    {"--max-depth", {"3"}},
+    {"--throughput-reset-bounce", {"1"}},
+    {"--light-sampler", {"uniform"}},
+    {"--schedule", {"guiding"}},
+    {"--combine", {"inverse-variance"}},
+    {"--recorder-vertex-budget", {"2"}},
+    {"--recorder-vertex-skip-probability", {"0.25"}},
+    {"--recorder-min-distance", {"0.1"}},
+    {"--recorder-debug", {}},
+    {"--recorder-debug-bounce", {"1"}},
+    {"--guiding", {}},
+    {"--guiding-min-roughness", {"0.1"}},
+    {"--guiding-spatial-threshold", {"2000"}},
+    {"--guiding-selection-probability", {"0.25"}},
+    {"--caustics", {"off"}},
+    {"--caustics-caster-roughness", {"0.2"}},
+    {"--adaptive", {}},
+    {"--iteration-first", {"1"}},
+    {"--iteration-repeat", {"2"}},
+    {"--iteration-growth", {"3"}},
+    {"--iteration-max", {"4"}},
+};
+
+// The debug layers are refused with any checkpoint directory, before the fingerprint is compared.
+bool refused_with_checkpoints(const std::string& flag) { return flag.rfind("--recorder-debug", 0) == 0; }
+
+OptionFlags declared_flags() {
+  RenderConfig c;
+  OptionFlags flags;
+  declare_render_options(flags, c);
+  return flags;
+}
+
+// The command line's parse of these arguments (after the scene and -o).
+RenderConfig parse(std::vector<std::string> args) {
+  CLI::App app;
+  RenderConfig c;
+  OptionBinder binder(app);
+  declare_render_options(binder, c);
+  std::reverse(args.begin(), args.end());  // CLI11 takes a vector last argument first
+  app.parse(args);
+  return c;
+}
+
+struct ResumeOptionsCheckpoint : ::testing::Test {
+  test::TempDir tmp{"theia_resume_options"};
+  Scene scene = test::load_test_scene(scene_text(1.0f));
+  std::string checkpoints = (tmp.path / "ck").string();
+  std::atomic<bool> stop{false};
+
+  RenderResult render(const std::vector<std::string>& args) {
+    RenderConfig c = parse(args);
+    c.checkpoint.dir = checkpoints;
+    c.stop = &stop;
+    return render_scene(scene, c);
+  }
+  // Stopped half-way through the second iteration: a checkpoint to resume.
+  void write_checkpoint() {
+    RenderConfig c = parse(kBase);
+    c.checkpoint.dir = checkpoints;
+    c.stop = &stop;
+    c.on_iteration_progress = [this](int it, double f) {
+      if (it == 1 && f >= 0.5) stop.store(true);
+    };
+    ASSERT_TRUE(render_scene(scene, c).interrupted);
+    stop.store(false);
+  }
+};
+
+}  // namespace
+
+TEST(ResumeOptions, EveryImageOptionHasACase) {
+  OptionFlags flags = declared_flags();
+  std::vector<std::string> cases;
+  for (const auto& [flag, value] : kChanged) cases.push_back(flag);
+  std::sort(flags.image_flags.begin(), flags.image_flags.end());
+  EXPECT_EQ(flags.image_flags, cases) << "an image option without a case in kChanged (or a case for none)";
+  // The fingerprint covers throughput_reset_bounce, which changes the beauty.
+  EXPECT_TRUE(std::count(flags.image_flags.begin(), flags.image_flags.end(), "--throughput-reset-bounce"));
+}
+
+TEST_F(ResumeOptionsCheckpoint, EachImageOptionChangedAloneIsRefused) {
+  write_checkpoint();
+  for (const auto& [flag, value] : kChanged) {
+    std::vector<std::string> args = kBase;
+    // Replace the base's value where it sets this option, else append it.
+    auto at = std::find(args.begin(), args.end(), flag);
+    if (at != args.end()) args.erase(at, at + 2);
+    args.push_back(flag);
+    args.insert(args.end(), value.begin(), value.end());
+    try {
+      render(args);
+      ADD_FAILURE() << flag << ": resumed a checkpoint written with another value";
+    } catch (const Error& e) {
+      const std::string want = refused_with_checkpoints(flag) ? "cannot be combined with --checkpoint-dir"
+                                                              : "different image-affecting options";
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << flag << ": " << e.what();
+    }
+  }
+  // The checkpoint was left as it was: the unchanged options resume it.
+  RenderResult r = render(kBase);
+  EXPECT_FALSE(r.interrupted);
+  EXPECT_TRUE(r.log["scheduler"]["resumed"].get<bool>());
+}
+
+TEST_F(ResumeOptionsCheckpoint, SummationOrderAndCheckpointOptionsResume) {
+  OptionFlags flags = declared_flags();
+  std::sort(flags.order_flags.begin(), flags.order_flags.end());
+  EXPECT_EQ(flags.order_flags, (std::vector<std::string>{"--batch-size", "--max-paths", "--sort", "--threads"}));
+  std::sort(flags.output_flags.begin(), flags.output_flags.end());
+  EXPECT_EQ(flags.output_flags,
+            (std::vector<std::string>{"--checkpoint-dir", "--checkpoint-every-iteration", "--checkpoint-first", "--resume"}));
+
+  RenderConfig plain = parse(kBase);
+  const ImageBuffer uninterrupted = render_scene(scene, plain).image;
+  write_checkpoint();
+  // Every order option and every checkpoint option other than the directory, changed at once.
+  RenderResult r = render({"--spp", "8", "--iteration-first", "2", "--iteration-repeat", "1", "--max-paths", "64",
+                           "--batch-size", "1000", "--threads", "1", "--sort", "off", "--resume",
+                           "--checkpoint-first", "2", "--checkpoint-every-iteration"});
+  ASSERT_FALSE(r.interrupted);
+  EXPECT_TRUE(r.log["scheduler"]["resumed"].get<bool>());
+  EXPECT_EQ(r.log["options"]["threads"].get<int>(), 1);
+  EXPECT_FALSE(r.log["options"]["sort"].get<bool>());
+  EXPECT_LT(test::max_relative_difference(r.image, uninterrupted), 1e-5);
+}
+
+TEST(ResumeOptions, ParsedFlagsReachTheirFields) {
+  RenderConfig c = parse({"--guiding", "--guiding-selection-probability", "0.25", "--no-caustics", "--sort", "off",
+                          "--recorder-vertex-budget", "2", "--checkpoint-first", "8", "--max-paths", "0"});
+  EXPECT_TRUE(c.guiding.enabled);
+  EXPECT_EQ(c.guiding.selection_probability, 0.25f);
+  EXPECT_FALSE(c.caustics.enabled);
+  EXPECT_FALSE(c.sort);
+  EXPECT_EQ(c.recorder.vertex_budget, 2.0f);
+  EXPECT_EQ(c.checkpoint.first, 8);
+  EXPECT_EQ(c.max_paths, 0u);  // auto
+  EXPECT_TRUE(parse({}).caustics.enabled);
+  EXPECT_TRUE(parse({}).sort);
+  EXPECT_THROW(parse({"--sort", "maybe"}), CLI::ParseError);
 }

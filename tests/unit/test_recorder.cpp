@@ -330,7 +330,7 @@ TEST(RadianceRecorder, RandomOrdersAndThreadInterleavingsLeaveNothingAllocated) 
     RecorderOptions o;
     o.width = 64;
     o.height = 1;
-    o.debug_primary = true;
+    o.debug = true;
     o.vertex_skip_probability = skip;
     RadianceRecorder rec(o, &sink);
     rec.begin_iteration();

@@ -1,0 +1,283 @@
+#include "app/features.h"
+
+#include "core/hash.h"
+#include "core/log.h"
+
+#include <cmath>
+
+namespace theia {
+
+// --- Light sampler ----------------------------------------------------------
+
+void check(const LightSamplerOptions& o) {
+  if (o.light_sampler != "uniform" && o.light_sampler != "power")
+    throw_error("--light-sampler {}: expected uniform or power", o.light_sampler);
+}
+
+void LightSamplerFeature::add_tasks(IterationTasks& tasks) {
+  if (sampler_.wants_feedback())
+    tasks.add(BetweenIterationSlot::CachePointUpdate, [this](const IterationInfo&) { sampler_.update(); });
+}
+
+// --- Radiance recorder ------------------------------------------------------
+
+void check(const RecorderOptions& o) {
+  if (o.debug_bounce < -1) throw_error("--recorder-debug-bounce must be zero or positive, got {}", o.debug_bounce);
+  if (!(o.vertex_budget >= 0.0f))
+    throw_error("--recorder-vertex-budget must be zero (off) or positive, got {}", o.vertex_budget);
+  if (!(o.vertex_skip_probability >= 0.0f && o.vertex_skip_probability < 1.0f))
+    throw_error("--recorder-vertex-skip-probability must be in [0, 1), got {}", o.vertex_skip_probability);
+  if (!(o.min_distance >= 0.0f))
+    throw_error("--recorder-min-distance must be zero or positive, got {}", o.min_distance);
+}
+
+RecorderFeature::RecorderFeature(const RecorderOptions& options, bool guiding, uint32_t seed, int width, int height,
+                                 TrainingSampleSink* sink)
+    : options_(options) {
+  if (!guiding && !debug_layers(options)) return;
+  options_.seed = seed;
+  options_.width = width;
+  options_.height = height;
+  recorder_ = std::make_unique<RadianceRecorder>(options_, sink);
+}
+
+void RecorderFeature::add_tasks(IterationTasks& tasks) {
+  if (!recorder_) return;
+  tasks.on_begin([this](const IterationInfo&) { recorder_->begin_iteration(); });
+  tasks.on_end([this](const IterationInfo&) { recorder_->end_iteration(); });
+  tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [this](const IterationInfo&) { recorder_->update_skip_rate(); });
+}
+
+// A resumed render continues the skip rate and an interrupted iteration's
+// training samples exactly where the interrupted one left them, so it trains
+// the same.  (Debug layers are not checkpointed: check_config refuses them
+// with --checkpoint-dir.)
+void RecorderFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
+  if (!recorder_) return;
+  participants.push_back({"recorder", 1,
+                          [this] {
+                            ByteWriter w;
+                            RadianceRecorder::ResumeState st = recorder_->resume_state();
+                            w.put(st.skip_rate);
+                            w.put(st.iteration_paths);
+                            w.put(st.iteration_events);
+                            w.put_vector(st.samples);
+                            return w.bytes;
+                          },
+                          [this](const CheckpointSection& section) {
+                            ByteReader r(section.bytes, "checkpoint section 'recorder'");
+                            RadianceRecorder::ResumeState st;
+                            st.skip_rate = r.get<double>();
+                            st.iteration_paths = r.get<uint64_t>();
+                            st.iteration_events = r.get<uint64_t>();
+                            st.samples = r.get_vector<TrainingSample>();
+                            recorder_->restore(st);
+                          }});
+}
+
+std::vector<FilmLayer> RecorderFeature::layers() const {
+  std::vector<FilmLayer> layers;
+  if (recorder_ && options_.debug) layers.push_back({"recorder", recorder_->debug_primary()});
+  if (recorder_ && options_.debug_bounce >= 0)
+    layers.push_back({fmt::format("recorder_bounce{}", options_.debug_bounce), recorder_->debug_bounce()});
+  return layers;
+}
+
+void RecorderFeature::write_log(nlohmann::json& log) const {
+  if (!recorder_) return;
+  RecorderStats rs = recorder_->stats();
+  log["recorder"] = {{"vertex_bytes", RadianceRecorder::vertex_bytes()},
+                     {"peak_live_vertices", rs.peak_live_vertices},
+                     {"peak_bytes", recorder_->peak_bytes()},
+                     {"blocks", rs.peak_blocks},
+                     {"paths", rs.paths},
+                     {"skipped_paths", rs.skipped_paths},
+                     {"path_skip_rate", rs.path_skip_rate},
+                     {"vertex_events", rs.vertex_events},
+                     {"recorded_vertices", rs.recorded},
+                     {"skipped_vertices", rs.skipped_vertices},
+                     {"merged_vertices", rs.merged_vertices},
+                     {"dropped", rs.dropped}};
+  log["memory"]["recorder"] = recorder_->peak_bytes();
+}
+
+// --- Path guiding -----------------------------------------------------------
+
+void check(const GuidingOptions& o) {
+  if (!(o.selection_probability >= 0.0f && o.selection_probability < 1.0f))
+    throw_error("--guiding-selection-probability must be in [0, 1) (the BSDF must keep some share, or directions "
+                "the guide has not learned would never be sampled), got {}",
+                o.selection_probability);
+  if (!(o.min_roughness >= 0.0f))
+    throw_error("--guiding-min-roughness must be zero or positive, got {}", o.min_roughness);
+  if (!(o.spatial_threshold > 0.0 && std::isfinite(o.spatial_threshold)))
+    throw_error("--guiding-spatial-threshold must be positive, got {}", o.spatial_threshold);
+}
+
+namespace {
+
+// The recorder's training samples, as the SD-tree takes them: scalar
+// (luminance) radiance, only from directions that had a density (a delta
+// lobe's sample says nothing about a directional distribution).  The key
+// names the vertex, so the field's spatial jitter is a function of the path.
+class SDTreeTrainer final : public TrainingSampleSink {
+ public:
+  explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
+  void consume(std::span<const TrainingSample> samples) override {
+    for (const TrainingSample& s : samples) {
+      if (s.flags & kVertexDelta) continue;
+      tree_.add_sample(s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags));
+    }
+  }
+
+ private:
+  SDTree& tree_;
+};
+
+}  // namespace
+
+GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds) : options_(options) {
+  if (!options.enabled) return;
+  tree_ = std::make_unique<SDTree>(scene_bounds, options);
+  trainer_ = std::make_unique<SDTreeTrainer>(*tree_);
+}
+
+GuidingFeature::~GuidingFeature() = default;
+
+void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const {
+  if (!tree_) return;
+  hooks.guide = tree_.get();
+  engine.guiding_min_roughness = options_.min_roughness;
+}
+
+// The field learns from each iteration's samples (handed over by the
+// recorder at the iteration's end); the next iteration samples it.
+void GuidingFeature::add_tasks(IterationTasks& tasks) {
+  if (!tree_) return;
+  tasks.add(BetweenIterationSlot::GuidingUpdate,
+            [this](const IterationInfo& it) { tree_->update(double(it.spp_end - it.spp_begin)); });
+}
+
+// A resumed render continues the field where the interrupted one left it, so it guides the same.
+void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
+  if (!tree_) return;
+  participants.push_back({"guiding", 2,
+                          [this] {
+                            ByteWriter w;
+                            w.put_vector(tree_->serialize());
+                            return w.bytes;
+                          },
+                          [this](const CheckpointSection& section) {
+                            ByteReader r(section.bytes, "checkpoint section 'guiding'");
+                            std::vector<uint8_t> tree = r.get_vector<uint8_t>();
+                            *tree_ = SDTree::deserialize(tree);
+                          }});
+}
+
+void GuidingFeature::write_log(nlohmann::json& log) const {
+  if (!tree_) return;
+  SDTreeStats gs = tree_->stats();
+  log["guiding"] = {{"spatial_leaves", gs.spatial_leaves},
+                    {"quadtree_nodes", gs.quadtree_nodes},
+                    {"bytes", tree_->memory_bytes()}};
+  log["memory"]["guiding"] = tree_->memory_bytes();
+}
+
+// --- Caustics ---------------------------------------------------------------
+
+void check(const CausticsOptions& o) {
+  if (!(o.caster_roughness >= 0.0f && o.caster_roughness <= 1.0f))
+    throw_error("--caustics-caster-roughness must be in [0, 1], got {}", o.caster_roughness);
+}
+
+CausticsFeature::CausticsFeature(const CausticsOptions& options, std::string off_because, uint32_t seed,
+                                 const RenderableScene& rs)
+    : off_because_(options.enabled ? std::move(off_because) : "--no-caustics") {
+  if (!off_because_.empty()) return;
+  CausticOptions co = options;
+  co.seed = seed;
+  tracer_ = std::make_unique<CausticTracer>(rs.scene, rs.accel, rs.lights, rs.camera, rs.filter, co);
+  off_because_ = tracer_->inactive_reason();
+  traced_ = tracer_->active();
+}
+
+CausticsFeature::~CausticsFeature() = default;
+
+void CausticsFeature::configure(EngineOptions&, EngineHooks& hooks) const {
+  if (traced_) hooks.caustics = tracer_.get();
+}
+
+// The pass's switch-off counters survive a resume, so a resumed render
+// switches it off (or not) where an uninterrupted one does.
+void CausticsFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
+  if (!traced_) return;
+  participants.push_back({"caustics", 1,
+                          [this] {
+                            ByteWriter w;
+                            w.put(tracer_->stats());
+                            w.put(int32_t(tracer_->passes()));
+                            return w.bytes;
+                          },
+                          [this](const CheckpointSection& section) {
+                            ByteReader r(section.bytes, "checkpoint section 'caustics'");
+                            CausticStats cs = r.get<CausticStats>();
+                            int passes = r.get<int32_t>();
+                            tracer_->restore_stats(cs, passes);
+                          }});
+}
+
+void CausticsFeature::write_log(nlohmann::json& log) const {
+  CausticStats cs = tracer_ ? tracer_->stats() : CausticStats{};
+  log["caustics"] = {{"traced", traced_},
+                     {"off_because", off_because_},
+                     {"switched_off_after_passes", cs.switched_off_after},
+                     {"paths", cs.paths},
+                     {"caster_hits", cs.caster_hits},
+                     {"receiver_hits", cs.receiver_hits},
+                     {"splats", cs.splats},
+                     {"dropped", cs.dropped},
+                     {"seconds", cs.seconds}};
+}
+
+// --- Adaptive sampling ------------------------------------------------------
+
+AdaptiveFeature::AdaptiveFeature(const AdaptiveOptions& options, int width, int height,
+                                 const std::vector<int>& schedule, int spp)
+    : spp_(spp) {
+  if (options.enabled) sampler_ = std::make_unique<AdaptiveSampler>(width, height, schedule, uint32_t(spp));
+}
+
+AdaptiveFeature::~AdaptiveFeature() = default;
+
+// Consistent alpha: with adaptive sampling alpha counts exactly spp samples per pixel.
+void AdaptiveFeature::configure(EngineOptions& engine, EngineHooks&) const {
+  if (sampler_) engine.alpha_spp = uint32_t(spp_);
+}
+
+// --- Iterations and checkpoints ---------------------------------------------
+
+void check(const SchedulingOptions& o) {
+  if (!o.schedule.empty() && o.schedule != "regular" && o.schedule != "guiding")
+    throw_error("--schedule {}: expected regular or guiding", o.schedule);
+  if (o.combine != "equal" && o.combine != "inverse-variance")
+    throw_error("--combine {}: expected equal or inverse-variance", o.combine);
+}
+
+void check(const CheckpointOptions& o) {
+  if (o.first <= 0) throw_error("--checkpoint-first must be positive, got {}", o.first);
+}
+
+std::string schedule_name(const SchedulingOptions& o, bool guiding) {
+  return !o.schedule.empty() ? o.schedule : guiding ? "guiding" : "regular";
+}
+
+ScheduleOptions schedule_options(const std::string& name, const IterationOptions& overrides) {
+  ScheduleOptions o = name == "guiding" ? guiding_schedule() : regular_schedule();
+  if (overrides.first >= 0) o.first = overrides.first;
+  if (overrides.repeat >= 0) o.repeat = overrides.repeat;
+  if (overrides.growth >= 0.0) o.growth = overrides.growth;
+  if (overrides.max >= 0) o.max = overrides.max;
+  return o;
+}
+
+}  // namespace theia

@@ -1,0 +1,218 @@
+// The features a render assembles, each one object that owns its options
+// (a plain struct with defaults, declared once: app/options.h), their
+// validation, and what it adds to a render: engine hooks, between-iteration
+// tasks, checkpoint sections and its log section.  A feature that is off
+// builds nothing and adds nothing.  render_scene (app/render.cpp) builds
+// them and asks each in turn; the objects they own live in their folders
+// (guiding/, radiance_recorder/, wavefront/caustics.h, scheduler/).
+#pragma once
+
+#include "app/options.h"
+#include "core/light_sampler.h"
+#include "guiding/sd_tree.h"
+#include "radiance_recorder/recorder.h"
+#include "scheduler/driver.h"
+#include "wavefront/caustics.h"
+#include "wavefront/engine.h"
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace theia {
+
+class Feature {
+ public:
+  virtual ~Feature() = default;
+  // Before the engine is built: the hooks it calls.
+  virtual void configure(EngineOptions&, EngineHooks&) const {}
+  virtual void add_tasks(IterationTasks&) {}
+  // What a resumed render needs to continue exactly where this one stopped.
+  virtual void add_participants(std::vector<CheckpointParticipant>&) {}
+  // After the render: the feature's section of the JSON log.
+  virtual void write_log(nlohmann::json&) const {}
+};
+
+// --- Light sampler (group: none) --------------------------------------------
+
+struct LightSamplerOptions {
+  std::string light_sampler = "power";  // uniform | power (cachepoints/light_sampler.h)
+};
+
+template <class V>
+void declare_options(V& v, LightSamplerOptions& o) {
+  v.image("light_sampler", o.light_sampler, "Light selection: uniform or power");
+}
+void check(const LightSamplerOptions& o);
+
+// The scene's light sampler (RenderableScene builds it from the option):
+// one that learns from shadow rays folds what it learned in between iterations.
+class LightSamplerFeature final : public Feature {
+ public:
+  explicit LightSamplerFeature(LightSampler& sampler) : sampler_(sampler) {}
+  void add_tasks(IterationTasks& tasks) override;
+
+ private:
+  LightSampler& sampler_;
+};
+
+// --- Radiance recorder (group "recorder") -----------------------------------
+
+void check(const RecorderOptions& o);
+
+// Built only when something consumes it: guiding's training, or a debug layer.
+class RecorderFeature final : public Feature {
+ public:
+  RecorderFeature(const RecorderOptions& options, bool guiding, uint32_t seed, int width, int height,
+                  TrainingSampleSink* sink);
+  static bool debug_layers(const RecorderOptions& o) { return o.debug || o.debug_bounce >= 0; }
+  // The engine's path observer; null when not built.
+  RadianceRecorder* recorder() const { return recorder_.get(); }
+  void add_tasks(IterationTasks& tasks) override;
+  void add_participants(std::vector<CheckpointParticipant>& participants) override;
+  void write_log(nlohmann::json& log) const override;
+  // The debug layers of the EXR (they sum over every iteration, like the film).
+  std::vector<FilmLayer> layers() const;
+
+ private:
+  RecorderOptions options_;
+  std::unique_ptr<RadianceRecorder> recorder_;
+};
+
+// --- Path guiding (group "guiding") -----------------------------------------
+
+struct GuidingOptions : SDTreeOptions {
+  bool enabled = false;
+  float min_roughness = 0.05f;  // EngineOptions::guiding_min_roughness
+};
+
+template <class V>
+void declare_options(V& v, GuidingOptions& o) {
+  v.image("enabled", o.enabled,
+          "Path guiding: an SD-tree learned every iteration from the radiance recorder, mixed with BSDF sampling");
+  v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
+  declare_options(v, static_cast<SDTreeOptions&>(o));
+}
+void check(const GuidingOptions& o);
+
+// The SD-tree the engine samples, trained from the recorder's samples after
+// every iteration.
+class GuidingFeature final : public Feature {
+ public:
+  GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds);
+  ~GuidingFeature() override;
+  // Where the recorder hands its training samples; null when off.
+  TrainingSampleSink* trainer() const { return trainer_.get(); }
+  void configure(EngineOptions& engine, EngineHooks& hooks) const override;
+  void add_tasks(IterationTasks& tasks) override;
+  void add_participants(std::vector<CheckpointParticipant>& participants) override;
+  void write_log(nlohmann::json& log) const override;
+
+ private:
+  GuidingOptions options_;
+  std::unique_ptr<SDTree> tree_;
+  std::unique_ptr<TrainingSampleSink> trainer_;
+};
+
+// --- Caustics traced from the lights (group "caustics") ---------------------
+
+struct CausticsOptions : CausticOptions {
+  bool enabled = true;
+};
+
+template <class V>
+void declare_options(V& v, CausticsOptions& o) {
+  v.image("enabled", o.enabled,
+          "Trace directly seen caustics (light -> near-mirror or glass -> diffuse -> camera) from the lights "
+          "(off by itself where it finds nothing)");
+  declare_options(v, static_cast<CausticOptions&>(o));
+}
+void check(const CausticsOptions& o);
+
+// On by default; stays off (and says why in the log) where its light paths
+// could not be counted or cannot exist.  `off_because` is the reason another
+// feature gives (adaptive sampling, recorder debug layers, ...), empty if none.
+class CausticsFeature final : public Feature {
+ public:
+  CausticsFeature(const CausticsOptions& options, std::string off_because, uint32_t seed,
+                  const RenderableScene& rs);
+  ~CausticsFeature() override;
+  void configure(EngineOptions& engine, EngineHooks& hooks) const override;
+  void add_participants(std::vector<CheckpointParticipant>& participants) override;
+  void write_log(nlohmann::json& log) const override;
+
+ private:
+  std::unique_ptr<CausticTracer> tracer_;
+  std::string off_because_;
+  bool traced_ = false;  // active when the render began (it may switch itself off during it)
+};
+
+// --- Adaptive sampling (group "adaptive") -----------------------------------
+
+struct AdaptiveOptions {
+  bool enabled = false;
+};
+
+template <class V>
+void declare_options(V& v, AdaptiveOptions& o) {
+  v.image("enabled", o.enabled,
+          "Adaptive sampling: --spp is a budget over the frame; alpha keeps --spp samples in every pixel");
+}
+
+// The scheduler drives it (its update task and checkpoint section are the
+// driver's); the engine counts exactly spp samples per pixel for alpha.
+class AdaptiveFeature final : public Feature {
+ public:
+  AdaptiveFeature(const AdaptiveOptions& options, int width, int height, const std::vector<int>& schedule, int spp);
+  ~AdaptiveFeature() override;
+  AdaptiveSampler* sampler() const { return sampler_.get(); }
+  void configure(EngineOptions& engine, EngineHooks& hooks) const override;
+
+ private:
+  std::unique_ptr<AdaptiveSampler> sampler_;
+  int spp_;
+};
+
+// --- Iterations and checkpoints (groups: none, "iteration", "checkpoint") ---
+
+struct SchedulingOptions {
+  std::string schedule;           // regular | guiding; empty: guiding with --guiding, else regular
+  std::string combine = "equal";  // equal | inverse-variance
+  bool resume = false;            // fail unless a checkpoint is found
+};
+
+template <class V>
+void declare_options(V& v, SchedulingOptions& o) {
+  v.image("schedule", o.schedule,
+          "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16); default: guiding with "
+          "--guiding, else regular");
+  v.image("combine", o.combine, "Combining iterations: equal, or inverse-variance (last four)");
+  v.output("resume", o.resume, "Resume from --checkpoint-dir; fail if there is no checkpoint");
+}
+void check(const SchedulingOptions& o);
+
+// Overrides of the named schedule's ScheduleOptions, field by field (-1: keep).
+struct IterationOptions {
+  int first = -1;
+  int repeat = -1;
+  double growth = -1.0;
+  int max = -1;
+};
+
+template <class V>
+void declare_options(V& v, IterationOptions& o) {
+  v.image("first", o.first, "First iteration size in spp (-1: the schedule's)");
+  v.image("repeat", o.repeat, "Iterations of the first size (-1: the schedule's)");
+  v.image("growth", o.growth, "Growth factor of iteration sizes (-1: the schedule's)");
+  v.image("max", o.max, "Largest iteration size in spp (-1: the schedule's)");
+}
+
+void check(const CheckpointOptions& o);
+
+// Guiding learns between iterations, so it wants its small early iterations.
+std::string schedule_name(const SchedulingOptions& o, bool guiding);
+ScheduleOptions schedule_options(const std::string& name, const IterationOptions& overrides);
+
+}  // namespace theia

@@ -1,0 +1,120 @@
+// Every option of `theia render` is declared once, beside the struct that
+// holds it, by a declare_options(v, options) function:
+//
+//   template <class V> void declare_options(V& v, SDTreeOptions& o) {
+//     v.image("spatial_threshold", o.spatial_threshold, "SD-tree: split a spatial leaf ...");
+//   }
+//
+// The visitor V is one of the three below: the command line binds a flag to
+// the field (its default is the struct's), the log writes the value, the
+// checkpoint fingerprint hashes it.  What the declaration says about an option
+// is which of three it is:
+//   image   changes the image: part of the fingerprint, so a checkpoint
+//           written with one value is never resumed with another;
+//   order   changes only floating-point summation order (threads, batch and
+//           pool sizes, sorting): a render may resume with another value;
+//   output  changes where or when state is written, never the image.
+// Adding an option is adding a field and its one declaration line.
+//
+// One name: an option's name is its field's name within its group (the
+// feature that owns the struct).  The flag is the kebab-case of
+// GROUP_FIELD and the log key log["options"]["GROUP_FIELD"]; a group's
+// `enabled` field is the group itself (--guiding, options.guiding); the
+// render's own options have no group (--spp, options.spp).  So
+// SDTreeOptions::spatial_threshold in group "guiding" is
+// --guiding-spatial-threshold and options.guiding_spatial_threshold.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace theia {
+
+// snake_case: GROUP_FIELD, the group alone for `enabled`, the field alone without a group.
+inline std::string option_name(const std::string& group, const std::string& field) {
+  if (group.empty()) return field;
+  return field == "enabled" ? group : group + "_" + field;
+}
+
+inline std::string option_flag(const std::string& group, const std::string& field) {
+  std::string flag = "--" + option_name(group, field);
+  for (char& ch : flag) ch = ch == '_' ? '-' : ch;
+  return flag;
+}
+
+// Visitors set `group` before declaring a struct's options (declare_render_options, app/render.h).
+struct OptionVisitor {
+  std::string group;
+};
+
+// Binds each option to a flag.  A bool that defaults to on is a switch
+// (--caustics / --no-caustics, --sort on|off); one that defaults to off is
+// a flag (--guiding).
+struct OptionBinder : OptionVisitor {
+  CLI::App& app;
+  explicit OptionBinder(CLI::App& a) : app(a) {}
+
+  template <class T>
+  void image(const char* name, T& field, const char* help) { bind(name, field, help); }
+  template <class T>
+  void order(const char* name, T& field, const char* help) { bind(name, field, help); }
+  template <class T>
+  void output(const char* name, T& field, const char* help) { bind(name, field, help); }
+
+ private:
+  template <class T>
+  void bind(const char* name, T& field, const char* help) {
+    const std::string flag = option_flag(group, name);
+    if constexpr (std::is_same_v<T, bool>) {
+      if (field)
+        app.add_flag(flag + ",!--no-" + flag.substr(2), field, std::string(help) + " (default: on)")->expected(0, 1);
+      else
+        app.add_flag(flag, field, help);
+    } else {
+      app.add_option(flag, field, help)->capture_default_str();
+    }
+  }
+};
+
+// log["options"]: every option under its one name.
+struct OptionLog : OptionVisitor {
+  nlohmann::json json = nlohmann::json::object();
+
+  template <class T>
+  void image(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
+  template <class T>
+  void order(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
+  template <class T>
+  void output(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
+};
+
+// The text the options fingerprint hashes: NAME=VALUE; for every image option.
+struct OptionFingerprintText : OptionVisitor {
+  std::string text;
+
+  template <class T>
+  void image(const char* name, const T& field, const char*) { text += fmt::format("{}={};", option_name(group, name), field); }
+  template <class T>
+  void order(const char*, const T&, const char*) {}
+  template <class T>
+  void output(const char*, const T&, const char*) {}
+};
+
+// The flags of each kind (tests: every image option refuses a resume, every order option resumes).
+struct OptionFlags : OptionVisitor {
+  std::vector<std::string> image_flags, order_flags, output_flags;
+
+  template <class T>
+  void image(const char* name, const T&, const char*) { image_flags.push_back(option_flag(group, name)); }
+  template <class T>
+  void order(const char* name, const T&, const char*) { order_flags.push_back(option_flag(group, name)); }
+  template <class T>
+  void output(const char* name, const T&, const char*) { output_flags.push_back(option_flag(group, name)); }
+};
+
+}  // namespace theia

@@ -1,0 +1,54 @@
+// Light selection as the wavefront engine sees it: which light a shading
+// point samples for next-event estimation, with what probability, and what
+// the shadow ray then found.
+//
+// The interface lives in core/ (like DirectionalGuide and PathObserver) so
+// the engine calls it without knowing how a sampler decides; the baseline
+// samplers (uniform, power) and cache points implement it in cachepoints/.
+//
+// Learning from visibility: a sampler that learns (cache points' online
+// visibility) returns true from wants_feedback(), and the engine reports
+// every traced shadow ray's outcome to record_shadow().  The engine asks
+// wants_feedback() once per shadow batch, not per ray, so a sampler that
+// learns nothing pays nothing.  Between iterations (no ray in flight) the
+// scheduler calls update(), where the sampler folds what it counted into the
+// distributions the next iteration samples; sample() and pmf() never see a
+// distribution change mid-iteration, so the image stays a pure function of
+// (seed, pixel, sample index).
+#pragma once
+
+#include <optional>
+
+namespace theia {
+
+// The shading point a light is chosen for (position, normals); defined with
+// the lights in scene/lights.h.  The interface takes it by reference only.
+struct LightSampleContext;
+
+struct SampledLight {
+  int light = -1;
+  float pmf = 0.0f;
+};
+
+class LightSampler {
+ public:
+  virtual ~LightSampler() = default;
+  virtual std::optional<SampledLight> sample(const LightSampleContext& ctx, float u) const = 0;
+  // Probability that sample(ctx, .) returns `light`.
+  virtual float pmf(const LightSampleContext& ctx, int light) const = 0;
+  virtual const char* name() const = 0;
+
+  // True when the sampler learns from shadow-ray outcomes (record_shadow).
+  virtual bool wants_feedback() const { return false; }
+  // A shadow ray from `ctx` towards `light` (chosen by sample()) was traced:
+  // `unoccluded` says whether it reached the light.  Called concurrently from
+  // the engine's worker threads while other threads call sample() and pmf();
+  // hence const: a learning sampler counts into mutable atomics (or
+  // per-thread tables) and changes no distribution until update().
+  virtual void record_shadow(const LightSampleContext& /*ctx*/, int /*light*/, bool /*unoccluded*/) const {}
+  // Between iterations, no ray in flight: fold the counts into the
+  // distributions.  The samplers that learn nothing do nothing.
+  virtual void update() {}
+};
+
+}  // namespace theia

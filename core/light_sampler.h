@@ -8,15 +8,18 @@
 //
 // Learning from visibility: a sampler that learns (cache points' online
 // visibility) returns true from wants_feedback(), and the engine reports
-// every traced shadow ray's outcome to record_shadow().  The engine asks
-// wants_feedback() once per shadow batch, not per ray, so a sampler that
-// learns nothing pays nothing.  Between iterations (no ray in flight) the
-// scheduler calls update(), where the sampler folds what it counted into the
-// distributions the next iteration samples; sample() and pmf() never see a
+// every traced shadow ray's outcome to record_shadow(), with the
+// SampledLight that sample() returned for it.  The engine asks
+// wants_feedback() once, when it is built: the shadow rays of a sampler
+// that learns nothing carry no choice and report nothing, so it pays nothing.
+// Between iterations (no ray in flight) the scheduler calls update(), where
+// the sampler folds what it counted into the distributions the next
+// iteration samples; sample() and pmf() never see a
 // distribution change mid-iteration, so the image stays a pure function of
 // (seed, pixel, sample index).
 #pragma once
 
+#include <cstdint>
 #include <optional>
 
 namespace theia {
@@ -28,6 +31,9 @@ struct LightSampleContext;
 struct SampledLight {
   int light = -1;
   float pmf = 0.0f;
+  // The sampler's own name for where it chose (a cache point), handed back
+  // with the shadow ray's outcome so that it need not find it again.
+  uint32_t region = 0;
 };
 
 class LightSampler {
@@ -40,12 +46,12 @@ class LightSampler {
 
   // True when the sampler learns from shadow-ray outcomes (record_shadow).
   virtual bool wants_feedback() const { return false; }
-  // A shadow ray from `ctx` towards `light` (chosen by sample()) was traced:
+  // A shadow ray towards `chosen` (what sample() returned) was traced:
   // `unoccluded` says whether it reached the light.  Called concurrently from
   // the engine's worker threads while other threads call sample() and pmf();
   // hence const: a learning sampler counts into mutable atomics (or
   // per-thread tables) and changes no distribution until update().
-  virtual void record_shadow(const LightSampleContext& /*ctx*/, int /*light*/, bool /*unoccluded*/) const {}
+  virtual void record_shadow(const SampledLight& /*chosen*/, bool /*unoccluded*/) const {}
   // Between iterations, no ray in flight: fold the counts into the
   // distributions.  The samplers that learn nothing do nothing.
   virtual void update() {}

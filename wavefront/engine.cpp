@@ -64,6 +64,7 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
     bounds_inv_extent = 1.0f / glm::max(b.max - b.min, vec3(1e-30f));
   }
   uses_footprint = scene_uses_footprint(scene);
+  light_sampler_learns = light_sampler.wants_feedback();
   footprint_scale = footprint_spp_scale(opt.footprint_spp);
 }
 

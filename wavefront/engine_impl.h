@@ -67,6 +67,7 @@ struct WavefrontEngine::Impl {
   EngineOptions opt;
   EngineHooks hooks;
   PathObserver* observer;             // hooks.observer
+  bool light_sampler_learns = false;  // light_sampler.wants_feedback(): shadow rays carry its choice
   CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
 
   EngineSizes sizes;  // the pool's and batches' (engine_sizes)

@@ -10,6 +10,7 @@
 #pragma once
 
 #include "core/color.h"
+#include "core/light_sampler.h"
 #include "scene/accel.h"
 
 #include <tbb/parallel_for.h>
@@ -59,6 +60,7 @@ namespace theia {
   F(uint32_t, sample, "sample index (which half buffer of the film)")                              \
   F(uint32_t, vertex, "the observer's handle of the NEE vertex (kNoVertex without observer)")      \
   F(float, mis_weight, "the MIS weight inside the contribution (only with an observer)")          \
+  F(SampledLight, chosen, "the light sampler's choice (only when it learns from outcomes)")       \
   F(PrimRef, skip, "the curve segment the ray leaves (only in scenes with curves)")
 
 // Rays that hit nothing: infinite lights see them (the escaped-ray stage).

@@ -34,6 +34,7 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (!blocked[i]) film.splat(s.pixel[i], s.sample[i], s.contribution[i]);
+        if (!s.chosen.empty()) light_sampler.record_shadow(s.chosen[i], !blocked[i]);
         if (observer) {
           // An occluded NEE ray still finishes its vertex: a zero sample.
           if (!blocked[i]) observer->emission_added(s.vertex[i], s.pixel[i], s.contribution[i], s.mis_weight[i]);

@@ -144,6 +144,7 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   q.pixel.push_back(ps.pixel);
   q.sample.push_back(ps.sample);
   if (!pool.curve_skip.empty()) q.skip.push_back(v.si.skip);
+  if (light_sampler_learns) q.chosen.push_back(*sl);
   uint32_t vertex = kNoVertex;
   if constexpr (kObserve) {
     q.mis_weight.push_back(w);

@@ -2,6 +2,7 @@
 // of infinite lights and nothing else), and the escaped-ray stage behind the
 // surface stage (a sphere that hides part of the sky).
 #include "render_helpers.h"
+#include "cachepoints/light_sampler.h"
 #include "wavefront/engine.h"
 
 #include <gtest/gtest.h>
@@ -78,6 +79,88 @@ TEST(EscapedRays, BehindASurfaceTheSkyIsWhatTheBlackSphereDoesNotHide) {
     }
   EXPECT_GT(sky, 400);
   EXPECT_GT(sphere, 100);
+}
+
+}  // namespace
+}  // namespace theia
+
+namespace theia {
+namespace {
+
+// The power sampler, with counters: what a sampler that learns from
+// shadow rays is told, per light.
+class CountingLightSampler final : public LightSampler {
+ public:
+  CountingLightSampler(const LightSet& lights, bool learns) : power_(lights), learns_(learns) {}
+  std::optional<SampledLight> sample(const LightSampleContext& ctx, float u) const override {
+    auto s = power_.sample(ctx, u);
+    if (s) s->region = 7;
+    return s;
+  }
+  float pmf(const LightSampleContext& ctx, int light) const override { return power_.pmf(ctx, light); }
+  const char* name() const override { return "counting"; }
+  bool wants_feedback() const override { return learns_; }
+  void record_shadow(const SampledLight& chosen, bool unoccluded) const override {
+    if (chosen.region != 7) wrong_region.fetch_add(1);
+    attempts[size_t(chosen.light)].fetch_add(1);
+    if (unoccluded) successes[size_t(chosen.light)].fetch_add(1);
+  }
+  mutable std::atomic<uint64_t> attempts[2] = {0, 0}, successes[2] = {0, 0}, wrong_region{0};
+
+ private:
+  PowerLightSampler power_;
+  bool learns_;
+};
+
+// A floor under a ceiling; light 0 between them, light 1 above the ceiling,
+// where no shading point that can see it has a ray to it that is not blocked.
+const char* kCeilingScene = R"(
+  Film "rgb" "integer xresolution" [24] "integer yresolution" [24]
+  Integrator "volpath" "integer maxdepth" [3]
+  LookAt 0 0.8 0  0 0 0  0 0 1
+  Camera "perspective" "float fov" [60]
+  WorldBegin
+  LightSource "point" "point3 from" [0 0.5 0] "rgb I" [1 1 1]
+  LightSource "point" "point3 from" [0 2 0] "rgb I" [4 4 4]
+  Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+  Shape "trianglemesh" "point3 P" [-1 0 -1  1 0 -1  1 0 1  -1 0 1] "integer indices" [0 1 2 0 2 3]
+  Shape "trianglemesh" "point3 P" [-100 1 -100  100 1 -100  100 1 100  -100 1 100] "integer indices" [0 2 1 0 3 2]
+)";
+
+// Renders the scene with a counting sampler in place of the power sampler.
+struct CountingRender {
+  RenderableScene rs;
+  const CountingLightSampler* sampler = nullptr;
+  ImageBuffer image;
+
+  CountingRender(const Scene& scene, bool learns) : rs(scene) {
+    auto s = std::make_unique<CountingLightSampler>(rs.lights, learns);
+    sampler = s.get();
+    rs.light_sampler = std::move(s);
+    Film film(scene.film.width, scene.film.height);
+    EngineOptions opt;
+    opt.max_depth = 3;
+    WavefrontEngine(rs, film, opt).render(0, 8);
+    image = resolve_film(film);
+  }
+};
+
+TEST(ShadowRays, ALearningLightSamplerHearsEveryOutcomeWithItsOwnChoice) {
+  Scene scene = test::load_test_scene(kCeilingScene);
+  CountingRender learning(scene, true), plain(scene, false);
+  const CountingLightSampler& s = *learning.sampler;
+  EXPECT_EQ(s.wrong_region.load(), 0u);
+  // Light 0 is in the room: every shadow ray to it arrives.  Light 1 is
+  // above the ceiling: the floor's rays to it all hit the ceiling.
+  EXPECT_GT(s.attempts[0].load(), 1000u);
+  EXPECT_EQ(s.successes[0].load(), s.attempts[0].load());
+  EXPECT_GT(s.attempts[1].load(), 1000u);
+  EXPECT_EQ(s.successes[1].load(), 0u);
+  // A sampler that does not learn hears nothing, and listening changes no pixel.
+  EXPECT_EQ(plain.sampler->attempts[0].load() + plain.sampler->attempts[1].load(), 0u);
+  ASSERT_EQ(learning.image.data.size(), plain.image.data.size());
+  for (size_t i = 0; i < plain.image.data.size(); ++i)
+    ASSERT_NEAR(learning.image.data[i], plain.image.data[i], 1e-5f * std::max(1.0f, std::abs(plain.image.data[i])));
 }
 
 }  // namespace

@@ -13,7 +13,7 @@ TEST(LightSamplerFeedback, UniformSamplerLearnsNothing) {
   EXPECT_FALSE(s.wants_feedback());
   LightSampleContext ctx;
   const float before = s.pmf(ctx, 2);
-  for (int i = 0; i < 16; ++i) s.record_shadow(ctx, 2, false);
+  for (int i = 0; i < 16; ++i) s.record_shadow(SampledLight{2, before}, false);
   sampler.update();
   EXPECT_EQ(s.pmf(ctx, 2), before);
   EXPECT_EQ(s.sample(ctx, 0.6f)->light, 2);

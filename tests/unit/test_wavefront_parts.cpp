@@ -101,7 +101,7 @@ TEST(Queues, AppendGatherAndClearEveryFieldThatIsPresent) {
 TEST(Queues, BytesFollowTheTable) {
   EXPECT_EQ(RayQueue::kItemBytes, sizeof(Ray) + sizeof(uint32_t));
   EXPECT_EQ(ShadowQueue::kItemBytes,
-            sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(PrimRef));
+            sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(SampledLight) + sizeof(PrimRef));
   ShadowQueue q;
   q.rays.reserve(100);
   q.pixel.reserve(100);

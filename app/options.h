@@ -52,27 +52,30 @@ struct OptionVisitor {
   std::string group;
 };
 
-// Binds each option to a flag.  A bool that defaults to on is a switch
-// (--caustics / --no-caustics, --sort on|off); one that defaults to off is
-// a flag (--guiding).
+// Binds each option to a flag.  A bool that defaults to on, or that only
+// tunes how the render runs (an `order` option: --sort), is a switch
+// (--caustics / --no-caustics, --sort on|off); any other is a flag
+// (--guiding), which never takes the next argument as its value.
 struct OptionBinder : OptionVisitor {
   CLI::App& app;
   explicit OptionBinder(CLI::App& a) : app(a) {}
 
   template <class T>
-  void image(const char* name, T& field, const char* help) { bind(name, field, help); }
+  void image(const char* name, T& field, const char* help) { bind(name, field, help, false); }
   template <class T>
-  void order(const char* name, T& field, const char* help) { bind(name, field, help); }
+  void order(const char* name, T& field, const char* help) { bind(name, field, help, true); }
   template <class T>
-  void output(const char* name, T& field, const char* help) { bind(name, field, help); }
+  void output(const char* name, T& field, const char* help) { bind(name, field, help, false); }
 
  private:
   template <class T>
-  void bind(const char* name, T& field, const char* help) {
+  void bind(const char* name, T& field, const char* help, bool tuning) {
     const std::string flag = option_flag(group, name);
     if constexpr (std::is_same_v<T, bool>) {
-      if (field)
-        app.add_flag(flag + ",!--no-" + flag.substr(2), field, std::string(help) + " (default: on)")->expected(0, 1);
+      if (field || tuning)
+        app.add_flag(flag + ",!--no-" + flag.substr(2), field,
+                     std::string(help) + (field ? " (default: on)" : " (default: off)"))
+            ->expected(0, 1);
       else
         app.add_flag(flag, field, help);
     } else {

@@ -39,7 +39,7 @@ struct EngineOptions {
   size_t batch_size = 0;
   size_t max_paths = 0;
   float occupancy_threshold = 0.5f;       // refill the pool below this fraction
-  bool sort = true;                       // sort rays and hits (off: queue order)
+  bool sort = false;                      // sort rays and hits (off: queue order; README, Performance)
   int rr_min_depth = 1;                   // Russian roulette from this depth on (pbrt-v4: depth > 1)
   // >= 0: render the "throughput reset at bounce N" image the recorder's
   // N-th bounce debug buffer is compared with (only light arriving at

@@ -393,12 +393,12 @@ TEST_F(ResumeOptionsCheckpoint, SummationOrderAndCheckpointOptionsResume) {
   write_checkpoint();
   // Every order option and every checkpoint option other than the directory, changed at once.
   RenderResult r = render({"--spp", "8", "--iteration-first", "2", "--iteration-repeat", "1", "--max-paths", "64",
-                           "--batch-size", "1000", "--threads", "1", "--sort", "off", "--resume",
+                           "--batch-size", "1000", "--threads", "1", "--sort", "on", "--resume",
                            "--checkpoint-first", "2", "--checkpoint-every-iteration"});
   ASSERT_FALSE(r.interrupted);
   EXPECT_TRUE(r.log["scheduler"]["resumed"].get<bool>());
   EXPECT_EQ(r.log["options"]["threads"].get<int>(), 1);
-  EXPECT_FALSE(r.log["options"]["sort"].get<bool>());
+  EXPECT_TRUE(r.log["options"]["sort"].get<bool>());
   EXPECT_LT(test::max_relative_difference(r.image, uninterrupted), 1e-5);
 }
 
@@ -413,6 +413,8 @@ TEST(ResumeOptions, ParsedFlagsReachTheirFields) {
   EXPECT_EQ(c.checkpoint.first, 8);
   EXPECT_EQ(c.max_paths, 0u);  // auto
   EXPECT_TRUE(parse({}).caustics.enabled);
-  EXPECT_TRUE(parse({}).sort);
+  EXPECT_FALSE(parse({}).sort);  // sorting is off by default (README, Performance)
+  EXPECT_TRUE(parse({"--sort", "on"}).sort);
+  EXPECT_TRUE(parse({"--sort"}).sort);
   EXPECT_THROW(parse({"--sort", "maybe"}), CLI::ParseError);
 }

@@ -61,10 +61,10 @@ int main(int argc, char** argv) {
     }
     if (diff->parsed()) return run_diff(diff_a, diff_b, diff_image);
   } catch (const Error& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "%s\n", error_line(e.what()).c_str());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "%s\n", error_line(e.what()).c_str());
     return 1;
   }
   return 0;

@@ -27,4 +27,11 @@ void log_warning_str(const std::string& msg) {
   std::fprintf(stderr, "warning: %s\n", msg.c_str());
 }
 
+std::string error_line(const std::string& message) {
+  const size_t at = message.find(": error: ");
+  // A location has no spaces before its ": error: " (paths with spaces aside).
+  if (at != std::string::npos && at > 0 && message.find(' ') > at) return message;
+  return "error: " + message;
+}
+
 }  // namespace theia

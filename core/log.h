@@ -17,6 +17,11 @@ struct Error : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The one line a user sees for an error: "WHERE: error: WHAT" when the
+// message names where it was found (file:line:column, a file), else
+// "error: WHAT" -- never "error: f.pbrt:3:1: error: ...".
+std::string error_line(const std::string& message);
+
 enum class Verbosity { Quiet, Normal, Verbose };
 
 void set_verbosity(Verbosity v);

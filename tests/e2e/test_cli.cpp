@@ -61,6 +61,9 @@ TEST(CommandLine, MalformedSceneNamesFileLineAndColumnAndFails) {
   r = run("render " + (d / "unknown.pbrt").string() + " -o " + (d / "out.exr").string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("unknown.pbrt:2:1"), std::string::npos) << r.output;
+  // One "error:" per message, after the location.
+  EXPECT_EQ(r.output.find("error: " + (d / "unknown.pbrt").string()), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find((d / "unknown.pbrt").string() + ":2:1: error: "), std::string::npos) << r.output;
 }
 
 TEST(CommandLine, MissingSceneAndBadOptionsFail) {

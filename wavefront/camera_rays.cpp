@@ -41,7 +41,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   // neighbouring pixels' rays are coherent already, and a batch of them is
   // traced with Embree's COHERENT flag.  They are written straight into
   // their batches, pushed last first so that the first pixels are traced first.
-  const size_t batch = opt.batch_size, n_batches = (count + batch - 1) / batch;
+  const size_t batch = sizes.batch_size, n_batches = (count + batch - 1) / batch;
   const size_t first_batch = full.size();
   for (size_t k = n_batches; k-- > 0;) {
     Batch b = take_spare();

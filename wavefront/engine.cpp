@@ -56,8 +56,6 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
       sizes(engine_sizes(o, uint64_t(f.pixel_count()),
                          int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)))),
       pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty()}) {
-  opt.max_paths = sizes.max_paths;
-  opt.batch_size = sizes.batch_size;
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     bounds_min = b.min;
@@ -97,7 +95,7 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
       generate_camera_rays(pool.capacity() - pool.live());
       report();
     }
-    if (shadows.size() >= opt.batch_size) trace_shadow_rays();
+    if (shadows.size() >= sizes.batch_size) trace_shadow_rays();
     if (!full.empty()) {
       Batch b = std::move(full.back());
       full.pop_back();
@@ -168,7 +166,7 @@ void WavefrontEngine::Impl::enqueue(const Ray& ray, uint32_t path) {
   b.rays.push_back(ray);
   b.paths.push_back(path);
   ++queued_rays;
-  if (b.size() >= opt.batch_size) {
+  if (b.size() >= sizes.batch_size) {
     full.push_back(std::move(b));
     b = take_spare();
   }

@@ -126,7 +126,6 @@ struct WavefrontEngine::Impl {
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
   std::optional<BSDFSample> sample_continuation(const ShadingPoint& v) const;
   bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale) const;
-  template <bool kObserve>
   void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;

@@ -58,7 +58,7 @@ namespace theia {
   F(RGB, contribution, "beta * f * L * w / pdf * filter weight: what reaches the film if unoccluded") \
   F(uint32_t, pixel, "film pixel")                                                                 \
   F(uint32_t, sample, "sample index (which half buffer of the film)")                              \
-  F(uint32_t, vertex, "the observer's handle of the NEE vertex (kNoVertex without observer)")      \
+  F(uint32_t, vertex, "the observer's handle of the NEE vertex (only with an observer)")      \
   F(float, mis_weight, "the MIS weight inside the contribution (only with an observer)")          \
   F(SampledLight, chosen, "the light sampler's choice (only when it learns from outcomes)")       \
   F(PrimRef, skip, "the curve segment the ray leaves (only in scenes with curves)")

@@ -48,7 +48,7 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   const float eta_scale = bs->is_transmission() ? ps.eta_scale * sqr(bs->eta) : ps.eta_scale;
   if (!survives_roulette(v, beta, local, eta_scale) || !is_finite(beta) || is_black(beta))
     return finish_path<kObserve>(slot, out);
-  if constexpr (kObserve) report_vertex<kObserve>(v, *bs, local);
+  if constexpr (kObserve) report_vertex(v, *bs, local);
 
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
@@ -145,15 +145,13 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   q.sample.push_back(ps.sample);
   if (!pool.curve_skip.empty()) q.skip.push_back(v.si.skip);
   if (light_sampler_learns) q.chosen.push_back(*sl);
-  uint32_t vertex = kNoVertex;
   if constexpr (kObserve) {
     q.mis_weight.push_back(w);
     PathVertexInfo info = vertex_info(v, ls->wi, f / light_pdf, light_pdf);
     info.is_nee = true;
     info.delta_light = ls->is_delta;
-    vertex = observer->vertex_created(ps.vertex, info);
+    q.vertex.push_back(observer->vertex_created(ps.vertex, info));
   }
-  q.vertex.push_back(vertex);
 }
 
 // The continuation direction: a BSDF sample, or one sample of the mixture of
@@ -197,7 +195,6 @@ bool WavefrontEngine::Impl::survives_roulette(const ShadingPoint& v, RGB& beta, 
 }
 
 // The scattering vertex, to the observer: the path's handle moves to it.
-template <bool kObserve>
 void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local) {
   PathVertexInfo info = vertex_info(v, bs.wi, local, bs.pdf);
   info.lobe_flags = bs.flags;

@@ -110,6 +110,15 @@ void check(const GuidingOptions& o) {
                 o.selection_probability);
   if (!(o.min_roughness >= 0.0f))
     throw_error("--guiding-min-roughness must be zero or positive, got {}", o.min_roughness);
+  if (o.sampling != "ris" && o.sampling != "mis")
+    throw_error("--guiding-sampling {}: expected ris or mis", o.sampling);
+  if (!(o.defensive >= 0.0f && o.defensive <= 1.0f))
+    throw_error("--guiding-defensive must be in [0, 1], got {}", o.defensive);
+  if (!(o.split_decay > 0.0 && o.split_decay <= 0.5))
+    throw_error("--guiding-split-decay must be in (0, 0.5] (above, a busy leaf's halves could split forever), got {}",
+                o.split_decay);
+  if (!(o.pdf_floor >= 0.0f) || !std::isfinite(o.pdf_floor))
+    throw_error("--guiding-pdf-floor must be zero or positive, got {}", o.pdf_floor);
   if (!(o.spatial_threshold > 0.0 && std::isfinite(o.spatial_threshold)))
     throw_error("--guiding-spatial-threshold must be positive, got {}", o.spatial_threshold);
 }
@@ -118,14 +127,17 @@ namespace {
 
 // The recorder's training samples, as the SD-tree takes them: scalar
 // (luminance) radiance, only from directions that had a density (a delta
-// lobe's sample says nothing about a directional distribution).  The key
-// names the vertex, so the field's spatial jitter is a function of the path.
+// lobe's sample says nothing about a directional distribution) and never
+// from NEE rays: what NEE samples is the light it already finds, and the
+// BSDF-sampled vertices carry its MIS-weighted share (seeds/001 section 10.7,
+// seeds/000 ch. 1 eq. 23).  The key names the vertex, so the field's spatial
+// jitter is a function of the path.
 class SDTreeTrainer final : public TrainingSampleSink {
  public:
   explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
   void consume(std::span<const TrainingSample> samples) override {
     for (const TrainingSample& s : samples) {
-      if (s.flags & kVertexDelta) continue;
+      if (s.flags & (kVertexDelta | kVertexNEE)) continue;
       tree_.add_sample(s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags));
     }
   }
@@ -147,7 +159,10 @@ GuidingFeature::~GuidingFeature() = default;
 void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const {
   if (!tree_) return;
   hooks.guide = tree_.get();
-  engine.guiding_min_roughness = options_.min_roughness;
+  engine.guiding.mixing = options_.sampling == "mis" ? GuideMixing::OneSampleMIS : GuideMixing::Resampled;
+  engine.guiding.min_roughness = options_.min_roughness;
+  engine.guiding.defensive = options_.defensive;
+  engine.guiding.roulette_correction = options_.roulette_correction;
 }
 
 // The field learns from each iteration's samples (handed over by the
@@ -155,7 +170,7 @@ void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const 
 void GuidingFeature::add_tasks(IterationTasks& tasks) {
   if (!tree_) return;
   tasks.add(BetweenIterationSlot::GuidingUpdate,
-            [this](const IterationInfo& it) { tree_->update(double(it.spp_end - it.spp_begin)); });
+            [this](const IterationInfo&) { tree_->update(); });
 }
 
 // A resumed render continues the field where the interrupted one left it, so it guides the same.

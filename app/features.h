@@ -85,14 +85,22 @@ class RecorderFeature final : public Feature {
 
 struct GuidingOptions : SDTreeOptions {
   bool enabled = false;
-  float min_roughness = 0.05f;  // EngineOptions::guiding_min_roughness
+  std::string sampling = "ris";  // ris | mis: EngineOptions::guiding.mixing
+  float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
+  float defensive = 0.5f;
+  bool roulette_correction = true;
 };
 
 template <class V>
 void declare_options(V& v, GuidingOptions& o) {
   v.image("enabled", o.enabled,
-          "Path guiding: an SD-tree learned every iteration from the radiance recorder, mixed with BSDF sampling");
+          "Path guiding: an SD-tree learned every iteration from the radiance recorder, combined with BSDF sampling");
+  v.image("sampling", o.sampling,
+          "Guided directions: ris (resampling one BSDF and one guide candidate) or mis (one-sample MIS)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
+  v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
+  v.image("roulette_correction", o.roulette_correction,
+          "Guided paths: Russian roulette on the throughput BSDF sampling would have given");
   declare_options(v, static_cast<SDTreeOptions&>(o));
 }
 void check(const GuidingOptions& o);

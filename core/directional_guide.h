@@ -1,6 +1,7 @@
 // Path guiding as the wavefront engine sees it: a directional distribution
-// per region of space, learned from earlier iterations, that the engine mixes
-// with BSDF sampling (one-sample MIS, seeds/000 ch. 1 section 3.2).
+// per region of space, learned from earlier iterations, that the engine
+// combines with BSDF sampling (resampling or one-sample MIS, seeds/000 ch. 1
+// sections 3.2 and 3.3).
 //
 // The interface lives in core/ (like PathObserver) so that guiding/, which
 // may use only core, implements it and the engine calls it without knowing
@@ -16,6 +17,27 @@
 namespace theia {
 
 inline constexpr uint32_t kNoGuideRegion = 0xffffffffu;
+
+// How a guided vertex draws its direction.
+enum class GuideMixing : uint8_t {
+  // RIS (seeds/000 ch. 1 section 3.3): one BSDF and one guide candidate,
+  // resampled by f |cos| (a / 4pi + (1 - a) g).  The product target never
+  // picks a direction the BSDF does not scatter into.
+  Resampled,
+  // One-sample MIS (section 3.2): the guide with its selection probability,
+  // else the BSDF; the choice taken from the direction's own first coordinate.
+  OneSampleMIS,
+};
+
+// What the engine needs to know about guided sampling (the guide itself aside).
+struct GuidedSampling {
+  GuideMixing mixing = GuideMixing::Resampled;
+  float min_roughness = 0.05f;  // guide only where a lobe is rougher (bsdf_is_guidable)
+  float defensive = 0.5f;       // RIS: the uniform share a of the target's radiance estimate
+  // Russian roulette on the throughput as BSDF sampling would have made it
+  // (section 4.1.1): guiding's high pdfs towards light do not cut paths short.
+  bool roulette_correction = true;
+};
 
 struct GuideSample {
   vec3 wi{0.0f};     // world space, unit

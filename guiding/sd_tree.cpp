@@ -54,13 +54,16 @@ T node_total(const QuadNode<T>& n) {
   return n.flux[0] + n.flux[1] + n.flux[2] + n.flux[3];
 }
 
-// The building quadtree for the next iteration: the previous tree's topology
-// refined by its flux (Müller 2017 DTree::reset).  A quad holding more than
-// rho of the leaf's flux is subdivided (down to max_depth), one holding less
-// becomes a leaf; where the previous tree has no finer structure its flux is
-// split evenly, so refinement can go several levels at once.  A tree with no
-// flux refines uniformly to the depth where a quad holds at most rho.
-// `prev` carries inner sums (sum_flux_bottom_up); the result is all zeros.
+// The building quadtree for the next iteration: the accumulated tree's
+// topology refined by its flux (Müller 2017 DTree::reset), keeping the flux.
+// A quad holding more than rho of the leaf's flux is subdivided, one holding
+// less becomes a leaf (its subtree's flux summed into it).  A quad subdivided
+// now has its flux split evenly among its children, which resolves nothing,
+// so refinement goes at most one level below what `prev` resolved per update
+// (shallow refinement: deeper quads wait for deposits that justify them).  A
+// tree with no flux refines uniformly to the depth where a quad holds at most
+// rho.  `prev` carries inner sums (sum_flux_bottom_up); the result holds
+// flux at its leaves only.
 std::vector<BuildingQuadNode> refine_quadtree(const std::vector<BuildingQuadNode>& prev, double rho,
                                               int max_depth) {
   constexpr uint32_t kNone = 0xffffffffu;
@@ -70,6 +73,7 @@ std::vector<BuildingQuadNode> refine_quadtree(const std::vector<BuildingQuadNode
     int depth;            // depth of this node's quadrants (the root's are 1)
   };
   const double total = prev.empty() ? 0.0 : node_total(prev[0]);
+  const bool learned = total > 0.0 && std::isfinite(total);
   std::vector<BuildingQuadNode> out(1);
   std::vector<Item> stack{{0, prev.empty() ? kNone : 0u, total, 1}};
   while (!stack.empty()) {
@@ -77,8 +81,13 @@ std::vector<BuildingQuadNode> refine_quadtree(const std::vector<BuildingQuadNode
     stack.pop_back();
     for (int i = 0; i < 4; ++i) {
       double quad_flux = it.src != kNone ? prev[it.src].flux[i] : 0.25 * it.node_flux;
-      double fraction = total > 0.0 ? quad_flux / total : std::pow(0.25, it.depth);
-      if (it.depth >= max_depth || !(fraction > rho) || out.size() >= kMaxNodes) continue;
+      double fraction = learned ? quad_flux / total : std::pow(0.25, it.depth);
+      // A quad of prev subdivides; a quad made here only without learned flux (the uniform start).
+      bool may_split = it.src != kNone || !learned;
+      if (!may_split || it.depth >= max_depth || !(fraction > rho) || out.size() >= kMaxNodes) {
+        if (learned) out[it.index].flux[i] = quad_flux;
+        continue;
+      }
       uint32_t src = it.src != kNone && prev[it.src].child[i] != 0 ? prev[it.src].child[i] : kNone;
       uint32_t child = uint32_t(out.size());
       out[it.index].child[i] = child;
@@ -131,6 +140,11 @@ void SDTree::check_options(const SDTreeOptions& options) {
     throw_error("SD-tree: flux threshold must be in (0, 1), got {}", options.flux_threshold);
   if (options.max_quadtree_depth < 1 || options.max_quadtree_depth > 24)
     throw_error("SD-tree: max quadtree depth must be in [1, 24], got {}", options.max_quadtree_depth);
+  // Above 1/2 the halves of a busy leaf could stay above the threshold forever.
+  if (!(options.split_decay > 0.0 && options.split_decay <= 0.5))
+    throw_error("SD-tree: split decay must be in (0, 0.5], got {}", options.split_decay);
+  if (!(options.pdf_floor >= 0.0f) || !std::isfinite(options.pdf_floor))
+    throw_error("SD-tree: pdf floor must be zero or positive, got {}", options.pdf_floor);
   if (!(options.selection_probability >= 0.0f && options.selection_probability <= 1.0f))
     throw_error("SD-tree: selection probability must be in [0, 1], got {}", options.selection_probability);
 }
@@ -159,10 +173,6 @@ SDTree::SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options) : opti
   leaves_.emplace_back();
   leaves_[0].sampling.resize(1);
   leaves_[0].building = refine_quadtree({}, options_.flux_threshold, options_.max_quadtree_depth);
-}
-
-double SDTree::spatial_threshold(double samples_per_pixel) const {
-  return options_.spatial_threshold * std::sqrt(std::max(samples_per_pixel, 1.0));
 }
 
 SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
@@ -255,14 +265,14 @@ void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf
     at = find_leaf(q);
   }
   SpatialLeaf& leaf = leaves_[at.leaf];
-  ++leaf.sample_count;
+  leaf.sample_count += 1.0;
   ++recorded_;
-  double value = double(radiance) / double(pdf);
+  double value = double(radiance) / double(std::max(pdf, options_.pdf_floor));
   if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(wi / len), value);
 }
 
-void SDTree::update(double samples_per_pixel) {
-  // Building becomes sampling, as fractions of the leaf's flux.
+void SDTree::update() {
+  // Building (every deposit so far) becomes sampling, as fractions of the leaf's flux.
   for (SpatialLeaf& leaf : leaves_) {
     sum_flux_bottom_up(leaf.building);
     double total = node_total(leaf.building[0]);
@@ -274,32 +284,36 @@ void SDTree::update(double samples_per_pixel) {
         leaf.sampling[n].flux[i] = leaf.has_energy ? float(leaf.building[n].flux[i] / total) : 0.0f;
       }
   }
-  refine_spatial(spatial_threshold(samples_per_pixel));
-  for (SpatialLeaf& leaf : leaves_) {
+  refine_spatial();
+  for (SpatialLeaf& leaf : leaves_)
     leaf.building = refine_quadtree(leaf.building, options_.flux_threshold, options_.max_quadtree_depth);
-    leaf.sample_count = 0;
-  }
   last_recorded_ = recorded_;
   last_dropped_ = dropped_;
   recorded_ = dropped_ = 0;
   ++updates_;
 }
 
-// Splits every leaf that recorded more than `threshold` samples; the halves
-// inherit the leaf's quadtrees and half its count, and split again while that
-// is still above the threshold (Müller 2017 STree::refine).
-void SDTree::refine_spatial(double threshold) {
+// Splits every leaf whose accumulated count exceeds the threshold; the halves
+// inherit its quadtrees and statistics times the split decay, and split
+// again while still above the threshold (Müller 2017 STree::refine, on
+// counts accumulated over iterations).
+void SDTree::refine_spatial() {
+  const double decay = options_.split_decay;
   std::vector<uint32_t> stack{0};
   while (!stack.empty()) {
     uint32_t n = stack.back();
     stack.pop_back();
     if (nodes_[n].first_child == 0) {
       uint32_t leaf = nodes_[n].leaf;
-      if (!(double(leaves_[leaf].sample_count) > threshold) || nodes_.size() >= kMaxNodes) continue;
+      if (!(leaves_[leaf].sample_count > options_.spatial_threshold) || nodes_.size() >= kMaxNodes) continue;
       uint8_t axis = nodes_[n].axis;
       uint8_t next = uint8_t((axis + 1) % 3);
       uint32_t first = uint32_t(nodes_.size());
-      leaves_[leaf].sample_count /= 2;
+      SpatialLeaf& parent = leaves_[leaf];
+      parent.sample_count *= decay;
+      // The sampling tree is a normalised distribution: only the statistics decay.
+      for (BuildingQuadNode& q : parent.building)
+        for (double& f : q.flux) f *= decay;
       leaves_.push_back(leaves_[leaf]);
       nodes_.push_back(SpatialNode{0, leaf, next});
       nodes_.push_back(SpatialNode{0, uint32_t(leaves_.size() - 1), next});

@@ -7,9 +7,11 @@
 //
 // Every leaf keeps two quadtrees: the *sampling* one (what the previous
 // iterations learned; region/sample/pdf read it) and the *building* one (the
-// current iteration's deposits, on a topology refined from the sampling one).
-// update() turns building into sampling, splits busy spatial leaves, and
-// refines and clears building.  Trees are flat vectors of plain nodes linked
+// deposits of every iteration so far, on a topology refined at each update).
+// update() copies building into sampling, splits busy spatial leaves, and
+// refines building around its flux.  Nothing is forgotten between
+// iterations: with the small iterations of a guiding schedule a field that
+// starts over each time learns from a few thousand samples at most.  Trees are flat vectors of plain nodes linked
 // by index; a child's index is always greater than its parent's, which lets
 // update() sum flux bottom-up in one reverse pass and lets deserialize()
 // reject cycles.
@@ -27,10 +29,22 @@
 namespace theia {
 
 struct SDTreeOptions {
-  // Spatial leaves split when they recorded more than c * sqrt(spp) samples in
-  // an iteration of spp samples per pixel (seeds/001 10.4: c = 4000 thanks to
-  // the filtering, down from 12000).
+  // A spatial leaf splits once the samples it has accumulated (over every
+  // iteration, decayed on each split) exceed this.  Müller counts per
+  // iteration against c * sqrt(spp) with c = 4000 (seeds/001 10.4); counted
+  // over iterations, a leaf splits as soon as it has seen enough, however
+  // small the iterations are (OpenPGL's rule, which Hyperion's capped
+  // schedule relies on).
   double spatial_threshold = 4000.0;
+  // On a split both halves inherit the leaf's quadtree and count times this:
+  // what the leaf learned over its whole box is a prior, soon outweighed by
+  // what each half sees itself.
+  double split_decay = 0.25;
+  // Training samples weigh radiance / max(pdf, pdf_floor): one direction drawn
+  // at a tiny density (a grazing cosine sample) would otherwise deposit an
+  // outlier that builds deep quads around itself (OpenPGL uses 0.1).  0: the
+  // unbiased weight.
+  float pdf_floor = 0.1f;
   // A quad is subdivided while it holds more than rho of its leaf's flux.
   double flux_threshold = 0.01;
   int max_quadtree_depth = 20;
@@ -48,7 +62,9 @@ struct SDTreeOptions {
 template <class V>
 void declare_options(V& v, SDTreeOptions& o) {
   v.image("spatial_threshold", o.spatial_threshold,
-          "SD-tree: split a spatial leaf after this many samples times sqrt(spp of the iteration)");
+          "SD-tree: split a spatial leaf once it has accumulated this many training samples");
+  v.image("split_decay", o.split_decay, "SD-tree: share of a leaf's statistics each half keeps on a split, (0, 0.5]");
+  v.image("pdf_floor", o.pdf_floor, "SD-tree: training weight radiance / max(pdf, this); 0: unbiased");
   v.image("selection_probability", o.selection_probability,
           "Probability of sampling the guide rather than the BSDF where it applies, in [0, 1)");
 }
@@ -87,7 +103,7 @@ struct SpatialNode {
 struct SpatialLeaf {
   std::vector<SamplingQuadNode> sampling;
   std::vector<BuildingQuadNode> building;
-  uint64_t sample_count = 0;  // samples recorded into building (zero-valued ones too)
+  double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux
 };
 
@@ -101,12 +117,9 @@ class SDTree final : public DirectionalGuide {
   // with non-finite or negative radiance, pdf <= 0 or non-finite p / wi are
   // dropped and counted; zero radiance is recorded (it counts).
   void add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key);
-  // End of an iteration of `samples_per_pixel` (see the file comment).  Müller
-  // writes the split threshold c * 2^(k/2) for his k-th iteration, which has
-  // 2^k spp: it is c * sqrt(spp).  Written per spp it also suits schedules
-  // that repeat small iterations (Hyperion's 1 spp x 8), where counting
-  // updates would let the threshold outgrow what each iteration records.
-  void update(double samples_per_pixel);
+  // End of an iteration: what building accumulated becomes sampling, busy
+  // leaves split, and building is refined around its flux (keeping it).
+  void update();
 
   uint32_t region(const vec3& p) const override;
   // The returned pdf is pdf(region, wi) evaluated on the returned direction,
@@ -127,8 +140,6 @@ class SDTree final : public DirectionalGuide {
   const SDTreeOptions& options() const { return options_; }
   const Bounds3& root_bounds() const { return root_; }
   int updates() const { return updates_; }
-  // Spatial subdivision threshold of an iteration of that many spp: c * sqrt(spp).
-  double spatial_threshold(double samples_per_pixel) const;
   // The leaf box holding p (p clamped into the root box).
   Bounds3 leaf_bounds(const vec3& p) const;
 
@@ -141,7 +152,7 @@ class SDTree final : public DirectionalGuide {
     vec3 lo, size;  // the leaf box
   };
   Lookup find_leaf(const vec3& p) const;
-  void refine_spatial(double threshold);
+  void refine_spatial();
   void deposit(BuildingQuadNode* nodes, vec2 c, double value) const;
 
   SDTreeOptions options_;

@@ -21,7 +21,7 @@ namespace theia {
 namespace {
 
 constexpr char kMagic[8] = {'T', 'H', 'E', 'I', 'A', 'S', 'D', 'T'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;  // 2: statistics accumulated over iterations (split decay, pdf floor)
 
 struct Writer {
   std::vector<uint8_t> out;
@@ -107,6 +107,8 @@ struct SDTreeSerializer {
     w.put(kVersion);
     const SDTreeOptions& o = t.options_;
     w.put(o.spatial_threshold);
+    w.put(o.split_decay);
+    w.put(o.pdf_floor);
     w.put(o.flux_threshold);
     w.put(int32_t(o.max_quadtree_depth));
     w.put(o.selection_probability);
@@ -157,6 +159,8 @@ struct SDTreeSerializer {
     SDTree t;
     SDTreeOptions& o = t.options_;
     o.spatial_threshold = r.get<double>("spatial threshold");
+    o.split_decay = r.get<double>("split decay");
+    o.pdf_floor = r.get<float>("pdf floor");
     o.flux_threshold = r.get<double>("flux threshold");
     o.max_quadtree_depth = r.get<int32_t>("max quadtree depth");
     o.selection_probability = r.get<float>("selection probability");
@@ -202,7 +206,9 @@ struct SDTreeSerializer {
     t.leaves_.resize(n_leaves);
     for (uint32_t l = 0; l < n_leaves; ++l) {
       SpatialLeaf& leaf = t.leaves_[l];
-      leaf.sample_count = r.get<uint64_t>("leaf sample count");
+      leaf.sample_count = r.get<double>("leaf sample count");
+      if (!(leaf.sample_count >= 0.0) || !std::isfinite(leaf.sample_count))
+        throw_error("SD-tree data corrupt: leaf {} sample count {}", l, leaf.sample_count);
       leaf.has_energy = r.get<uint8_t>("leaf energy flag") != 0;
       leaf.sampling = get_quadtree<float>(r, "sampling", l);
       leaf.building = get_quadtree<double>(r, "building", l);

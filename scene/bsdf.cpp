@@ -202,6 +202,15 @@ void set_lobes(BSDF& b) {
 
 }  // namespace
 
+BSDF bsdf_from(const BxDF& bxdf, const Frame& shading, const vec3& ng) {
+  BSDF b;
+  b.shading = shading;
+  b.ng = ng;
+  b.bxdf = bxdf;
+  set_lobes(b);
+  return b;
+}
+
 BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootprint& fp) {
   BSDF bsdf;
   bsdf.ng = si.ng;

@@ -70,6 +70,9 @@ inline bool bsdf_is_passthrough(const BSDF& bsdf) { return bsdf.lobe_count == 0;
 // f(wo, wi) summed over the non-specular lobes; wo and wi are world-space unit vectors.
 // `mode` Importance for paths traced from the lights (the adjoint BSDF).
 RGB bsdf_f(const BSDF& bsdf, const vec3& wo, const vec3& wi, TransportMode mode = TransportMode::Radiance);
+// A BSDF of one BxDF in a given frame, its lobes filled in as make_bsdf
+// fills them (for code that builds BSDFs without a scene: tests).
+BSDF bsdf_from(const BxDF& bxdf, const Frame& shading, const vec3& ng);
 // Solid-angle pdf that bsdf_sample() produces wi (non-specular lobes only).
 float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
 // For the stochastic layered BxDFs a non-specular sample reports bsdf_pdf()

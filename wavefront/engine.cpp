@@ -55,7 +55,8 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
       filter(rs.filter), film(f), opt(o), hooks(h), observer(h.observer),
       sizes(engine_sizes(o, uint64_t(f.pixel_count()),
                          int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)))),
-      pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty()}) {
+      pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty(),
+                                         .guiding = h.guide != nullptr && o.guiding.roulette_correction}) {
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     bounds_min = b.min;

@@ -55,9 +55,8 @@ struct EngineOptions {
   // Samples per pixel of the whole render: sets pbrt-v4's texture-footprint
   // scale max(1/8, 1/sqrt(spp)) for trilinear imagemaps (scene/camera.h).
   int footprint_spp = 1;
-  // Path guiding (EngineHooks::guide): guide only where bsdf_is_guidable
-  // with this roughness threshold.
-  float guiding_min_roughness = 0.05f;
+  // Path guiding (EngineHooks::guide): how guided vertices sample.
+  GuidedSampling guiding;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced, so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
@@ -72,8 +71,7 @@ struct EngineHooks {
   // without the calls.
   PathObserver* observer = nullptr;
   // Path guiding: at vertices whose BSDF is guidable, directions come from
-  // the guide with its selection probability and from the BSDF otherwise,
-  // weighted as one sample of the mixture (seeds/000 ch. 1 section 3.2).
+  // guide and BSDF together, as EngineOptions::guiding says.
   const DirectionalGuide* guide = nullptr;
   // Directly seen caustics traced from the lights (wavefront/caustics.h):
   // when active, camera paths leave those paths to it, and each completed

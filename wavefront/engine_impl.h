@@ -11,6 +11,7 @@
 #include "core/sampler.h"
 #include "scene/bsdf.h"
 #include "wavefront/engine.h"
+#include "wavefront/guided_sampling.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
 #include "wavefront/radix_sort.h"
@@ -46,9 +47,11 @@ struct ShadingPoint {
   RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
   BounceDims dims{};
   uint8_t caustic_flags = 0;  // kPathCausticReceiver / kPathCausticCaster at this vertex
-  uint32_t guide_region = kNoGuideRegion;
-  float guide_fraction = 0.0f;  // > 0: directions come from the guide/BSDF mixture
+  uint32_t guide_region = kNoGuideRegion;  // != kNoGuideRegion: the vertex is guided
+  float guide_fraction = 0.0f;             // one-sample MIS: the guide's selection probability
+  bool guided() const { return guide_region != kNoGuideRegion; }
 };
+
 
 // The ray-sorting key: origin Morton code, then a coarse direction.
 uint64_t ray_sort_key(const Ray& r, const vec3& bounds_min, const vec3& bounds_inv_extent);
@@ -124,8 +127,8 @@ struct WavefrontEngine::Impl {
   bool add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si, ShadeOutput& out);
   template <bool kObserve>
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
-  std::optional<BSDFSample> sample_continuation(const ShadingPoint& v) const;
-  bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale) const;
+  std::optional<Continuation> sample_continuation(const ShadingPoint& v) const;
+  bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale, double correction) const;
   void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;

@@ -47,12 +47,14 @@ static_assert(sizeof(PathState) == 64, "a path's state should stay within one ca
 
 // Cold per-feature state, indexed by path slot.
 //   type       name          feature    meaning
-#define THEIA_PATH_COLD_FIELDS(F) \
-  F(PrimRef, curve_skip, curves, "the curve segment the path's queued ray left (scene/accel.h: skips beside rays)")
+#define THEIA_PATH_COLD_FIELDS(F)                                                                               \
+  F(PrimRef, curve_skip, curves, "the curve segment the path's queued ray left (scene/accel.h: skips beside rays)") \
+  F(double, roulette_correction, guiding, "product of guided pdf / BSDF pdf (seeds/000 ch. 1 eq. 18), in double")
 
 // Which features are on, so the cold tables know which fields to allocate.
 struct PathFeatures {
   bool curves = false;
+  bool guiding = false;  // with the roulette correction
 };
 
 struct PathStatePool {

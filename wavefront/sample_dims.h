@@ -25,7 +25,9 @@ inline constexpr uint32_t kPageStride = 1u << 24;  // page p of bounce d starts 
   F(bsdf_dir,      0, 4, 2, "the scattered direction (BSDF or guide)")                \
   F(bsdf_lobe,     0, 6, 1, "which lobe, or guide versus BSDF")                       \
   F(roulette,      0, 7, 1, "Russian roulette")                                       \
-  /* page 1: free for the next feature (medium, cache points, guide state) */
+  F(guide_dir,     1, 0, 2, "the guide's candidate direction (RIS)")                  \
+  F(guide_pick,    1, 2, 1, "which RIS candidate")                                    \
+  /* page 1, offsets 3..7: free for the next feature (medium, cache points) */
 
 struct CameraDims {
   static constexpr uint32_t film = 0;  // 2D: the point on the pixel (filter importance sampling)

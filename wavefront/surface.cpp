@@ -31,33 +31,36 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   v.dims = bounce_dims(ps.depth);
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ps.beta;
   v.caustic_flags = caustic_flags(ps, v.bsdf);
-  if (hooks.guide && bsdf_is_guidable(v.bsdf, opt.guiding_min_roughness)) {
+  if (hooks.guide && bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness)) {
     v.guide_region = hooks.guide->region(si.p);
-    if (v.guide_region != kNoGuideRegion) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
+    if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
   }
 
   sample_direct_light<kObserve>(v, out);
 
   // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
-  std::optional<BSDFSample> bs = sample_continuation(v);
-  if (!bs || !(bs->pdf > 0.0f)) return finish_path<kObserve>(slot, out);
-  RGB local = bs->f * (std::abs(glm::dot(bs->wi, v.ns)) / bs->pdf);
+  std::optional<Continuation> c = sample_continuation(v);
+  if (!c || !(c->bs.pdf > 0.0f)) return finish_path<kObserve>(slot, out);
+  const BSDFSample& bs = c->bs;
+  RGB local = bs.f * (std::abs(glm::dot(bs.wi, v.ns)) / bs.pdf);
   RGB beta = v.beta * local;
   // Radiance refracted into a denser medium is scaled by 1/eta^2; roulette
   // undoes that scale so that it does not kill paths inside glass.
-  const float eta_scale = bs->is_transmission() ? ps.eta_scale * sqr(bs->eta) : ps.eta_scale;
-  if (!survives_roulette(v, beta, local, eta_scale) || !is_finite(beta) || is_black(beta))
+  const float eta_scale = bs.is_transmission() ? ps.eta_scale * sqr(bs.eta) : ps.eta_scale;
+  double correction = 1.0;
+  if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
+  if (!survives_roulette(v, beta, local, eta_scale, correction) || !is_finite(beta) || is_black(beta))
     return finish_path<kObserve>(slot, out);
-  if constexpr (kObserve) report_vertex(v, *bs, local);
+  if constexpr (kObserve) report_vertex(v, bs, local);
 
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
-  ps.prev_pdf = bs->pdf;
+  ps.prev_pdf = c->mis_pdf;
   ps.eta_scale = eta_scale;
-  ps.flags = uint8_t((bs->is_specular() ? kPathPrevSpecular : 0) | v.caustic_flags);
+  ps.flags = uint8_t((bs.is_specular() ? kPathPrevSpecular : 0) | v.caustic_flags);
   ps.prev_p = si.p;
   ps.prev_ng = si.ng;
-  queue_ray(slot, si, spawn_ray(si, bs->wi), out);
+  queue_ray(slot, si, spawn_ray(si, bs.wi), out);
 }
 
 // Emission found by the BSDF-sampled ray.  True when the hit was a virtual
@@ -96,12 +99,12 @@ uint8_t WavefrontEngine::Impl::caustic_flags(const PathState& ps, const BSDF& bs
 }
 
 // The pdf MIS needs for a scattered direction: the BSDF's, or where the
-// vertex is guided the mixture's.
+// vertex is guided the mixture's (guided_mis_pdf).
 float WavefrontEngine::Impl::scattering_pdf(const ShadingPoint& v, const vec3& wi) const {
-  float p = bsdf_pdf(v.bsdf, v.si.wo, wi);
-  if (v.guide_fraction > 0.0f)
-    p = v.guide_fraction * hooks.guide->pdf(v.guide_region, wi) + (1.0f - v.guide_fraction) * p;
-  return p;
+  const float p = bsdf_pdf(v.bsdf, v.si.wo, wi);
+  if (!v.guided()) return p;
+  const float c = opt.guiding.mixing == GuideMixing::Resampled ? 0.5f : v.guide_fraction;
+  return guided_mis_pdf(p, hooks.guide->pdf(v.guide_region, wi), c);
 }
 
 static PathVertexInfo vertex_info(const ShadingPoint& v, const vec3& wi, const RGB& local, float pdf) {
@@ -154,38 +157,31 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   }
 }
 
-// The continuation direction: a BSDF sample, or one sample of the mixture of
-// guide and BSDF, whose pdf it then reports.  The mixture splits the
-// lobe-choice dimension, so that an unguided render draws exactly the
-// numbers it drew before guiding existed.
-std::optional<BSDFSample> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v) const {
-  const float u_lobe = sample1(v.ps, v.dims.bsdf_lobe);
-  const vec2 u_dir = sample2(v.ps, v.dims.bsdf_dir);
-  const vec3& wo = v.si.wo;
-  if (v.guide_fraction <= 0.0f) return bsdf_sample(v.bsdf, wo, u_lobe, u_dir);
-  const DirectionalGuide& guide = *hooks.guide;
-  const float c = v.guide_fraction;
-  std::optional<BSDFSample> bs;
-  float guide_pdf = 0.0f;
-  if (u_lobe < c) {
-    // A direction the guide reports a zero density for (rounding at a
-    // quad's edge) cannot be weighted: the path ends, as for pdf 0.
-    GuideSample gs = guide.sample(v.guide_region, u_dir);
-    guide_pdf = gs.pdf;
-    if (gs.pdf > 0.0f) bs = bsdf_event(v.bsdf, wo, gs.wi);
-  } else {
-    bs = bsdf_sample(v.bsdf, wo, std::min((u_lobe - c) / (1.0f - c), kOneMinusEpsilon), u_dir);
-    if (bs) guide_pdf = guide.pdf(v.guide_region, bs->wi);
+// The continuation direction: a BSDF sample where the vertex is not guided,
+// else guide and BSDF combined as the options say.  An unguided vertex
+// draws exactly the numbers it drew before guiding existed.
+std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v) const {
+  if (!v.guided()) {
+    std::optional<BSDFSample> bs =
+        bsdf_sample(v.bsdf, v.si.wo, sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir));
+    if (!bs) return std::nullopt;
+    return Continuation{*bs, bs->pdf, 1.0};
   }
-  if (bs) bs->pdf = c * guide_pdf + (1.0f - c) * bs->pdf;
-  return bs;
+  const GuidedDraw u{sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir),
+                     sample2(v.ps, v.dims.guide_dir), sample1(v.ps, v.dims.guide_pick)};
+  if (opt.guiding.mixing == GuideMixing::Resampled)
+    return sample_guided_ris(v.bsdf, v.si.wo, v.ns, *hooks.guide, v.guide_region, opt.guiding.defensive, u);
+  return sample_guided_mis(v.bsdf, v.si.wo, *hooks.guide, v.guide_region, v.guide_fraction, u);
 }
 
 // Russian roulette on the throughput (times eta_scale), as pbrt-v4 does it;
-// a survivor's throughput and local factor carry the compensation.
-bool WavefrontEngine::Impl::survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale) const {
+// a survivor's throughput and local factor carry the compensation.  A
+// guided path's throughput is first corrected to what BSDF sampling would
+// have made it (`correction`, seeds/000 ch. 1 eq. 19).
+bool WavefrontEngine::Impl::survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale,
+                                              double correction) const {
   if (int(v.ps.depth) + 1 <= opt.rr_min_depth) return true;
-  const float rr = max_component(beta * eta_scale);
+  const float rr = float(double(max_component(beta * eta_scale)) * correction);
   if (rr >= 1.0f) return true;
   const float q = std::max(0.0f, 1.0f - rr);
   if (sample1(v.ps, v.dims.roulette) < q) return false;

@@ -1,7 +1,7 @@
 // Guided directional sampling in the engine, with analytic guides (no
-// learning): whatever the guide proposes, the one-sample mixture of guide and
-// BSDF must leave the estimator unbiased, with NEE's MIS weights and the
-// emission-hit weights taken against the mixture's pdf.
+// learning): whatever the guide proposes, RIS and the one-sample mixture of
+// guide and BSDF must leave the estimator unbiased, with NEE's MIS weights
+// and the emission-hit weights taken against the mixture's pdf.
 #include "render_helpers.h"
 #include "core/directional_guide.h"
 #include "wavefront/engine.h"
@@ -41,13 +41,25 @@ class VMFGuide final : public DirectionalGuide {
   float kappa_, fraction_, valid_above_x_;
 };
 
-ImageBuffer render_with(const Scene& scene, const DirectionalGuide* guide, int spp, int max_depth = 50) {
+const GuideMixing kMixings[] = {GuideMixing::Resampled, GuideMixing::OneSampleMIS};
+const char* mixing_name(GuideMixing m) { return m == GuideMixing::Resampled ? "RIS" : "MIS"; }
+
+struct Rendered {
+  ImageBuffer image;
+  double path_length = 0.0;  // surface hits per path
+};
+
+Rendered render_with(const Scene& scene, const DirectionalGuide* guide, int spp, int max_depth = 50,
+                     GuideMixing mixing = GuideMixing::Resampled) {
   RenderableScene rs(scene);
   EngineOptions opt;
   opt.max_depth = max_depth;
+  opt.guiding.mixing = mixing;
   Film film(scene.film.width, scene.film.height);
-  WavefrontEngine(rs, film, opt, EngineHooks{.guide = guide}).render(0, uint32_t(spp));
-  return resolve_film(film);
+  WavefrontEngine engine(rs, film, opt, EngineHooks{.guide = guide});
+  engine.render(0, uint32_t(spp));
+  const EngineStats& st = engine.stats();
+  return {resolve_film(film), double(st.path_vertices) / double(std::max<uint64_t>(st.paths, 1))};
 }
 
 // Mean and standard error of the mean of one channel over a pixel block.
@@ -74,7 +86,9 @@ BlockStats block_stats(const ImageBuffer& img, int x0, int y0, int n, int c) {
 TEST(GuidedSampling, WhiteFurnaceStaysOneUnderAnyGuide) {
   Scene scene = load_test_scene(furnace_sphere_scene(32, 18.0f, 1.0f));
   VMFGuide guide(vec3(0.3f, 1.0f, -0.2f), 20.0f, 0.7f);
-  ImageBuffer img = render_with(scene, &guide, 128);
+  for (GuideMixing mixing : kMixings) {
+  SCOPED_TRACE(mixing_name(mixing));
+  ImageBuffer img = render_with(scene, &guide, 128, 50, mixing).image;
   double sum = 0.0;
   int covered = 0, off = 0;
   for (int y = 4; y < 28; ++y)
@@ -89,6 +103,32 @@ TEST(GuidedSampling, WhiteFurnaceStaysOneUnderAnyGuide) {
   // Guided samples are not all 1, so noise is expected; its mean is 1.
   EXPECT_NEAR(sum / covered, 1.0, 0.01);
   EXPECT_LT(off, covered / 50);
+  }
+}
+
+// A guide whose every direction lies below the Cornell box's floor, active
+// only on the floor: RIS never picks such a direction (its target is zero
+// there), so paths are as long as unguided ones; one-sample MIS loses its
+// guided draws there (the reason RIS is the default).
+TEST(GuidedSampling, GuideBelowTheSurfaceEndsNoPathUnderRIS) {
+  Scene scene = load_test_scene_file(std::string(THEIA_SCENES) + "/cornell-box/scene.pbrt");
+  scene.film.width = scene.film.height = 32;
+  class IntoTheFloor final : public DirectionalGuide {
+   public:
+    uint32_t region(const vec3& p) const override { return p.y < 1e-3f ? 0u : kNoGuideRegion; }
+    GuideSample sample(uint32_t, vec2 u) const override { return lobe_.sample(0, u); }
+    float pdf(uint32_t, const vec3& wi) const override { return lobe_.pdf(0, wi); }
+    float selection_probability(uint32_t) const override { return 0.5f; }
+
+   private:
+    VMFGuide lobe_{vec3(0.0f, -1.0f, 0.0f), 200.0f, 0.5f};
+  } down;
+  const double plain = render_with(scene, nullptr, 64, 8).path_length;
+  const double ris = render_with(scene, &down, 64, 8, GuideMixing::Resampled).path_length;
+  const double mis = render_with(scene, &down, 64, 8, GuideMixing::OneSampleMIS).path_length;
+  std::printf("path length: unguided %.4f, RIS %.4f, MIS %.4f\n", plain, ris, mis);
+  EXPECT_NEAR(ris / plain, 1.0, 0.01);
+  EXPECT_LT(mis / plain, 0.97);
 }
 
 // The Cornell box: guided renders (a lobe towards the light, one away from
@@ -99,11 +139,13 @@ TEST(GuidedSampling, CornellBoxAgreesWithUnguidedBlockByBlock) {
   Scene scene = load_test_scene_file(std::string(THEIA_SCENES) + "/cornell-box/scene.pbrt");
   scene.film.width = scene.film.height = 48;
   const int spp = 256;
-  ImageBuffer plain = render_with(scene, nullptr, spp, 8);
+  ImageBuffer plain = render_with(scene, nullptr, spp, 8).image;
   VMFGuide up(vec3(0.0f, 1.0f, 0.0f), 8.0f, 0.5f), away(vec3(0.2f, -1.0f, 0.4f), 30.0f, 0.5f),
       half(vec3(-1.0f, 0.3f, 0.0f), 4.0f, 0.9f, 0.0f);
+  for (GuideMixing mixing : kMixings)
   for (const VMFGuide* g : {&up, &away, &half}) {
-    ImageBuffer guided = render_with(scene, g, spp, 8);
+    SCOPED_TRACE(mixing_name(mixing));
+    ImageBuffer guided = render_with(scene, g, spp, 8, mixing).image;
     int worse = 0, blocks = 0;
     double chi2 = 0.0;
     for (int by = 0; by < 48; by += 8)

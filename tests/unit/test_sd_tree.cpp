@@ -70,7 +70,7 @@ void train(SDTree& t, const Field& L, int n, int iterations, uint64_t seed, cons
       }
       t.add_sample(p, w, L(w), pdf, key);
     }
-    t.update(1.0);
+    t.update();
   }
 }
 
@@ -163,8 +163,8 @@ TEST(SDTreeChi2, LowerHemisphereFieldLearnsLittleAbove) {
 
 // Learned from N uniform directions per iteration, the pdf approaches
 // L / integral(L) as N grows, down to the floor of a piecewise-constant fit
-// at rho = 1% (L1 ~ 0.04 for this lobe at 2M samples; ~0.24, 0.09, 0.05 at
-// the counts below).
+// at rho = 1% (L1 ~ 0.04 for this lobe; ~0.12, 0.063, 0.046 at the counts
+// below, over four accumulated iterations).
 TEST(SDTreeConvergence, LearnedPdfApproachesNormalisedRadiance) {
   auto L = [](const vec3& w) { return 0.1f + lobe(w, vec3(0.3f, -0.5f, 0.8f), 30.0f); };
   std::vector<double> l1;
@@ -175,8 +175,8 @@ TEST(SDTreeConvergence, LearnedPdfApproachesNormalisedRadiance) {
   }
   std::printf("L1 distance to L / integral(L): %.4f %.4f %.4f\n", l1[0], l1[1], l1[2]);
   EXPECT_LT(l1[1], 0.7 * l1[0]);
-  EXPECT_LT(l1[2], 0.7 * l1[1]);
-  EXPECT_LT(l1[2], 0.07);
+  EXPECT_LT(l1[2], 0.85 * l1[1]);  // near the fit's floor
+  EXPECT_LT(l1[2], 0.06);
 }
 
 // Deposits are radiance / pdf, so cosine-weighted training directions learn
@@ -186,7 +186,9 @@ TEST(SDTreeUnbiased, CosineTrainingLearnsTheUniformTrainingField) {
   auto L = [](const vec3& w) {
     return w.z > 0.0f ? w.z * (1.0f + 20.0f * lobe(w, vec3(0.5f, 0.3f, 0.4f), 40.0f)) : 0.0f;
   };
-  SDTree uniform(kUnitBox, one_leaf()), uniform2(kUnitBox, one_leaf()), cosine(kUnitBox, one_leaf());
+  SDTreeOptions o = one_leaf();
+  o.pdf_floor = 0.0f;  // the unbiased weight (the floor would cap the grazing cosine samples)
+  SDTree uniform(kUnitBox, o), uniform2(kUnitBox, o), cosine(kUnitBox, o);
   train(uniform, L, 200'000, 4, 21, kCentre, Training::Uniform);
   train(uniform2, L, 200'000, 4, 23, kCentre, Training::Uniform);
   train(cosine, L, 200'000, 4, 22, kCentre, Training::Cosine);
@@ -201,24 +203,23 @@ TEST(SDTreeUnbiased, CosineTrainingLearnsTheUniformTrainingField) {
   EXPECT_GT(d_biased, 3.0 * noise);
 }
 
-// Samples in one octant: after the first update (one leaf, split blindly by
-// halved counts), only leaves in that octant keep splitting.
+// Samples in one octant: the first update splits the root once (both halves
+// keep a quarter of its count), and from then on only leaves in that octant
+// keep splitting.
 TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
   SDTreeOptions o;
   SDTree t(kUnitBox, o);
   std::vector<size_t> leaves;
   std::vector<double> inside, outside;
-  // Samples double per iteration, as in PPG, while the threshold grows by
-  // sqrt(2): busy leaves keep splitting.
   for (int it = 0; it < 4; ++it) {
-    for (int i = 0; i < (16'000 << it); ++i) {
+    for (int i = 0; i < 16'000; ++i) {
       uint64_t key = hash(uint64_t(it), uint64_t(i));
       vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
       vec3 p = 0.5f * vec3(a.x, a.y, b.x);  // [0, 0.5)^3
       vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
       t.add_sample(p, w, 1.0f, uniform_sphere_pdf(), key);
     }
-    t.update(1.0);
+    t.update();
     leaves.push_back(t.stats().spatial_leaves);
     auto volume = [&](const vec3& p) {
       vec3 d = t.leaf_bounds(p).diagonal();
@@ -227,39 +228,42 @@ TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
     inside.push_back(volume(vec3(0.25f, 0.25f, 0.25f)));
     outside.push_back(volume(vec3(0.75f, 0.75f, 0.75f)));
   }
-  // Update 1 splits the root to 16000 / 2^d <= 4000 (d = 2) everywhere.
-  EXPECT_EQ(leaves[0], 4u);
-  for (int it = 1; it < 4; ++it) {
-    EXPECT_GT(leaves[it], leaves[it - 1]);
-    EXPECT_EQ(outside[it], outside[0]);
-  }
-  EXPECT_LT(inside[3], inside[0] / 8.0);
+  // 16000 > 4000 splits the root; its halves keep 4000, not above the threshold.
+  EXPECT_EQ(leaves[0], 2u);
+  for (int it = 1; it < 4; ++it) EXPECT_GT(leaves[it], leaves[it - 1]);
+  // Far from the octant only the spatial filter's reach brings samples.
+  std::printf("leaf volume inside %.4g -> %.4g, outside %.4g -> %.4g\n", inside[0], inside[3], outside[0], outside[3]);
+  EXPECT_LE(inside[3], inside[0] / 16.0);
+  EXPECT_GT(outside[3], 8.0 * inside[3]);
 }
 
-// A leaf splits when an iteration of spp samples per pixel recorded more
-// than c * sqrt(spp) samples in it, however many updates came before.
-TEST(SDTreeSpatial, ThresholdGrowsWithIterationSize) {
+// A leaf splits once the samples it accumulated over any number of
+// iterations exceed the threshold; each half keeps split_decay of the count.
+TEST(SDTreeSpatial, SplitsOnCountsAccumulatedOverIterations) {
   SDTreeOptions o;
-  o.spatial_filter = false;  // every sample lands in the one leaf
-  auto leaves_after = [&](int earlier_updates, double spp, int n, float radiance = 1.0f) {
+  o.spatial_filter = false;  // every sample lands in the leaf holding kCentre
+  auto leaves_after = [&](const std::vector<int>& per_iteration, float radiance = 1.0f) {
     SDTree t(kUnitBox, o);
-    for (int k = 0; k < earlier_updates; ++k) t.update(1.0);
-    for (int i = 0; i < n; ++i) t.add_sample(kCentre, vec3(0, 0, 1), radiance, 1.0f, uint64_t(i));
-    t.update(spp);
+    int key = 0;
+    for (int n : per_iteration) {
+      for (int i = 0; i < n; ++i) t.add_sample(kCentre, vec3(0, 0, 1), radiance, 1.0f, uint64_t(key++));
+      t.update();
+    }
     return t.stats().spatial_leaves;
   };
-  SDTree t(kUnitBox, o);
-  for (int k = 0; k < 5; ++k) EXPECT_DOUBLE_EQ(t.spatial_threshold(std::pow(2.0, k)), 4000.0 * std::pow(2.0, 0.5 * k));
-  EXPECT_EQ(leaves_after(0, 1, 4000), 1u);
-  EXPECT_EQ(leaves_after(0, 1, 4001), 2u);
-  EXPECT_EQ(leaves_after(0, 1, 4001, 0.0f), 2u);  // zero-valued samples count too
-  EXPECT_EQ(leaves_after(0, 1, 8000), 2u);
-  EXPECT_EQ(leaves_after(0, 4, 8000), 1u);  // threshold 8000 at 4 spp
-  EXPECT_EQ(leaves_after(0, 4, 8001), 2u);
-  EXPECT_EQ(leaves_after(0, 16, 16'001), 2u);
-  EXPECT_EQ(leaves_after(0, 16, 16'000), 1u);
-  // Repeated 1-spp iterations keep the 1-spp threshold.
-  EXPECT_EQ(leaves_after(8, 1, 4001), 2u);
+  EXPECT_EQ(leaves_after({4000}), 1u);
+  EXPECT_EQ(leaves_after({4001}), 2u);
+  EXPECT_EQ(leaves_after({4001}, 0.0f), 2u);  // zero-valued samples count too
+  EXPECT_EQ(leaves_after({2000, 2000}), 1u);
+  EXPECT_EQ(leaves_after({2000, 2001}), 2u);  // accumulated, not per iteration
+  EXPECT_EQ(leaves_after({0, 0, 0, 1000, 0, 3001}), 2u);
+  // After a split at 4001 the half holding kCentre keeps 1000.25: 2999 more
+  // samples stay below the threshold, 3000 pass it.
+  EXPECT_EQ(leaves_after({4001, 2999}), 2u);
+  EXPECT_EQ(leaves_after({4001, 3000}), 3u);
+  // One update splits as deep as the count calls for, blindly (each half
+  // keeps a quarter): 64001 -> 16000.25 -> 4000.06 -> 1000.02, 8 leaves.
+  EXPECT_EQ(leaves_after({64001}), 8u);
 }
 
 // Directions depend on the side of x = 0.5: from above (z > 0) left of it,
@@ -271,20 +275,24 @@ TEST(SDTreeSpatial, ThresholdGrowsWithIterationSize) {
 namespace {
 SDTree train_edge(bool spatial_filter, uint64_t seed) {
   SDTreeOptions o;
-  o.spatial_threshold = 2000.0;
+  o.spatial_threshold = 4000.0;
+  o.split_decay = 0.5;
   o.spatial_filter = spatial_filter;
   o.directional_filter = false;  // keeps the hemispheres apart
   SDTree t(kUnitBox, o);
+  // Zero-valued samples first: they split the tree into 4 x 4 x 4 leaves of
+  // 130000 / 64 = 2031 each and deposit nothing.  The lit iteration's 100000
+  // then add 1562 each, well short of another split.
   for (int it = 0; it < 2; ++it) {
-    for (int i = 0; i < 128'000; ++i) {
+    for (int i = 0; i < (it == 0 ? 130'000 : 100'000); ++i) {
       uint64_t key = hash(seed, uint64_t(it), uint64_t(i));
       vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
       vec3 p(a.x, a.y, b.x);
       vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
-      bool lit = p.x < 0.5f ? w.z > 0.0f : w.z < 0.0f;
+      bool lit = it == 1 && (p.x < 0.5f ? w.z > 0.0f : w.z < 0.0f);
       t.add_sample(p, w, lit ? 1.0f : 0.0f, uniform_sphere_pdf(), key);
     }
-    t.update(it == 0 ? 1.0 : 2.0);  // Müller's doubling: iterations of 1 and 2 spp
+    t.update();
   }
   return t;
 }
@@ -329,15 +337,20 @@ TEST(SDTreeRegion, NoRegionBeforeTheFirstUpdateOrWithoutEnergy) {
   };
   feed(0);
   for (float x : {0.1f, 0.9f}) EXPECT_EQ(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
-  t.update(1.0);
+  t.update();
   // The first iteration's single leaf had energy; its halves inherit it.
   for (float x : {0.1f, 0.9f}) EXPECT_NE(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
   feed(1);
-  t.update(1.0);
-  EXPECT_NE(t.region(vec3(0.1f, 0.5f, 0.5f)), kNoGuideRegion);
-  EXPECT_EQ(t.region(vec3(0.9f, 0.5f, 0.5f)), kNoGuideRegion);  // zero-valued samples only
-  t.update(1.0);  // an iteration without samples: nothing anywhere
-  EXPECT_EQ(t.region(vec3(0.1f, 0.5f, 0.5f)), kNoGuideRegion);
+  t.update();
+  // Zero-valued samples alone leave the halves' inherited field (a prior) in place.
+  for (float x : {0.1f, 0.9f}) EXPECT_NE(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
+  t.update();  // an iteration without samples: the field keeps what it learned
+  for (float x : {0.1f, 0.9f}) EXPECT_NE(t.region(vec3(x, 0.5f, 0.5f)), kNoGuideRegion);
+  // A field that never saw energy guides nowhere.
+  SDTree dark(kUnitBox, o);
+  for (int i = 0; i < 8000; ++i) dark.add_sample(vec3(0.5f), vec3(0, 0, 1), 0.0f, 1.0f, uint64_t(i));
+  dark.update();
+  EXPECT_EQ(dark.region(vec3(0.5f)), kNoGuideRegion);
   EXPECT_EQ(t.pdf(kNoGuideRegion, vec3(0, 0, 1)), 0.0f);
   EXPECT_EQ(t.sample(kNoGuideRegion, vec2(0.5f)).pdf, 0.0f);
   EXPECT_EQ(t.selection_probability(0), 0.5f);
@@ -347,7 +360,7 @@ namespace {
 // Two iterations learned, a third half recorded (pending deposits and counts).
 SDTree trained_for_serialisation() {
   SDTreeOptions o;
-  o.spatial_threshold = 1000.0;
+  o.spatial_threshold = 300.0;
   SDTree t(kUnitBox, o);
   for (int it = 0; it < 3; ++it) {
     for (int i = 0; i < 12'000; ++i) {
@@ -358,7 +371,7 @@ SDTree trained_for_serialisation() {
       t.add_sample(p, w, field_two_lobes(w) * (0.5f + p.x), uniform_sphere_pdf(), key);
     }
     t.add_sample(kCentre, vec3(0, 0, 1), std::nanf(""), 1.0f, 0);  // a dropped one
-    if (it < 2) t.update(1.0);
+    if (it < 2) t.update();
   }
   return t;
 }
@@ -370,7 +383,7 @@ void continue_training(SDTree& t) {
     vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
     t.add_sample(vec3(a.x, a.y, b.x), w, field_lobe(w), uniform_sphere_pdf(), key);
   }
-  t.update(1.0);
+  t.update();
 }
 
 std::string error_of(const std::vector<uint8_t>& bytes) {
@@ -412,8 +425,8 @@ TEST(SDTreeSerialize, RoundTripIsExactAndTrainingContinuesIdentically) {
   EXPECT_GT(guided, 10'000);
   // The building state came along: finishing the iteration and training on
   // gives the same tree as never having stopped.
-  a.update(1.0);
-  b.update(1.0);
+  a.update();
+  b.update();
   continue_training(a);
   continue_training(b);
   EXPECT_EQ(a.serialize(), b.serialize());
@@ -462,7 +475,7 @@ TEST(SDTreeExtreme, HugeTinyAndBadValues) {
   dropped += 3;
   EXPECT_EQ(t.stats().pending_dropped, dropped);
   EXPECT_EQ(t.stats().pending_recorded, recorded);
-  t.update(1.0);
+  t.update();
   EXPECT_EQ(t.stats().samples_dropped, dropped);
   EXPECT_EQ(t.stats().samples_recorded, recorded);
   uint32_t r = t.region(kCentre);
@@ -509,7 +522,7 @@ TEST(SDTreeExtreme, CornersOutsidePointsAndFlatScenes) {
           vec3 w = sample_uniform_sphere(u2(key));
           t.add_sample(points[k], w, 1.0f + w.x, uniform_sphere_pdf(), key);
         }
-      t.update(1.0);
+      t.update();
     }
     EXPECT_EQ(t.stats().samples_dropped, 0u);
     EXPECT_GT(t.stats().spatial_leaves, 8u);
@@ -561,7 +574,7 @@ TEST(SDTreeTiming, DISABLED_Throughput) {
     auto t0 = clock::now();
     for (int i = 0; i < n; ++i) t.add_sample(ps[i], ws[i], ls[i], uniform_sphere_pdf(), hash(uint64_t(it), uint64_t(i)));
     auto t1 = clock::now();
-    t.update(1.0);
+    t.update();
     auto t2 = clock::now();
     SDTreeStats s = t.stats();
     std::printf("iteration %d: add_sample %.1f ns/sample (%.3f s per million), update %.1f ms; %zu leaves, %zu "

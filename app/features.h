@@ -181,6 +181,7 @@ struct SchedulingOptions {
   std::string schedule;           // regular | guiding; empty: guiding with --guiding, else regular
   std::string combine = "equal";  // equal | inverse-variance
   bool resume = false;            // fail unless a checkpoint is found
+  double time_limit = 0.0;        // seconds of render clock; 0: none (IterationConfig::time_limit)
 };
 
 template <class V>
@@ -190,6 +191,12 @@ void declare_options(V& v, SchedulingOptions& o) {
           "--guiding, else regular");
   v.image("combine", o.combine, "Combining iterations: equal, or inverse-variance (last four)");
   v.output("resume", o.resume, "Resume from --checkpoint-dir; fail if there is no checkpoint");
+  // Where the render ends, not what a sample is: outside the fingerprint, so
+  // a checkpoint resumes with another limit or none.
+  v.output("time_limit", o.time_limit,
+           "Stop after this many seconds of rendering (wall clock from the end of scene loading: acceleration "
+           "build included), finish the paths in flight and write the image with every sample so far; exit 0. "
+           "With --spp the render ends at whichever comes first (0: no limit)");
 }
 void check(const SchedulingOptions& o);
 

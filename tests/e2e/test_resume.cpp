@@ -323,7 +323,7 @@ struct ResumeOptionsCheckpoint : ::testing::Test {
   test::TempDir tmp{"theia_resume_options"};
   Scene scene = test::load_test_scene(scene_text(1.0f));
   std::string checkpoints = (tmp.path / "ck").string();
-  std::atomic<bool> stop{false};
+  StopRequest stop;
 
   RenderResult render(const std::vector<std::string>& args) {
     RenderConfig c = parse(args);
@@ -337,10 +337,10 @@ struct ResumeOptionsCheckpoint : ::testing::Test {
     c.checkpoint.dir = checkpoints;
     c.stop = &stop;
     c.on_iteration_progress = [this](int it, double f) {
-      if (it == 1 && f >= 0.5) stop.store(true);
+      if (it == 1 && f >= 0.5) stop.raise(StopReason::Signal);
     };
     ASSERT_TRUE(render_scene(scene, c).interrupted);
-    stop.store(false);
+    stop.clear();
   }
 };
 
@@ -386,7 +386,8 @@ TEST_F(ResumeOptionsCheckpoint, SummationOrderAndCheckpointOptionsResume) {
   EXPECT_EQ(flags.order_flags, (std::vector<std::string>{"--batch-size", "--max-paths", "--sort", "--threads"}));
   std::sort(flags.output_flags.begin(), flags.output_flags.end());
   EXPECT_EQ(flags.output_flags,
-            (std::vector<std::string>{"--checkpoint-dir", "--checkpoint-every-iteration", "--checkpoint-first", "--resume"}));
+            (std::vector<std::string>{"--checkpoint-dir", "--checkpoint-every-iteration", "--checkpoint-first", "--resume",
+                                      "--time-limit"}));
 
   RenderConfig plain = parse(kBase);
   const ImageBuffer uninterrupted = render_scene(scene, plain).image;

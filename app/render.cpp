@@ -136,6 +136,7 @@ static IterationConfig iteration_config(const RenderConfig& c, const Scene& scen
   ic.schedule = schedule_options(c.schedule, c.iteration);
   ic.total_spp = c.spp;
   ic.combination = parse_combination(c.combine);
+  ic.combine_window = uint32_t(c.combine_window);
   ic.seed = c.seed;
   ic.checkpoint = c.checkpoint;
   ic.resume = c.resume;
@@ -151,13 +152,12 @@ static IterationConfig iteration_config(const RenderConfig& c, const Scene& scen
 // onwards, scene loading excluded) does not count the time spent measuring.
 struct ReferenceEvaluation {
   const ImageBuffer& reference;
-  Combination combination;
   std::chrono::steady_clock::time_point wall_start, render_start;
   double seconds = 0.0;
 
   nlohmann::json operator()(const IterationInfo& it, const ImageAccumulator& acc) {
     auto te = std::chrono::steady_clock::now();
-    ImageBuffer image = acc.resolve(combination);
+    ImageBuffer image = acc.resolve();
     nlohmann::json e = {{"spp_total", it.spp_end},
                         {"wall_seconds", seconds_since(wall_start)},
                         {"render_seconds", seconds_since(render_start) - seconds},
@@ -271,7 +271,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     bar.update((before + fraction * (cumulative[size_t(it)] - before)) / c.spp, engine.stats().total_rays());
     if (c.on_iteration_progress) c.on_iteration_progress(it, fraction);
   };
-  ReferenceEvaluation evaluation{reference, ic.combination, wall_start, render_start};
+  ReferenceEvaluation evaluation{reference, wall_start, render_start};
   if (!c.reference_path.empty()) ic.evaluate = std::ref(evaluation);
 
   IterationResult iterations = render_iterations(engine, film, tasks, ic);

@@ -16,6 +16,8 @@ namespace {
 
 constexpr const char* kSchedulerSection = "scheduler";
 constexpr uint32_t kSchedulerSectionVersion = 2;
+// A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance).
+constexpr const char* kRunChannels[5] = {"R", "G", "B", "W", "V"};
 
 // Where the render is: restored from and saved into a checkpoint.
 struct Position {
@@ -111,7 +113,7 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   c.options_hash = cfg.options_hash;
 
   // R G B A first: what a user opening the file sees is the image so far.
-  ImageBuffer view = acc.resolve(cfg.combination);
+  ImageBuffer view = acc.resolve();
   ImageBuffer& img = c.image;
   img.width = acc.total.width;
   img.height = acc.total.height;
@@ -124,12 +126,14 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   }
   put_planes(img, "total.", acc.total, src, src_stride);
   if (pos.camera_done > 0 && !pos.finished) put_planes(img, "partial.", partial, src, src_stride);
-  for (size_t k = 0; k < acc.recent.size(); ++k)
-    for (int ch = 0; ch < 3; ++ch) {
-      img.channels.push_back(fmt::format("iteration{}.{}", k, "RGB"[ch]));
-      src.push_back(acc.recent[k].rgb.data() + ch);
-      src_stride.push_back(3);
+  for (size_t k = 0; k < acc.runs.size(); ++k) {
+    const WeightedRun& r = acc.runs[k];
+    for (int ch = 0; ch < 5; ++ch) {
+      img.channels.push_back(fmt::format("run{}.{}", k, kRunChannels[ch]));
+      src.push_back(ch < 3 ? r.sum.data() + ch : ch == 3 ? r.weight.data() : r.variance.data());
+      src_stride.push_back(ch < 3 ? 3 : 1);
     }
+  }
   const size_t nc = img.channels.size(), n = img.pixel_count();
   img.data.resize(n * nc);
   for (size_t c2 = 0; c2 < nc; ++c2)
@@ -144,9 +148,10 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   w.put<uint32_t>(cfg.seed);
   w.put<uint64_t>(acc.total.dropped.load());
   w.put<uint64_t>(partial.dropped.load());
-  std::vector<double> variances;
-  for (const auto& r : acc.recent) variances.push_back(r.mean_variance);
-  w.put_vector(variances);
+  std::vector<uint32_t> run_spp;
+  for (const WeightedRun& r : acc.runs) run_spp.insert(run_spp.end(), {r.spp_begin, r.spp_end});
+  w.put_vector(run_spp);
+  w.put<uint32_t>(acc.skipped);
   c.sections.push_back({kSchedulerSection, kSchedulerSectionVersion, std::move(w.bytes)});
   for (const auto& p : cfg.participants) c.sections.push_back({p.name, p.version, p.save()});
   return c;
@@ -177,7 +182,10 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
   pos.finished = r.get<uint8_t>() != 0;
   if (r.get<uint32_t>() != cfg.seed) throw_error("{}: written with a different seed", what);
   uint64_t dropped_total = r.get<uint64_t>(), dropped_partial = r.get<uint64_t>();
-  std::vector<double> variances = r.get_vector<double>();
+  std::vector<uint32_t> run_spp = r.get_vector<uint32_t>();
+  const uint32_t skipped = r.get<uint32_t>();
+  if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks)
+    throw_error("{}: bad inverse-variance runs", what);
   if (pos.iteration < 0 || pos.iteration > int(sizes.size())) throw_error("{}: iteration out of range", what);
   if (c.image.width != acc.total.width || c.image.height != acc.total.height)
     throw_error("{}: image size differs from the scene's film", what);
@@ -189,16 +197,18 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
     get_planes(c.image, "partial.", partial, what);
     partial.dropped = dropped_partial;
   }
-  acc.recent.clear();
-  for (size_t k = 0; k < variances.size(); ++k) {
-    IterationImage img;
-    img.mean_variance = variances[k];
-    img.rgb.resize(c.image.pixel_count() * 3);
+  acc.runs.clear();
+  acc.skipped = skipped;
+  for (size_t k = 0; k < run_spp.size() / 2; ++k) {
+    WeightedRun run{run_spp[2 * k], run_spp[2 * k + 1], {}, {}, {}};
+    run.sum.resize(c.image.pixel_count() * 3);
     for (int ch = 0; ch < 3; ++ch) {
-      std::vector<float> v = channel(c.image, fmt::format("iteration{}.{}", k, "RGB"[ch]), what);
-      for (size_t i = 0; i < v.size(); ++i) img.rgb[3 * i + size_t(ch)] = v[i];
+      std::vector<float> v = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[ch]), what);
+      for (size_t i = 0; i < v.size(); ++i) run.sum[3 * i + size_t(ch)] = v[i];
     }
-    acc.recent.push_back(std::move(img));
+    run.weight = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[3]), what);
+    run.variance = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[4]), what);
+    acc.runs.push_back(std::move(run));
   }
   for (const auto& p : cfg.participants) {
     const CheckpointSection* ps = c.find(p.name);
@@ -223,7 +233,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   if (cfg.resume && !checkpoints) throw_error("--resume needs --checkpoint-dir");
   if (cfg.time_limit > 0 && !cfg.stop) throw_error("internal: a time limit needs the engine's stop request");
 
-  ImageAccumulator acc(film.width, film.height);
+  ImageAccumulator acc(film.width, film.height, cfg.combination, cfg.combine_window);
   Position pos;
   film.clear();
   bool resumed = false;
@@ -303,7 +313,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       // divides by the weight it got).  No between-iteration task runs: they
       // would prepare an iteration that will not come.
       engine.finish_stopped_iteration();
-      acc.fold(film);
+      acc.fold(film, info.spp_begin, info.spp_end);
       film.clear();
       pos.iteration = i;
       pos.camera_done = done;
@@ -325,7 +335,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       interrupted = true;
       break;
     }
-    acc.fold(film);
+    acc.fold(film, info.spp_begin, info.spp_end);
     film.clear();
     pos.iteration = i + 1;
     pos.camera_done = 0;
@@ -353,7 +363,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   std::tie(result.spp_min, result.spp_max) = spp_range(pos, sizes, cumulative, film.pixel_count(), cfg.adaptive);
   result.dropped_samples = acc.total.dropped.load() + film.dropped.load();
   if (!interrupted) {
-    result.image = acc.resolve(cfg.combination);
+    result.image = acc.resolve();
     result.weight = acc.total.weight;
   }
   double wall = seconds_since(t0);
@@ -362,6 +372,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     slot_seconds[kSlotNames[s]] = tasks.seconds(BetweenIterationSlot(s));
   result.log = {{"schedule", sizes},
                 {"combination", combination_name(cfg.combination)},
+                {"combination_used", acc.choice().log()},
                 {"resumed", resumed},
                 {"resumed_at_iteration", first_iteration},
                 {"time_limit",

@@ -40,6 +40,7 @@ struct IterationConfig {
   ScheduleOptions schedule = regular_schedule();
   int total_spp = 16;
   Combination combination = Combination::Equal;
+  uint32_t combine_window = 0;           // spp (ImageAccumulator::window)
   uint32_t seed = 0;
   CheckpointOptions checkpoint;          // none when checkpoint.dir is empty
   bool resume = false;                   // --resume: fail if there is nothing to resume

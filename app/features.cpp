@@ -276,6 +276,9 @@ void check(const SchedulingOptions& o) {
     throw_error("--schedule {}: expected regular or guiding", o.schedule);
   if (o.combine != "equal" && o.combine != "inverse-variance")
     throw_error("--combine {}: expected equal or inverse-variance", o.combine);
+  if (o.combine_window < 0) throw_error("--combine-window must be zero or positive, got {}", o.combine_window);
+  if (!(o.time_limit >= 0.0 && std::isfinite(o.time_limit)))
+    throw_error("--time-limit must be a positive, finite number of seconds (0: none), got {}", o.time_limit);
 }
 
 void check(const CheckpointOptions& o) {

@@ -188,7 +188,9 @@ class AdaptiveFeature final : public Feature {
 struct SchedulingOptions {
   std::string schedule;           // regular | guiding; empty: guiding with --guiding, else regular
   std::string combine = "equal";  // equal | inverse-variance
+  int combine_window = 0;         // spp; 0: the last half of the samples rendered
   bool resume = false;            // fail unless a checkpoint is found
+  double time_limit = 0.0;        // seconds of render clock; 0: none (IterationConfig::time_limit)
 };
 
 template <class V>
@@ -196,8 +198,19 @@ void declare_options(V& v, SchedulingOptions& o) {
   v.image("schedule", o.schedule,
           "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16); default: guiding with "
           "--guiding, else regular");
-  v.image("combine", o.combine, "Combining iterations: equal, or inverse-variance (last four)");
+  v.image("combine", o.combine,
+          "Combining iterations: equal, or inverse-variance (whole-image weights over the last --combine-window "
+          "spp, used only where estimated less noisy than equal weights)");
+  v.image("combine_window", o.combine_window,
+          "Inverse-variance weighting: the iterations in the last this many spp (0: the last half of the samples "
+          "rendered)");
   v.output("resume", o.resume, "Resume from --checkpoint-dir; fail if there is no checkpoint");
+  // Where the render ends, not what a sample is: outside the fingerprint, so
+  // a checkpoint resumes with another limit or none.
+  v.output("time_limit", o.time_limit,
+           "Stop after this many seconds of rendering (wall clock from the end of scene loading: acceleration "
+           "build included), finish the paths in flight and write the image with every sample so far; exit 0. "
+           "With --spp the render ends at whichever comes first (0: no limit)");
 }
 void check(const SchedulingOptions& o);
 

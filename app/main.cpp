@@ -11,8 +11,8 @@
 #include <unistd.h>
 
 namespace {
-std::atomic<bool> g_stop{false};
-extern "C" void on_stop_signal(int) { g_stop.store(true); }
+theia::StopRequest g_stop;
+extern "C" void on_stop_signal(int) { g_stop.raise(theia::StopReason::Signal); }
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
         int it = std::stoi(test_sigterm.substr(0, test_sigterm.find(':')));
         double at = std::stod(test_sigterm.substr(test_sigterm.find(':') + 1));
         rc.on_iteration_progress = [it, at](int i, double f) {
-          if (i == it && f >= at && !g_stop.load()) std::raise(SIGTERM);
+          if (i == it && f >= at && !g_stop.raised()) std::raise(SIGTERM);
         };
       }
       return run_render(rc);

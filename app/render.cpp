@@ -117,7 +117,7 @@ struct Features {
 };
 
 // Batch size and pool size 0 (auto): the engine sizes them from the frame (engine_sizes).
-static EngineOptions engine_options(const RenderConfig& c) {
+static EngineOptions engine_options(const RenderConfig& c, const StopRequest* stop) {
   EngineOptions o;
   o.max_depth = c.max_depth;
   o.seed = c.seed;
@@ -125,22 +125,26 @@ static EngineOptions engine_options(const RenderConfig& c) {
   o.max_paths = c.max_paths;
   o.sort = c.sort;
   o.throughput_reset_bounce = c.throughput_reset_bounce;
-  o.stop = c.stop;
+  o.stop = stop;
   o.footprint_spp = c.spp;
   return o;
 }
 
-static IterationConfig iteration_config(const RenderConfig& c, const Scene& scene) {
+static IterationConfig iteration_config(const RenderConfig& c, const Scene& scene, StopRequest* stop,
+                                        std::chrono::steady_clock::time_point render_start) {
   IterationConfig ic;
   ic.schedule = schedule_options(c.schedule, c.iteration);
   ic.total_spp = c.spp;
   ic.combination = parse_combination(c.combine);
+  ic.combine_window = uint32_t(c.combine_window);
   ic.seed = c.seed;
   ic.checkpoint = c.checkpoint;
   ic.resume = c.resume;
   ic.scene_hash = scene_fingerprint(scene);
   ic.options_hash = options_fingerprint(c);
-  ic.stop = c.stop;
+  ic.stop = stop;
+  ic.time_limit = c.time_limit;
+  ic.clock_start = render_start;
   return ic;
 }
 
@@ -148,13 +152,12 @@ static IterationConfig iteration_config(const RenderConfig& c, const Scene& scen
 // onwards, scene loading excluded) does not count the time spent measuring.
 struct ReferenceEvaluation {
   const ImageBuffer& reference;
-  Combination combination;
   std::chrono::steady_clock::time_point wall_start, render_start;
   double seconds = 0.0;
 
   nlohmann::json operator()(const IterationInfo& it, const ImageAccumulator& acc) {
     auto te = std::chrono::steady_clock::now();
-    ImageBuffer image = acc.resolve(combination);
+    ImageBuffer image = acc.resolve();
     nlohmann::json e = {{"spp_total", it.spp_end},
                         {"wall_seconds", seconds_since(wall_start)},
                         {"render_seconds", seconds_since(render_start) - seconds},
@@ -216,6 +219,7 @@ static RenderResult make_result(IterationResult iterations, Features& features, 
   RenderResult result;
   result.image = std::move(iterations.image);
   result.interrupted = iterations.interrupted;
+  result.weight = iterations.weight;
   // The recorder's debug buffers sum over every iteration: they share the
   // combined film's per-pixel weight (compare them with --combine equal).
   if (!iterations.interrupted) append_film_layers(result.image, features.recorder.layers(), iterations.weight);
@@ -242,12 +246,14 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   const ImageBuffer reference = read_reference(c.reference_path, scene);
 
   const auto render_start = std::chrono::steady_clock::now();
+  StopRequest own_stop;
+  StopRequest* stop = c.stop ? c.stop : &own_stop;
   RenderableScene rs(scene, c.light_sampler);
   Film film(scene.film.width, scene.film.height);
-  IterationConfig ic = iteration_config(c, scene);
+  IterationConfig ic = iteration_config(c, scene, stop, render_start);
   const std::vector<int> sizes = make_schedule(ic.schedule, c.spp);
   Features features(c, rs, sizes);
-  EngineOptions engine_opt = engine_options(c);
+  EngineOptions engine_opt = engine_options(c, stop);
   EngineHooks hooks{.observer = features.recorder.recorder()};
   IterationTasks tasks;
   for (Feature* f : features.all()) {
@@ -265,7 +271,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     bar.update((before + fraction * (cumulative[size_t(it)] - before)) / c.spp, engine.stats().total_rays());
     if (c.on_iteration_progress) c.on_iteration_progress(it, fraction);
   };
-  ReferenceEvaluation evaluation{reference, ic.combination, wall_start, render_start};
+  ReferenceEvaluation evaluation{reference, wall_start, render_start};
   if (!c.reference_path.empty()) ic.evaluate = std::ref(evaluation);
 
   IterationResult iterations = render_iterations(engine, film, tasks, ic);
@@ -317,9 +323,22 @@ int run_render(const RenderConfig& in) {
   write_text_atomically(config.log_path, result.log.dump(2) + "\n");
 
   const auto& log = result.log;
-  log_info("rendered {} spp in {:.2f} s ({:.2f} Mrays/s); wrote {}, {}, {}", log["options"]["spp"].get<int>(),
+  const nlohmann::json& spp = log["scheduler"]["spp_per_pixel"];
+  const std::string samples = spp["min"] == spp["max"] ? fmt::format("{}", spp["min"].get<uint32_t>())
+                                                       : fmt::format("{}-{}", spp["min"].get<uint32_t>(),
+                                                                     spp["max"].get<uint32_t>());
+  const nlohmann::json& limit = log["scheduler"]["time_limit"];
+  const std::string ended =
+      limit["reached"].get<bool>()
+          ? fmt::format(" (of {}: --time-limit {} s reached at {:.2f} s)", log["options"]["spp"].get<int>(),
+                        limit["seconds"].get<double>(), limit["elapsed_seconds"].get<double>())
+          : "";
+  log_info("rendered {} spp{} in {:.2f} s ({:.2f} Mrays/s); wrote {}, {}, {}", samples, ended,
            log["time"]["render"].get<double>(), log["mrays_per_second"]["render"].get<double>(), config.output, png,
            config.log_path);
+  if (limit["reached"].get<bool>() && spp["max"].get<uint32_t>() == 0)
+    log_warning("--time-limit {} s was spent before the first sample: the image is black",
+                limit["seconds"].get<double>());
   if (log["dropped_samples"].get<uint64_t>() > 0)
     log_warning("{} non-finite samples were dropped", log["dropped_samples"].get<uint64_t>());
   return 0;

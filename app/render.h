@@ -5,6 +5,7 @@
 
 #include "app/features.h"
 #include "core/image.h"
+#include "core/stop.h"
 #include "scene/scene.h"
 
 #include <nlohmann/json.hpp>
@@ -57,8 +58,10 @@ struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions {
   // render_scene was called.
   std::optional<std::chrono::steady_clock::time_point> wall_start;
   bool progress = false;            // progress bar (the command line turns it on for a terminal)
-  // Raised to stop early (the command line's SIGTERM/SIGINT handler).
-  const std::atomic<bool>* stop = nullptr;
+  // Raised to stop early: the command line's SIGTERM/SIGINT handler, and the
+  // time limit (--time-limit; render_scene makes a request of its own when
+  // this is null).
+  StopRequest* stop = nullptr;
   // Called with (iteration, fraction of its camera samples generated).
   std::function<void(int, double)> on_iteration_progress;
 
@@ -111,6 +114,7 @@ struct RenderResult {
   ImageBuffer image;                // R G B A albedo.* N.* depth.Z
   nlohmann::json log;
   bool interrupted = false;         // stopped early: no image; resume from the checkpoint
+  std::vector<float> weight;        // per-pixel sum of filter weights (box filter: samples per pixel)
 };
 
 // Renders an already-loaded scene (images must be loaded).  Throws theia::Error on bad options.

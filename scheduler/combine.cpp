@@ -1,5 +1,6 @@
 #include "scheduler/combine.h"
 
+#include "core/color.h"
 #include "core/log.h"
 
 #include <cmath>
@@ -31,48 +32,148 @@ std::vector<float> half_buffer_variance(const Film& f) {
   return var;
 }
 
-void ImageAccumulator::fold(const Film& it) {
-  total.add(it);
-  // Resolved exactly as the output is (linear sRGB, cancelled weights black),
-  // so resolve() can mix iteration images into it.
-  IterationImage img;
-  img.rgb.assign(it.pixel_count() * 3, 0.0f);
-  const ImageBuffer resolved = resolve_film(it);
-  const size_t nc = resolved.channels.size();
-  for (size_t i = 0; i < it.pixel_count(); ++i)
-    for (size_t c = 0; c < 3; ++c) img.rgb[3 * i + c] = resolved.data[i * nc + c];
-  double sum = 0.0;
-  size_t known = 0;
-  for (float v : half_buffer_variance(it))
-    if (v >= 0.0f) {
-      sum += v;
-      ++known;
-    }
-  // Unknown when most pixels have no second half (1-spp iterations).
-  img.mean_variance = known * 2 >= it.pixel_count() && known > 0 ? sum / double(known) : -1.0;
-  recent.push_back(std::move(img));
-  if (recent.size() > kInverseVarianceWindow) recent.pop_front();
+nlohmann::json CombinationChoice::log() const {
+  return {{"used", combination_name(used)},
+          {"why", why},
+          {"estimated_variance", {{"equal", equal_variance}, {"inverse_variance", weighted_variance}}},
+          {"window_spp", {window_begin, window_end}}};
 }
 
-ImageBuffer ImageAccumulator::resolve(Combination c) const {
-  ImageBuffer out = resolve_film(total);
-  if (c == Combination::Equal || recent.empty()) return out;
-  // Whole-image weights; fall back to equal weighting when a variance is
-  // unknown or zero (a noiseless image needs no weighting).
-  std::vector<double> w;
-  for (const IterationImage& img : recent) {
-    if (!(img.mean_variance > 0.0)) return out;
-    w.push_back(1.0 / img.mean_variance);
-  }
-  double wsum = 0.0;
-  for (double x : w) wsum += x;
-  const size_t nc = out.channels.size();
-  for (size_t i = 0; i < out.pixel_count(); ++i)
-    for (int ch = 0; ch < 3; ++ch) {
-      double v = 0.0;
-      for (size_t k = 0; k < recent.size(); ++k) v += w[k] * recent[k].rgb[3 * i + ch];
-      out.data[i * nc + ch] = float(v / wsum);
+namespace {
+
+// The per-sample variance of the iteration, averaged over the pixels that
+// have a half-buffer estimate: Var[pixel estimate] * W = sigma^2 per unit of
+// filter weight.  < 0 when too few pixels have one (1-spp iterations).
+double per_sample_variance(const Film& it, const std::vector<float>& var) {
+  double sum = 0.0;
+  size_t known = 0, sampled = 0;
+  for (size_t i = 0; i < var.size(); ++i) {
+    if (it.weight[i] > 0.0f) ++sampled;
+    if (var[i] >= 0.0f) {
+      sum += double(var[i]) * double(it.weight[i]);
+      ++known;
     }
+  }
+  return known > 0 && known * 2 >= sampled ? sum / double(known) : -1.0;
+}
+
+void merge(WeightedRun& into, const WeightedRun& later) {
+  into.spp_end = later.spp_end;
+  for (size_t i = 0; i < into.sum.size(); ++i) into.sum[i] += later.sum[i];
+  for (size_t i = 0; i < into.weight.size(); ++i) {
+    into.weight[i] += later.weight[i];
+    into.variance[i] += later.variance[i];
+  }
+}
+
+}  // namespace
+
+void ImageAccumulator::fold(const Film& it, uint32_t spp_begin, uint32_t spp_end) {
+  total.add(it);
+  if (combination == Combination::Equal) return;
+
+  // Runs that ended before the window leave it (the boundary only moves forward).
+  const uint32_t w = window > 0 ? window : (spp_end + 1) / 2;
+  const uint32_t boundary = spp_end > w ? spp_end - w : 0;
+  std::erase_if(runs, [&](const WeightedRun& r) { return r.spp_end <= boundary; });
+
+  const std::vector<float> var = half_buffer_variance(it);
+  const double s2 = per_sample_variance(it, var);
+  if (!(s2 > 0.0) || !std::isfinite(s2)) {  // unknown, or noiseless: nothing to weight by
+    ++skipped;
+    return;
+  }
+  const float lambda = float(1.0 / s2);
+  const size_t n = it.pixel_count();
+  WeightedRun run{spp_begin, spp_end, std::vector<float>(3 * n), std::vector<float>(n), std::vector<float>(n)};
+  for (size_t i = 0; i < n; ++i) {
+    const float wi = it.weight[i];
+    run.sum[3 * i] = lambda * it.r[i];
+    run.sum[3 * i + 1] = lambda * it.g[i];
+    run.sum[3 * i + 2] = lambda * it.b[i];
+    run.weight[i] = lambda * wi;
+    // Where the pixel has no half-buffer estimate, the image's: v = s^2 / W.
+    run.variance[i] = var[i] >= 0.0f ? lambda * lambda * wi * wi * var[i] : lambda * wi;
+  }
+  runs.push_back(std::move(run));
+  if (runs.size() > kMaxBlocks) {
+    // Merge the adjacent pair with the fewest samples (the oldest of equals).
+    size_t best = 0;
+    for (size_t k = 1; k + 1 < runs.size(); ++k)
+      if (runs[k + 1].spp_end - runs[k].spp_begin < runs[best + 1].spp_end - runs[best].spp_begin) best = k;
+    merge(runs[best], runs[best + 1]);
+    runs.erase(runs.begin() + std::ptrdiff_t(best) + 1);
+  }
+}
+
+CombinationChoice ImageAccumulator::choice() const {
+  CombinationChoice c;
+  resolve(&c);
+  return c;
+}
+
+ImageBuffer ImageAccumulator::resolve() const { return resolve(nullptr); }
+
+ImageBuffer ImageAccumulator::resolve(CombinationChoice* choice) const {
+  ImageBuffer out = resolve_film(total);
+  CombinationChoice local;
+  CombinationChoice& c = choice ? *choice : local;
+  if (combination == Combination::Equal) {
+    c.why = "asked for (--combine equal)";
+    return out;
+  }
+  if (runs.empty()) {
+    c.why = "no iteration in the window has a variance estimate";
+    return out;
+  }
+  c.window_begin = runs.front().spp_begin;
+  c.window_end = runs.back().spp_end;
+
+  // Both images and their estimated variances, pixel by pixel.
+  const size_t n = total.pixel_count(), nc = out.channels.size();
+  const std::vector<float> equal_var = half_buffer_variance(total);
+  std::vector<float> rgb(3 * n);
+  double equal_sum = 0.0, weighted_sum = 0.0;
+  size_t compared = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double s[3] = {0, 0, 0}, w = 0, v = 0;
+    for (const WeightedRun& r : runs) {
+      for (int ch = 0; ch < 3; ++ch) s[ch] += r.sum[3 * i + size_t(ch)];
+      w += r.weight[i];
+      v += r.variance[i];
+    }
+    if (w == 0.0) {  // not reached by the window: the equal image's pixel
+      for (int ch = 0; ch < 3; ++ch) rgb[3 * i + size_t(ch)] = out.data[i * nc + size_t(ch)];
+      if (equal_var[i] >= 0.0f) {
+        equal_sum += equal_var[i];
+        weighted_sum += equal_var[i];
+        ++compared;
+      }
+      continue;
+    }
+    RGB p = working_to_srgb(RGB(resolve_sum(float(s[0]), float(w)), resolve_sum(float(s[1]), float(w)),
+                                resolve_sum(float(s[2]), float(w))));
+    for (int ch = 0; ch < 3; ++ch) rgb[3 * i + size_t(ch)] = p[ch];
+    if (equal_var[i] >= 0.0f) {
+      equal_sum += equal_var[i];
+      weighted_sum += v / (w * w);
+      ++compared;
+    }
+  }
+  if (compared == 0) {
+    c.why = "no pixel has a variance estimate";
+    return out;
+  }
+  c.equal_variance = equal_sum / double(compared);
+  c.weighted_variance = weighted_sum / double(compared);
+  if (!(c.weighted_variance < c.equal_variance)) {
+    c.why = "equal weights are estimated to be no noisier";
+    return out;
+  }
+  c.used = Combination::InverseVariance;
+  c.why = "estimated to be less noisy than equal weights";
+  for (size_t i = 0; i < n; ++i)
+    for (size_t ch = 0; ch < 3; ++ch) out.data[i * nc + ch] = rgb[3 * i + ch];
   return out;
 }
 

@@ -1,18 +1,43 @@
 // Folding per-iteration images into the result.
 //
 // Equal weighting (the default) sums every iteration's film: each sample
-// counts the same, so a guided render is never noisier than an unguided one at
-// equal spp (seeds/000 section 6).  Inverse-variance weighting (seeds/001
-// section 10.3) combines only the last four iterations' images, each weighted
-// by the inverse of its mean pixel variance over the image (a whole-image
-// weight: per-pixel weights would correlate with the pixel values and bias
-// them), for path guiding, whose later iterations are better.
+// counts the same, so a guided render is never noisier than an unguided one
+// at equal spp (seeds/000 ch. 2 section 6.2).
+//
+// Inverse-variance weighting (seeds/001 section 10.3, for path guiding, whose
+// later iterations are better) gives iteration k a whole-image weight per
+// sample, lambda_k = 1 / s_k^2, with s_k^2 its per-sample variance averaged
+// over the image (from its half buffers; per-pixel weights would correlate
+// with the pixel values and bias them).  A pixel is
+//     sum_k lambda_k S_k(p) / sum_k lambda_k W_k(p)
+// with S and W the film's sums of w L and of w.  The weight is per sample, not
+// per image, so iterations of different sizes, adaptive sampling's uneven
+// per-pixel counts and the part of an iteration a time limit stopped combine
+// without bias (a pixel an iteration did not reach gets nothing from it), and
+// equal lambdas are exactly equal weighting.
+//
+// Only the iterations in the last `window` spp take part: the early guided
+// iterations are the ones learning (Mueller 2017 keeps only the last, which
+// has half the samples of a doubling schedule); the default is the last half
+// of the samples rendered.  The samples before the window are in the equal
+// image only, and resolve() uses the inverse-variance image only where it is
+// estimated to be less noisy than the equal one (mean over the image of both
+// variance estimates, from the same half buffers), so it is never worse than
+// equal weights by that estimate; choice() says which it used and why.
+//
+// Memory: nothing beyond the total with equal weighting; with inverse-
+// variance weighting at most kMaxBlocks runs of iterations of 5 floats per
+// pixel, whatever the number of iterations (older runs are merged, which for
+// the weighted sums is exact; a merged run leaves the window when its last
+// sample does, so the window is at least `window` spp).
 #pragma once
 
 #include "core/image.h"
 #include "wavefront/film.h"
 
-#include <deque>
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -22,27 +47,50 @@ enum class Combination { Equal, InverseVariance };
 Combination parse_combination(const std::string& name);  // "equal" | "inverse-variance"
 const char* combination_name(Combination c);
 
-inline constexpr size_t kInverseVarianceWindow = 4;
-
-// One iteration's colour, kept for inverse-variance weighting.
-struct IterationImage {
-  std::vector<float> rgb;   // resolved R G B per pixel (linear sRGB, as the output), interleaved
-  double mean_variance = 0; // mean over pixels and channels of the variance of the pixel estimate; < 0: unknown
-};
-
 // Variance of each pixel's iteration estimate from its two half buffers
 // (even and odd samples): ((even - odd) / 2)^2 averaged over R, G, B.  Pixels
 // with no sample in one half get -1 (unknown).
 std::vector<float> half_buffer_variance(const Film& film);
 
-struct ImageAccumulator {
-  Film total;                             // every finished iteration summed
-  std::deque<IterationImage> recent;      // the last kInverseVarianceWindow iterations
+// Consecutive iterations [spp_begin, spp_end), summed with their weights:
+// what the inverse-variance image needs of them.
+struct WeightedRun {
+  uint32_t spp_begin = 0, spp_end = 0;
+  std::vector<float> sum;       // sum_k lambda_k S_k, working-space RGB interleaved
+  std::vector<float> weight;    // sum_k lambda_k W_k
+  std::vector<float> variance;  // sum_k lambda_k^2 W_k^2 v_k (v_k: the pixel estimate's variance)
+};
 
-  ImageAccumulator(int width, int height) : total(width, height) {}
-  void fold(const Film& iteration);
-  // R G B A albedo.* N.* depth.Z, as resolve_film.
-  ImageBuffer resolve(Combination c) const;
+// What resolve() uses and why.
+struct CombinationChoice {
+  Combination used = Combination::Equal;
+  std::string why;
+  double equal_variance = -1.0;     // mean over pixels of the estimated variance; < 0: not estimated
+  double weighted_variance = -1.0;
+  uint32_t window_begin = 0, window_end = 0;  // spp of the iterations weighted
+  nlohmann::json log() const;
+};
+
+struct ImageAccumulator {
+  static constexpr size_t kMaxBlocks = 4;
+
+  Film total;                      // every iteration summed
+  Combination combination;
+  uint32_t window;                 // spp; 0: the last half of the samples rendered
+  std::vector<WeightedRun> runs;   // inverse-variance only: the runs in the window, oldest first
+  uint32_t skipped = 0;            // iterations left out of the weighting (no variance estimate)
+
+  ImageAccumulator(int width, int height, Combination c = Combination::Equal, uint32_t window_spp = 0)
+      : total(width, height), combination(c), window(window_spp) {}
+  // The iteration that rendered samples [spp_begin, spp_end) (all of them, or
+  // the part a time limit left).
+  void fold(const Film& iteration, uint32_t spp_begin, uint32_t spp_end);
+  CombinationChoice choice() const;
+  // R G B A albedo.* N.* depth.Z, as resolve_film, with R G B as choice() says.
+  ImageBuffer resolve() const;
+
+ private:
+  ImageBuffer resolve(CombinationChoice* choice) const;
 };
 
 }  // namespace theia

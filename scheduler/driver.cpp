@@ -3,21 +3,86 @@
 #include "core/log.h"
 #include "core/stats.h"
 
+#include <algorithm>
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <optional>
+#include <thread>
 
 namespace theia {
 
 namespace {
 
 constexpr const char* kSchedulerSection = "scheduler";
-constexpr uint32_t kSchedulerSectionVersion = 1;
+constexpr uint32_t kSchedulerSectionVersion = 2;
+// A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance).
+constexpr const char* kRunChannels[5] = {"R", "G", "B", "W", "V"};
 
 // Where the render is: restored from and saved into a checkpoint.
 struct Position {
   int iteration = 0;            // the iteration to render next (or being rendered)
   uint64_t camera_done = 0;     // camera samples of that iteration already complete
+  // Ended by its time limit: the first camera_done samples of `iteration` are
+  // in the image, and nothing is left to render.
+  bool finished = false;
   uint64_t generation = 0;      // of the last checkpoint written or read
 };
+
+// Raises `stop` with StopReason::TimeLimit at `at`, unless destroyed first.
+class Deadline {
+ public:
+  Deadline(StopRequest& stop, std::chrono::steady_clock::time_point at)
+      : thread_([this, &stop, at] {
+          std::unique_lock lock(mutex_);
+          if (!wake_.wait_until(lock, at, [this] { return done_; })) stop.raise(StopReason::TimeLimit);
+        }) {}
+  ~Deadline() {
+    {
+      std::lock_guard lock(mutex_);
+      done_ = true;
+    }
+    wake_.notify_one();
+    thread_.join();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool done_ = false;
+  std::thread thread_;  // last: it starts once the members it uses exist
+};
+
+// Colour samples per pixel, smallest and largest, counted from what was
+// rendered: every iteration before pos.iteration and the first
+// pos.camera_done camera samples of it (pixel-sample order, engine.h).
+std::pair<uint32_t, uint32_t> spp_range(const Position& pos, const std::vector<int>& sizes,
+                                        const std::vector<int>& cumulative, size_t pixels,
+                                        const AdaptiveSampler* adaptive) {
+  if (pixels == 0) return {0, 0};
+  if (adaptive) {
+    // Its ranges are those of pos.iteration (the last one's once all are done).
+    const SampleRanges& r = adaptive->ranges();
+    const uint64_t done = pos.iteration >= int(sizes.size()) ? r.total() : pos.camera_done;
+    uint32_t lo = UINT32_MAX, hi = 0;
+    for (size_t p = 0; p < pixels; ++p) {
+      uint64_t rays = r.offset[p + 1] - r.offset[p];
+      uint64_t got = std::min(rays, done > r.offset[p] ? done - r.offset[p] : 0);
+      uint32_t n = r.begin[p] + uint32_t(std::min<uint64_t>(got, r.colour_end[p] - r.begin[p]));
+      lo = std::min(lo, n);
+      hi = std::max(hi, n);
+    }
+    return {lo, hi};
+  }
+  if (pos.iteration >= int(sizes.size())) return {uint32_t(cumulative.back()), uint32_t(cumulative.back())};
+  const uint64_t n = uint64_t(sizes[size_t(pos.iteration)]);
+  const uint32_t before = uint32_t(cumulative[size_t(pos.iteration)]) - uint32_t(n);
+  auto got = [&](uint64_t pixel) {
+    uint64_t first = pixel * n;
+    return uint32_t(std::min(n, pos.camera_done > first ? pos.camera_done - first : 0));
+  };
+  return {before + got(pixels - 1), before + got(0)};
+}
 
 void put_planes(ImageBuffer& img, const std::string& prefix, const Film& f, std::vector<const float*>& src,
                 std::vector<size_t>& stride) {
@@ -48,7 +113,7 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   c.options_hash = cfg.options_hash;
 
   // R G B A first: what a user opening the file sees is the image so far.
-  ImageBuffer view = acc.resolve(cfg.combination);
+  ImageBuffer view = acc.resolve();
   ImageBuffer& img = c.image;
   img.width = acc.total.width;
   img.height = acc.total.height;
@@ -60,13 +125,15 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
     src_stride.push_back(view.channels.size());
   }
   put_planes(img, "total.", acc.total, src, src_stride);
-  if (pos.camera_done > 0) put_planes(img, "partial.", partial, src, src_stride);
-  for (size_t k = 0; k < acc.recent.size(); ++k)
-    for (int ch = 0; ch < 3; ++ch) {
-      img.channels.push_back(fmt::format("iteration{}.{}", k, "RGB"[ch]));
-      src.push_back(acc.recent[k].rgb.data() + ch);
-      src_stride.push_back(3);
+  if (pos.camera_done > 0 && !pos.finished) put_planes(img, "partial.", partial, src, src_stride);
+  for (size_t k = 0; k < acc.runs.size(); ++k) {
+    const WeightedRun& r = acc.runs[k];
+    for (int ch = 0; ch < 5; ++ch) {
+      img.channels.push_back(fmt::format("run{}.{}", k, kRunChannels[ch]));
+      src.push_back(ch < 3 ? r.sum.data() + ch : ch == 3 ? r.weight.data() : r.variance.data());
+      src_stride.push_back(ch < 3 ? 3 : 1);
     }
+  }
   const size_t nc = img.channels.size(), n = img.pixel_count();
   img.data.resize(n * nc);
   for (size_t c2 = 0; c2 < nc; ++c2)
@@ -77,12 +144,14 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   w.put_vector(sizes);
   w.put<int32_t>(pos.iteration);
   w.put<uint64_t>(pos.camera_done);
+  w.put<uint8_t>(pos.finished);
   w.put<uint32_t>(cfg.seed);
   w.put<uint64_t>(acc.total.dropped.load());
   w.put<uint64_t>(partial.dropped.load());
-  std::vector<double> variances;
-  for (const auto& r : acc.recent) variances.push_back(r.mean_variance);
-  w.put_vector(variances);
+  std::vector<uint32_t> run_spp;
+  for (const WeightedRun& r : acc.runs) run_spp.insert(run_spp.end(), {r.spp_begin, r.spp_end});
+  w.put_vector(run_spp);
+  w.put<uint32_t>(acc.skipped);
   c.sections.push_back({kSchedulerSection, kSchedulerSectionVersion, std::move(w.bytes)});
   for (const auto& p : cfg.participants) c.sections.push_back({p.name, p.version, p.save()});
   return c;
@@ -110,9 +179,13 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
   if (total != cfg.total_spp || saved_sizes != sizes) throw_error("{}: written for a different schedule", what);
   pos.iteration = r.get<int32_t>();
   pos.camera_done = r.get<uint64_t>();
+  pos.finished = r.get<uint8_t>() != 0;
   if (r.get<uint32_t>() != cfg.seed) throw_error("{}: written with a different seed", what);
   uint64_t dropped_total = r.get<uint64_t>(), dropped_partial = r.get<uint64_t>();
-  std::vector<double> variances = r.get_vector<double>();
+  std::vector<uint32_t> run_spp = r.get_vector<uint32_t>();
+  const uint32_t skipped = r.get<uint32_t>();
+  if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks)
+    throw_error("{}: bad inverse-variance runs", what);
   if (pos.iteration < 0 || pos.iteration > int(sizes.size())) throw_error("{}: iteration out of range", what);
   if (c.image.width != acc.total.width || c.image.height != acc.total.height)
     throw_error("{}: image size differs from the scene's film", what);
@@ -120,20 +193,22 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
   get_planes(c.image, "total.", acc.total, what);
   acc.total.dropped = dropped_total;
   partial.clear();
-  if (pos.camera_done > 0) {
+  if (pos.camera_done > 0 && !pos.finished) {
     get_planes(c.image, "partial.", partial, what);
     partial.dropped = dropped_partial;
   }
-  acc.recent.clear();
-  for (size_t k = 0; k < variances.size(); ++k) {
-    IterationImage img;
-    img.mean_variance = variances[k];
-    img.rgb.resize(c.image.pixel_count() * 3);
+  acc.runs.clear();
+  acc.skipped = skipped;
+  for (size_t k = 0; k < run_spp.size() / 2; ++k) {
+    WeightedRun run{run_spp[2 * k], run_spp[2 * k + 1], {}, {}, {}};
+    run.sum.resize(c.image.pixel_count() * 3);
     for (int ch = 0; ch < 3; ++ch) {
-      std::vector<float> v = channel(c.image, fmt::format("iteration{}.{}", k, "RGB"[ch]), what);
-      for (size_t i = 0; i < v.size(); ++i) img.rgb[3 * i + size_t(ch)] = v[i];
+      std::vector<float> v = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[ch]), what);
+      for (size_t i = 0; i < v.size(); ++i) run.sum[3 * i + size_t(ch)] = v[i];
     }
-    acc.recent.push_back(std::move(img));
+    run.weight = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[3]), what);
+    run.variance = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[4]), what);
+    acc.runs.push_back(std::move(run));
   }
   for (const auto& p : cfg.participants) {
     const CheckpointSection* ps = c.find(p.name);
@@ -156,8 +231,9 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       checkpoint_iterations(cumulative, cfg.checkpoint.first, cfg.checkpoint.every_iteration);
   const bool checkpoints = !cfg.checkpoint.dir.empty();
   if (cfg.resume && !checkpoints) throw_error("--resume needs --checkpoint-dir");
+  if (cfg.time_limit > 0 && !cfg.stop) throw_error("internal: a time limit needs the engine's stop request");
 
-  ImageAccumulator acc(film.width, film.height);
+  ImageAccumulator acc(film.width, film.height, cfg.combination, cfg.combine_window);
   Position pos;
   film.clear();
   bool resumed = false;
@@ -165,9 +241,13 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     if (auto c = read_latest_checkpoint(cfg.checkpoint.dir)) {
       restore(*c, cfg, sizes, pos, acc, film);
       resumed = true;
-      log_info("resuming from {} at iteration {} of {} ({} camera samples of it done)",
-               checkpoint_bin_path(cfg.checkpoint.dir, c->generation), pos.iteration + 1, sizes.size(),
-               pos.camera_done);
+      if (pos.finished)
+        log_info("{} holds a render its time limit ended; writing its image, rendering nothing",
+                 checkpoint_bin_path(cfg.checkpoint.dir, c->generation));
+      else
+        log_info("resuming from {} at iteration {} of {} ({} camera samples of it done)",
+                 checkpoint_bin_path(cfg.checkpoint.dir, c->generation), pos.iteration + 1, sizes.size(),
+                 pos.camera_done);
     } else if (cfg.resume) {
       throw_error("--resume: no checkpoint in {}", cfg.checkpoint.dir);
     }
@@ -182,7 +262,13 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     write_checkpoint(cfg.checkpoint.dir, make_checkpoint(cfg, sizes, pos, acc, film));
     ++checkpoints_written;
   };
-  auto stop_requested = [&] { return cfg.stop && cfg.stop->load(); };
+  auto stop_reason = [&] { return cfg.stop ? cfg.stop->reason() : StopReason::None; };
+  auto signalled = [&] { return stop_reason() == StopReason::Signal; };
+  auto time_up = [&] { return stop_reason() == StopReason::TimeLimit; };
+  std::optional<Deadline> deadline;
+  if (cfg.time_limit > 0 && !pos.finished)
+    deadline.emplace(*cfg.stop, cfg.clock_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                      std::chrono::duration<double>(cfg.time_limit)));
 
   nlohmann::json iterations = nlohmann::json::array();
   bool interrupted = false;
@@ -195,11 +281,16 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
               [&](const IterationInfo& it) { cfg.adaptive->update(acc.total, it.index); });
   if (checkpoints)
     tasks.add(BetweenIterationSlot::Checkpoint, [&](const IterationInfo& it) {
-      wrote_this_iteration = planned[size_t(it.index)] || (stop_requested() && !it.last());
+      wrote_this_iteration = planned[size_t(it.index)] || (signalled() && !it.last());
       if (wrote_this_iteration) write();
     });
 
-  for (int i = pos.iteration; i < int(sizes.size()); ++i) {
+  bool ended_by_time_limit = false;
+  for (int i = pos.iteration; i < int(sizes.size()) && !pos.finished; ++i) {
+    if (time_up()) {  // between iterations: the render ends with the ones done
+      pos.finished = ended_by_time_limit = true;
+      break;
+    }
     info.index = i;
     info.spp_begin = uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
     info.spp_end = uint32_t(cumulative[size_t(i)]);
@@ -216,6 +307,24 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       camera_total = uint64_t(film.pixel_count()) * uint64_t(sizes[size_t(i)]);
       done = engine.render(info.spp_begin, info.spp_end, progress, pos.camera_done);
     }
+    if (done < camera_total && time_up()) {
+      // The time limit ends the render inside the iteration: its samples are
+      // kept, folded in like a finished iteration's (each pixel's estimate
+      // divides by the weight it got).  No between-iteration task runs: they
+      // would prepare an iteration that will not come.
+      engine.finish_stopped_iteration();
+      acc.fold(film, info.spp_begin, info.spp_end);
+      film.clear();
+      pos.iteration = i;
+      pos.camera_done = done;
+      pos.finished = ended_by_time_limit = true;
+      iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
+                            {"seconds", seconds_since(ti)},
+                            {"stopped_after_camera_samples", done},
+                            {"of_camera_samples", camera_total}});
+      if (cfg.evaluate) iterations.back().update(cfg.evaluate(info, acc));
+      break;
+    }
     if (done < camera_total) {
       // Stopped inside the iteration: keep exactly the pixel-samples done.
       pos.iteration = i;
@@ -226,7 +335,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       interrupted = true;
       break;
     }
-    acc.fold(film);
+    acc.fold(film, info.spp_begin, info.spp_end);
     film.clear();
     pos.iteration = i + 1;
     pos.camera_done = 0;
@@ -239,17 +348,22 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
                           {"checkpoint", wrote_this_iteration},
                           {"checkpoint_seconds", checkpoint_seconds - before}});
     if (evaluation.is_object()) iterations.back().update(evaluation);
-    if (stop_requested() && !info.last()) {
+    if (signalled() && !info.last()) {
       interrupted = true;
       break;
     }
   }
+  deadline.reset();
+  // The finished render replaces any checkpoint a re-run would continue from.
+  if (ended_by_time_limit && checkpoints) write();
 
   IterationResult result;
   result.interrupted = interrupted;
+  result.ended_by_time_limit = pos.finished;
+  std::tie(result.spp_min, result.spp_max) = spp_range(pos, sizes, cumulative, film.pixel_count(), cfg.adaptive);
   result.dropped_samples = acc.total.dropped.load() + film.dropped.load();
   if (!interrupted) {
-    result.image = acc.resolve(cfg.combination);
+    result.image = acc.resolve();
     result.weight = acc.total.weight;
   }
   double wall = seconds_since(t0);
@@ -258,8 +372,15 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     slot_seconds[kSlotNames[s]] = tasks.seconds(BetweenIterationSlot(s));
   result.log = {{"schedule", sizes},
                 {"combination", combination_name(cfg.combination)},
+                {"combination_used", acc.choice().log()},
                 {"resumed", resumed},
                 {"resumed_at_iteration", first_iteration},
+                {"time_limit",
+                 {{"seconds", cfg.time_limit},
+                  {"reached", pos.finished},
+                  {"reached_in_this_run", ended_by_time_limit},
+                  {"elapsed_seconds", seconds_since(cfg.clock_start)}}},
+                {"spp_per_pixel", {{"min", result.spp_min}, {"max", result.spp_max}}},
                 {"iterations", iterations},
                 {"between_iteration_seconds", slot_seconds},
                 {"checkpoint",

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "checkpoint/checkpoint.h"
+#include "core/stop.h"
 #include "scheduler/adaptive.h"
 #include "scheduler/combine.h"
 #include "scheduler/schedule.h"
@@ -11,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include <atomic>
+#include <chrono>
 #include <functional>
 #include <string>
 #include <vector>
@@ -39,6 +40,7 @@ struct IterationConfig {
   ScheduleOptions schedule = regular_schedule();
   int total_spp = 16;
   Combination combination = Combination::Equal;
+  uint32_t combine_window = 0;           // spp (ImageAccumulator::window)
   uint32_t seed = 0;
   CheckpointOptions checkpoint;          // none when checkpoint.dir is empty
   bool resume = false;                   // --resume: fail if there is nothing to resume
@@ -46,8 +48,18 @@ struct IterationConfig {
   std::vector<CheckpointParticipant> participants;
   // Adaptive sampling: iterations render its per-pixel ranges; it plans the next between iterations.
   AdaptiveSampler* adaptive = nullptr;
-  // Raised (by a signal handler): finish the paths in flight, checkpoint, return.
-  const std::atomic<bool>* stop = nullptr;
+  // The engine's options.stop.  Raised by a signal handler: finish the paths
+  // in flight, checkpoint, return interrupted.  Raised by the time limit:
+  // finish them, keep every sample (the stopped iteration's too), return the
+  // image; with checkpoints, the last one holds the finished render, so the
+  // same command run again writes the same image and renders nothing.
+  StopRequest* stop = nullptr;
+  // > 0 (needs stop): raise stop with StopReason::TimeLimit this many
+  // seconds after clock_start.  Not in the options fingerprint: it changes
+  // where a render ends, not what any sample is.  The budget is this run's:
+  // a resumed render gets it again.
+  double time_limit = 0.0;
+  std::chrono::steady_clock::time_point clock_start = std::chrono::steady_clock::now();
   // (iteration index, fraction of its camera samples generated), from the driving thread.
   std::function<void(int, double)> progress;
   // Called at every iteration boundary, after the iteration is folded in and
@@ -60,6 +72,8 @@ struct IterationConfig {
 struct IterationResult {
   ImageBuffer image;
   bool interrupted = false;        // stopped before the end; the state is in the checkpoint
+  bool ended_by_time_limit = false; // the time limit ended it before its spp (the image holds every sample)
+  uint32_t spp_min = 0, spp_max = 0; // colour samples per pixel in the image, counted from the sample ranges
   uint64_t dropped_samples = 0;    // non-finite samples dropped over every iteration
   std::vector<float> weight;       // per-pixel sum of filter weights over every iteration
   nlohmann::json log;              // schedule, per-iteration times, checkpoint share of wall time

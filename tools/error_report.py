@@ -22,6 +22,19 @@
       this reports how often the bar is met, and how much of each render's
       relMSE its worst pixel holds (one firefly, or noise everywhere).
 
+  error_report.py equal-time [--scenes a,b] [--budgets 2,8,32] [--seeds 3]
+                             [--config NAME=ARGS ...] [--spp CAP] [--out DIR]
+      Equal-time comparison (issue 12): renders each scene under each
+      `--time-limit` budget with seeds 0..N-1 and each configuration
+      (default: unguided = no arguments, guided = --guiding; --config
+      'auto=--guiding auto' adds one; the first is the baseline), and writes a
+      Markdown table of the median over seeds of relMSE and MAPE against the
+      reference (and their ratio to the baseline), the variance across seeds,
+      the spp reached, time per spp, path length, SD-tree leaves and the
+      guide-draw failure rate where the log has them ("-" where it does not).
+      A scene without a reference in tests/data gets one rendered once
+      (unguided, --reference-spp, cached in --out).
+
 Needs Debian's python3-numpy, python3-matplotlib, python3-openimageio
 (tools/install-deps.sh).  Run with /usr/bin/python3.
 """
@@ -66,6 +79,15 @@ PBRT_256 = {
     "veach-ajar": (0.679, 0.0093, 0.0046),
 }
 REL_EPS = 1e-2  # as core/metrics.h
+
+# `equal-time`: issue 12's scenes and configurations (the first is the baseline).
+EQUAL_TIME_SCENES = VALIDATION_SCENES + [("guiding-panel", "scenes/guiding-panel/scene.pbrt", None)]
+EQUAL_TIME_DEFAULT_SCENES = ["guiding-panel", "cornell-box", "living-room", "material-testball", "veach-mis",
+                             "veach-ajar"]
+EQUAL_TIME_CONFIGURATIONS = [("unguided", []), ("guided", ["--guiding"])]
+# Where a render log may hold the guide-draw failure rate (the share of guided
+# draws that end the path); the first key found anywhere in the log is used.
+GUIDE_FAILURE_KEYS = ("guide_draw_failure_rate", "draw_failure_rate", "guide_failure_rate")
 
 
 # ---------------------------------------------------------------- metrics
@@ -302,6 +324,153 @@ def seeds(theia, scene_name, spp, n, out_dir, extra):
     return passed
 
 
+# ---------------------------------------------------------------- equal time
+
+
+def find_key(tree, keys):
+    """The value of the first of `keys` found anywhere in a JSON tree (depth first), or None."""
+    if isinstance(tree, dict):
+        for k in keys:
+            if k in tree and isinstance(tree[k], (int, float)):
+                return float(tree[k])
+        for v in tree.values():
+            found = find_key(v, keys)
+            if found is not None:
+                return found
+    return None
+
+
+def log_statistics(log):
+    """What an equal-time row reports from a render's log (None where absent)."""
+    w, h = log.get("resolution", [0, 0])
+    camera = log.get("rays", {}).get("camera")
+    render = log.get("time", {}).get("render")
+    spp = log.get("scheduler", {}).get("spp_per_pixel", {})
+    mean_spp = camera / (w * h) if camera and w and h else None
+    return {"seconds_per_spp": render / mean_spp if render is not None and mean_spp else None,
+            "spp_min": spp.get("min"), "spp_max": spp.get("max"),
+            "path_length": log.get("paths", {}).get("average_length"),
+            "leaves": log.get("guiding", {}).get("spatial_leaves"),
+            "guide_failure_rate": find_key(log, GUIDE_FAILURE_KEYS)}
+
+
+EQUAL_TIME_METRICS = ("rel_mse", "mape", "seconds_per_spp", "spp_min", "spp_max", "path_length", "leaves",
+                      "guide_failure_rate", "seed_variance")
+
+
+def aggregate(rows):
+    """Rows (one per scene, configuration, budget and seed) to one group per
+    (scene, configuration, budget), in first-seen order: the median over
+    seeds of every metric (None where no seed has it) and the seed count."""
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["scene"], r["configuration"], r["budget"]), []).append(r)
+    out = []
+    for (scene, config, budget), rs in groups.items():
+        g = {"scene": scene, "configuration": config, "budget": budget, "seeds": len(rs)}
+        for m in EQUAL_TIME_METRICS:
+            values = [r[m] for r in rs if r.get(m) is not None]
+            g[m] = float(np.median(values)) if values else None
+        out.append(g)
+    return out
+
+
+def equal_time_table(groups, baseline):
+    """Markdown lines: one row per group; relMSE also as a ratio to the
+    baseline configuration's at the same scene and budget."""
+    base = {(g["scene"], g["budget"]): g for g in groups if g["configuration"] == baseline}
+
+    def num(v, fmt="{:.4g}"):
+        return "-" if v is None else fmt.format(v)
+
+    lines = ["| scene | configuration | budget [s] | seeds | spp (min-max) | relMSE | relMSE / "
+             f"{baseline} | MAPE | variance across seeds | time per spp [s] | path length | leaves | "
+             "guide-draw failures |",
+             "|---" * 13 + "|"]
+    for g in groups:
+        b = base.get((g["scene"], g["budget"]))
+        ratio = g["rel_mse"] / b["rel_mse"] if b and g["rel_mse"] is not None and b["rel_mse"] else None
+        spp = "-" if g["spp_min"] is None else f"{g['spp_min']:.0f}-{g['spp_max']:.0f}"
+        lines.append(f"| {g['scene']} | {g['configuration']} | {g['budget']:g} | {g['seeds']} | {spp} | "
+                     f"{num(g['rel_mse'])} | {num(ratio, '{:.3f}')} | {num(g['mape'])} | {num(g['seed_variance'])} | "
+                     f"{num(g['seconds_per_spp'], '{:.4f}')} | {num(g['path_length'], '{:.2f}')} | "
+                     f"{num(g['leaves'], '{:.0f}')} | {num(g['guide_failure_rate'], '{:.1%}')} |")
+    return lines
+
+
+def seed_variance(images):
+    """Mean over pixels and RGB of the per-pixel sample variance across seeds' images."""
+    if len(images) < 2:
+        return None
+    return float(np.mean(np.var(np.stack(images), axis=0, ddof=1)))
+
+
+def parse_configuration(text):
+    """'NAME=ARGS' (ARGS split as a shell would) to (name, [args])."""
+    name, _, args = text.partition("=")
+    if not name:
+        sys.exit(f"--config {text}: expected NAME=ARGS")
+    return name, shlex.split(args)
+
+
+def equal_time_reference(theia, name, scene, ref, spp, out_dir):
+    if ref:
+        return os.path.join(ROOT, ref)
+    path = os.path.join(out_dir, f"{name}-reference.exr")
+    if not os.path.exists(path):
+        cmd = [theia, "render", scene, "-o", path, "--spp", str(spp), "--seed", "1000003", "-q"]
+        print(" ".join(shlex.quote(a) for a in cmd), flush=True)
+        subprocess.run(cmd, check=True)
+    return path
+
+
+def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, reference_spp, out_dir):
+    scenes = {sc[0]: sc for sc in EQUAL_TIME_SCENES}
+    os.makedirs(out_dir, exist_ok=True)
+    rows = []
+    for name in scene_names:
+        if name not in scenes:
+            sys.exit(f"--scenes: unknown scene {name}; known: {', '.join(scenes)}")
+        _, scene, ref = scenes[name]
+        scene = os.path.join(ROOT, scene)
+        reference = read_rgb(equal_time_reference(theia, name, scene, ref, reference_spp, out_dir))
+        for label, args in configurations:
+            for budget in budgets:
+                images, group = [], []
+                for seed in range(n_seeds):
+                    out = os.path.join(out_dir, f"{name}-{label}-{budget:g}s-seed{seed}.exr")
+                    cmd = [theia, "render", scene, "-o", out, "--spp", str(spp_cap), "--time-limit", f"{budget:g}",
+                           "--seed", str(seed), "-q"] + args
+                    print(" ".join(shlex.quote(a) for a in cmd), flush=True)
+                    subprocess.run(cmd, check=True)
+                    with open(os.path.splitext(out)[0] + ".json") as f:
+                        log = json.load(f)
+                    image = read_rgb(out)
+                    images.append(image)
+                    group.append({"scene": name, "configuration": label, "budget": budget, "seed": seed,
+                                  **error_metrics(image, reference), **log_statistics(log)})
+                v = seed_variance(images)
+                for r in group:
+                    r["seed_variance"] = v
+                rows += group
+    groups = aggregate(rows)
+    lines = [f"# Equal time: median of {n_seeds} seeds", "",
+             "Each render: `theia render SCENE --spp " + str(spp_cap) + " --time-limit BUDGET --seed S` plus the "
+             "configuration's arguments; relMSE and MAPE against the reference (tests/data, or rendered unguided at "
+             f"{reference_spp} spp), time per spp = render time / mean spp, path length in vertices.", "",
+             "Configurations: " + ", ".join(f"{label} = `{' '.join(args) or '(none)'}`"
+                                            for label, args in configurations), ""]
+    lines += equal_time_table(groups, configurations[0][0]) + [""]
+    path = os.path.join(out_dir, "equal-time.md")
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+    with open(os.path.join(out_dir, "equal-time.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+    print("\n".join(lines))
+    print(f"wrote {path}")
+    return groups
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
@@ -324,11 +493,27 @@ def main():
     sp.add_argument("--spp", type=int, default=256)
     sp.add_argument("--seeds", type=int, default=12)
     sp.add_argument("--out", default="out/seeds")
+    ep = sub.add_parser("equal-time", help="configurations at equal render time (--time-limit), median of seeds")
+    ep.add_argument("--theia", default=os.path.join(ROOT, "build", "theia"))
+    ep.add_argument("--scenes", default=",".join(EQUAL_TIME_DEFAULT_SCENES))
+    ep.add_argument("--budgets", default="2,8,32", help="seconds of render time, comma-separated")
+    ep.add_argument("--seeds", type=int, default=3)
+    ep.add_argument("--config", action="append", metavar="NAME=ARGS",
+                    help="a configuration (repeatable; the first is the baseline); default: "
+                    + ", ".join(f"{n}={' '.join(a)}" for n, a in EQUAL_TIME_CONFIGURATIONS))
+    ep.add_argument("--spp", type=int, default=65536, help="upper bound on spp (the time limit ends the renders)")
+    ep.add_argument("--reference-spp", type=int, default=4096)
+    ep.add_argument("--out", default="out/equal-time")
     # Everything after "--" goes to `theia render` (argparse's subparsers would take it as theirs).
     argv = sys.argv[1:]
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     a = ap.parse_args(argv[:argv.index("--")] if "--" in argv else argv)
 
+    if a.command == "equal-time":
+        configs = [parse_configuration(c) for c in a.config] if a.config else EQUAL_TIME_CONFIGURATIONS
+        equal_time(a.theia, a.scenes.split(","), [float(b) for b in a.budgets.split(",")], a.seeds, configs,
+                   a.spp, a.reference_spp, a.out)
+        return
     if a.command == "seeds":
         seeds(a.theia, a.scene, a.spp, a.seeds, a.out, extra)
         return

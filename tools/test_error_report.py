@@ -86,5 +86,70 @@ class Seeds(unittest.TestCase):
         self.assertAlmostEqual(er.worst_pixel(x, r)[1], 0.5)
 
 
+class EqualTime(unittest.TestCase):
+    """`equal-time`'s aggregation and table on synthetic rows (no rendering)."""
+
+    def rows(self):
+        rows = []
+        for scene in ("box", "panel"):
+            for config, scale in (("unguided", 1.0), ("guided", 0.25)):
+                for budget in (2.0, 8.0):
+                    for seed, x in enumerate((1.0, 3.0, 2.0)):  # median 2
+                        rows.append({"scene": scene, "configuration": config, "budget": budget, "seed": seed,
+                                     "rel_mse": scale * x / budget, "mape": 0.1 * x, "seconds_per_spp": 0.01 * x,
+                                     "spp_min": 10 * x, "spp_max": 11 * x, "path_length": 3.0 + x,
+                                     "leaves": 40.0 + x if config == "guided" else None,
+                                     "guide_failure_rate": None, "seed_variance": 0.5})
+        return rows
+
+    def test_median_over_seeds_per_scene_configuration_and_budget(self):
+        groups = er.aggregate(self.rows())
+        self.assertEqual(len(groups), 2 * 2 * 2)
+        self.assertEqual([(g["scene"], g["configuration"], g["budget"]) for g in groups[:3]],
+                         [("box", "unguided", 2.0), ("box", "unguided", 8.0), ("box", "guided", 2.0)])
+        g = groups[2]
+        self.assertEqual(g["seeds"], 3)
+        self.assertAlmostEqual(g["rel_mse"], 0.25 * 2.0 / 2.0)
+        self.assertAlmostEqual(g["mape"], 0.2)
+        self.assertAlmostEqual(g["leaves"], 42.0)
+        self.assertIsNone(groups[0]["leaves"])          # no seed has it
+        self.assertIsNone(g["guide_failure_rate"])
+
+    def test_table_has_one_row_per_group_ratios_to_the_baseline_and_dashes_where_absent(self):
+        lines = er.equal_time_table(er.aggregate(self.rows()), "unguided")
+        self.assertEqual(len(lines), 2 + 8)
+        header = [c.strip() for c in lines[0].strip("|").split("|")]
+        self.assertEqual(len(header), 13)
+        self.assertIn("relMSE / unguided", header)
+        for line in lines[2:]:
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            self.assertEqual(len(cells), len(header))
+            row = dict(zip(header, cells))
+            self.assertEqual(row["relMSE / unguided"], "0.250" if row["configuration"] == "guided" else "1.000")
+            self.assertEqual(row["guide-draw failures"], "-")
+            self.assertEqual(row["leaves"], "42" if row["configuration"] == "guided" else "-")
+            self.assertEqual(row["spp (min-max)"], "20-22")
+
+    def test_log_statistics_read_what_the_log_has(self):
+        log = {"resolution": [10, 10], "rays": {"camera": 400}, "time": {"render": 2.0},
+               "scheduler": {"spp_per_pixel": {"min": 3, "max": 5}}, "paths": {"average_length": 3.5},
+               "guiding": {"spatial_leaves": 82, "sampling": {"guide_draw_failure_rate": 0.1}}}
+        s = er.log_statistics(log)
+        self.assertAlmostEqual(s["seconds_per_spp"], 0.5)  # 2 s over 4 spp
+        self.assertEqual((s["spp_min"], s["spp_max"], s["leaves"]), (3, 5, 82))
+        self.assertAlmostEqual(s["guide_failure_rate"], 0.1)
+        bare = er.log_statistics({"resolution": [10, 10]})
+        self.assertTrue(all(v is None for v in bare.values()))
+
+    def test_variance_across_seeds_and_configurations(self):
+        a, b = er.np.zeros((2, 2, 3)), er.np.full((2, 2, 3), 2.0)
+        self.assertAlmostEqual(er.seed_variance([a, b]), 2.0)  # (1 + 1) / (2 - 1)
+        self.assertIsNone(er.seed_variance([a]))
+        self.assertEqual(er.parse_configuration("auto=--guiding auto"), ("auto", ["--guiding", "auto"]))
+        self.assertEqual(er.parse_configuration("unguided="), ("unguided", []))
+        with self.assertRaises(SystemExit):
+            er.parse_configuration("=--guiding")
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -84,7 +84,7 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
   next_camera = std::min(first_camera, camera_end);
   // Once stopped, no camera ray is generated: the paths in flight finish,
   // so exactly the pixel-samples [first_camera, next_camera) are complete.
-  auto stopped = [&] { return opt.stop && opt.stop->load(std::memory_order_relaxed); };
+  auto stopped = [&] { return opt.stop && opt.stop->raised(); };
   auto report = [&] {
     if (progress) progress(camera_end ? double(next_camera) / double(camera_end) : 1.0);
   };
@@ -128,14 +128,17 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
   }
   // The iteration's camera samples are all in: the caustic pass adds its
   // estimate for the same samples (an interrupted iteration runs it when resumed).
-  if (caustics && next_camera == camera_end) {
-    ScopedTimer timer(stats.phases[Phase::Caustics]);
-    caustics->trace(film, sample_begin, sample_begin + sample_count,
-                    [this](const SurfaceInteraction& si) { return footprint(si); });
-  }
+  if (next_camera == camera_end) trace_caustics();
   report();
   stats.render_seconds += seconds_since(t0);
   return next_camera;
+}
+
+void WavefrontEngine::Impl::trace_caustics() {
+  if (!caustics) return;
+  ScopedTimer timer(stats.phases[Phase::Caustics]);
+  caustics->trace(film, sample_begin, sample_begin + sample_count,
+                  [this](const SurfaceInteraction& si) { return footprint(si); });
 }
 
 // One batch: its rays traced, their hits shaded, the rays they spawn queued.
@@ -333,6 +336,12 @@ uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function
   uint64_t done = impl_->render(0, 0, first_camera_sample, progress);
   impl_->ranges = nullptr;
   return done;
+}
+
+void WavefrontEngine::finish_stopped_iteration() {
+  auto t0 = std::chrono::steady_clock::now();
+  impl_->trace_caustics();
+  impl_->stats.render_seconds += seconds_since(t0);
 }
 
 const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }

@@ -12,6 +12,7 @@
 
 #include "cachepoints/light_sampler.h"
 #include "core/directional_guide.h"
+#include "core/stop.h"
 #include "core/stats.h"
 #include "wavefront/caustics.h"
 #include "scene/accel.h"
@@ -45,9 +46,9 @@ struct EngineOptions {
   // N-th bounce debug buffer is compared with (only light arriving at
   // vertices of depth >= N, throughput 1 at hit N).
   int throughput_reset_bounce = -1;
-  // When set (e.g. by a SIGTERM handler), render() generates no more camera
-  // rays, finishes the paths in flight and returns early.
-  const std::atomic<bool>* stop = nullptr;
+  // When raised (a SIGTERM handler, a time limit), render() generates no
+  // more camera rays, finishes the paths in flight and returns early.
+  const StopRequest* stop = nullptr;
   // Consistent alpha: only samples with index below alpha_spp count for alpha
   // (and the first-hit AOVs), so alpha has the same samples in every render
   // pass whatever adaptive sampling does with colour.  0: every sample counts.
@@ -156,6 +157,12 @@ class WavefrontEngine {
   // The same with a sample range per pixel, numbered g = offset[pixel] + (sample - begin[pixel]).
   uint64_t render(const SampleRanges& ranges, const std::function<void(double)>& progress = {},
                   uint64_t first_camera_sample = 0);
+  // The last render() was stopped and its samples are kept as they are (a
+  // time limit ends the render there): the caustic pass adds its estimate for
+  // that iteration's samples, as a finished iteration's does.  Its estimate
+  // is per pixel, scaled by the pixel's own weight, so a pixel the iteration
+  // did not reach gets none and one it reached is complete.
+  void finish_stopped_iteration();
 
   const EngineStats& stats() const;
   // The pool and batch sizes in use (engine_sizes of the options).

@@ -109,6 +109,7 @@ struct WavefrontEngine::Impl {
   // ---- the loop and its stages
   uint64_t render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const std::function<void(double)>& progress);
   void process_batch(Batch& b);
+  void trace_caustics();                    // the caustic pass over this iteration's samples
   void generate_camera_rays(size_t count);  // camera_rays.cpp
   void sort_rays(Batch& b);
   void trace_closest(const Batch& b);

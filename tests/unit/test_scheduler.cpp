@@ -7,6 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <random>
+
 using namespace theia;
 
 TEST(Schedule, RegularDoublesToTheMaximumAndHitsTheTotal) {
@@ -90,6 +94,55 @@ void set_halves(Film& f, float even, float odd) {
     f.splat(0, s, RGB(v));
   }
 }
+
+// A synthetic iteration of `n` spp (n even) on a W x H grey image whose true
+// value is `truth`: every sample has weight 1 and value truth + sigma * z.
+// Antithetic (z = +1 on even samples, -1 on odd): every pixel's half-buffer
+// variance is exactly sigma^2 / n, and the pixel exact.  Otherwise z is
+// standard normal from `rng`.
+constexpr int kW = 48, kH = 32;
+constexpr float kTruth = 0.5f;
+
+void synthetic_iteration(Film& f, uint32_t spp_begin, uint32_t n, float sigma, std::mt19937* rng) {
+  f.clear();
+  std::normal_distribution<float> normal;
+  for (uint32_t p = 0; p < f.pixel_count(); ++p)
+    for (uint32_t s = spp_begin; s < spp_begin + n; ++s) {
+      float z = rng ? normal(*rng) : (s % 2 ? -1.0f : 1.0f);
+      f.add_weight(p, s, 1.0f);
+      f.splat(p, s, RGB(kTruth + sigma * z));
+    }
+}
+
+// Folds iterations of the given sizes and per-sample standard deviations.
+void accumulate(ImageAccumulator& acc, const std::vector<uint32_t>& sizes, const std::vector<float>& sigmas,
+                std::mt19937* rng) {
+  Film it(kW, kH);
+  uint32_t begin = 0;
+  for (size_t k = 0; k < sizes.size(); ++k) {
+    synthetic_iteration(it, begin, sizes[k], sigmas[k], rng);
+    acc.fold(it, begin, begin + sizes[k]);
+    begin += sizes[k];
+  }
+}
+
+ImageBuffer equal_image(const ImageAccumulator& acc) { return resolve_film(acc.total); }
+
+double mse_against_truth(const ImageBuffer& img) {
+  double sum = 0.0;
+  for (size_t i = 0; i < img.pixel_count(); ++i) {
+    double d = img.data[i * img.channels.size()] - working_to_srgb(RGB(kTruth)).x;
+    sum += d * d;
+  }
+  return sum / double(img.pixel_count());
+}
+
+double max_abs_difference(const ImageBuffer& a, const ImageBuffer& b) {
+  double worst = 0.0;
+  for (size_t i = 0; i < a.data.size(); ++i) worst = std::max(worst, double(std::abs(a.data[i] - b.data[i])));
+  return worst;
+}
+
 }  // namespace
 
 TEST(Combination, HalfBufferVarianceOfThePixelEstimate) {
@@ -101,25 +154,121 @@ TEST(Combination, HalfBufferVarianceOfThePixelEstimate) {
   EXPECT_EQ(half_buffer_variance(f)[0], -1.0f);  // one sample: unknown
 }
 
-TEST(Combination, EqualWeightsEverySampleInverseVarianceWeightsWholeIterations) {
+TEST(Combination, EqualWeightingSumsEverySampleAndKeepsNoIterationImages) {
   Film it(1, 1);
   ImageAccumulator acc(1, 1);
-  set_halves(it, 1.0f, 3.0f);  // mean 2, variance 1
-  acc.fold(it);
-  set_halves(it, 3.5f, 4.5f);  // mean 4, variance 1/4
-  acc.fold(it);
-  EXPECT_FLOAT_EQ(acc.resolve(Combination::Equal).data[0], 3.0f);
-  // Weights 1 and 4: (2 + 16) / 5.
-  EXPECT_FLOAT_EQ(acc.resolve(Combination::InverseVariance).data[0], 3.6f);
-  // Only the last four iterations count.
-  for (int k = 0; k < 4; ++k) {
-    set_halves(it, 9.5f, 10.5f);
-    acc.fold(it);
-  }
-  EXPECT_EQ(acc.recent.size(), kInverseVarianceWindow);
-  EXPECT_FLOAT_EQ(acc.resolve(Combination::InverseVariance).data[0], 10.0f);
+  set_halves(it, 1.0f, 3.0f);
+  acc.fold(it, 0, 2);
+  set_halves(it, 3.5f, 4.5f);
+  acc.fold(it, 2, 4);
+  EXPECT_FLOAT_EQ(acc.resolve().data[0], 3.0f);
+  EXPECT_TRUE(acc.runs.empty());
+  EXPECT_EQ(acc.choice().used, Combination::Equal);
   EXPECT_EQ(parse_combination("inverse-variance"), Combination::InverseVariance);
   EXPECT_THROW(parse_combination("best"), Error);
+}
+
+// (a) Iterations of equal per-sample variance get equal weights per sample:
+// the weighted image is the equal one, whatever the iteration sizes.
+TEST(Combination, EqualPerSampleVarianceGivesTheEqualWeightImage) {
+  const std::vector<uint32_t> sizes = {2, 2, 4, 8, 16, 16};
+  for (uint32_t window : {0u, 48u}) {
+    SCOPED_TRACE(window);
+    ImageAccumulator acc(kW, kH, Combination::InverseVariance, window);
+    accumulate(acc, sizes, std::vector<float>(sizes.size(), 0.3f), nullptr);
+    EXPECT_LT(max_abs_difference(acc.resolve(), equal_image(acc)), 1e-6);
+  }
+  // With noise drawn at random and the default window (the last half of the
+  // samples, whole iterations: here 32 of 48), the weighted image has fewer
+  // samples at the same per-sample variance: equal weights are used.
+  std::mt19937 rng(7);
+  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 0);
+  accumulate(acc, sizes, std::vector<float>(sizes.size(), 0.3f), &rng);
+  CombinationChoice c = acc.choice();
+  EXPECT_EQ(c.used, Combination::Equal) << c.why;
+  EXPECT_GT(c.weighted_variance, 1.25 * c.equal_variance);  // 48 / 32 spp: 1.5 expected
+  EXPECT_EQ(max_abs_difference(acc.resolve(), equal_image(acc)), 0.0);
+}
+
+// (b) Later iterations much less noisy (guiding that has learned): they are
+// weighted, and the image is closer to the truth than with equal weights.
+TEST(Combination, MuchBetterLaterIterationsAreWeighted) {
+  std::mt19937 rng(11);
+  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 0);
+  accumulate(acc, {16, 16, 16, 16, 16, 16, 16, 16}, {1, 1, 1, 1, 0.05f, 0.05f, 0.05f, 0.05f}, &rng);
+  CombinationChoice c = acc.choice();
+  ASSERT_EQ(c.used, Combination::InverseVariance) << c.why;
+  EXPECT_EQ(c.window_begin, 64u);
+  EXPECT_EQ(c.window_end, 128u);
+  EXPECT_LT(c.weighted_variance, 0.1 * c.equal_variance);
+  const double weighted = mse_against_truth(acc.resolve()), equal = mse_against_truth(equal_image(acc));
+  EXPECT_LT(weighted, 0.1 * equal);
+  // Its variance estimate is right to within its own noise.
+  EXPECT_NEAR(weighted / c.weighted_variance, 1.0, 0.2);
+  EXPECT_NEAR(equal / c.equal_variance, 1.0, 0.2);
+}
+
+// (c) Never worse than equal weights: what resolve() uses is never estimated
+// noisier than the equal image, and is no noisier in fact, over schedules and
+// variance sequences of every shape (better, worse, mixed, noisy at the end).
+TEST(Combination, NeverWorseThanEqualWeights) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> sigma(0.05f, 2.0f);
+  const std::vector<uint32_t> sizes = {4, 4, 8, 8, 16, 16, 16, 16, 16};
+  int weighted = 0;
+  for (int trial = 0; trial < 12; ++trial) {
+    SCOPED_TRACE(trial);
+    std::vector<float> sigmas(sizes.size());
+    for (float& s : sigmas) s = sigma(rng);
+    ImageAccumulator acc(kW, kH, Combination::InverseVariance, trial % 2 ? 0 : 64);
+    accumulate(acc, sizes, sigmas, &rng);
+    CombinationChoice c = acc.choice();
+    ASSERT_GE(c.equal_variance, 0.0);
+    if (c.used == Combination::InverseVariance) {
+      ++weighted;
+      EXPECT_LT(c.weighted_variance, c.equal_variance);
+    }
+    EXPECT_LE(mse_against_truth(acc.resolve()), 1.1 * mse_against_truth(equal_image(acc)));
+  }
+  EXPECT_GT(weighted, 0);  // the cases include some the weighting wins
+}
+
+// However many iterations, the weighting keeps at most kMaxBlocks runs, all in the window.
+TEST(Combination, MemoryIsBoundedAndTheWindowSlides) {
+  std::mt19937 rng(5);
+  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 40);
+  Film it(kW, kH);
+  uint32_t begin = 0;
+  for (int k = 0; k < 30; ++k, begin += 4) {
+    synthetic_iteration(it, begin, 4, 0.2f, &rng);
+    acc.fold(it, begin, begin + 4);
+    ASSERT_LE(acc.runs.size(), ImageAccumulator::kMaxBlocks);
+    EXPECT_GT(acc.runs.front().spp_end, begin + 4 > 40 ? begin + 4 - 40 : 0);  // inside the window
+    EXPECT_EQ(acc.runs.back().spp_end, begin + 4);
+  }
+  // The runs cover at least the window and are contiguous.
+  EXPECT_LE(acc.runs.front().spp_begin, begin - 40);
+  for (size_t k = 1; k < acc.runs.size(); ++k) EXPECT_EQ(acc.runs[k].spp_begin, acc.runs[k - 1].spp_end);
+}
+
+// An iteration a time limit stopped reached only the first pixels: the
+// others get nothing from it (not black), and weighting stays unbiased.
+TEST(Combination, APartIterationWeighsOnlyWhereItHasSamples) {
+  std::mt19937 rng(9);
+  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 0);
+  Film part(kW, kH);
+  synthetic_iteration(part, 0, 16, 1.0f, &rng);
+  acc.fold(part, 0, 16);
+  synthetic_iteration(part, 16, 16, 0.05f, &rng);
+  const size_t reached = part.pixel_count() / 3;
+  for (size_t p = reached; p < part.pixel_count(); ++p)
+    for (size_t q = 0; q < Film::kPlaneCount; ++q) (*part.plane(q))[p] = 0.0f;
+  acc.fold(part, 16, 32);
+  ImageBuffer img = acc.resolve();
+  const float truth = working_to_srgb(RGB(kTruth)).x;
+  double far = 0.0;
+  for (size_t p = reached; p < img.pixel_count(); ++p) far += img.data[p * img.channels.size()];
+  EXPECT_NEAR(far / double(img.pixel_count() - reached), truth, 0.05);
 }
 
 // The film holds the working colour space (Rec.2020) and the output is linear
@@ -128,7 +277,7 @@ TEST(Combination, EqualWeightsEverySampleInverseVarianceWeightsWholeIterations) 
 // the sRGB image: a 31% channel-mean error on the Cornell box).
 TEST(Combination, InverseVarianceResolvesInTheOutputColourSpace) {
   Film it(1, 1);
-  ImageAccumulator acc(1, 1);
+  ImageAccumulator acc(1, 1, Combination::InverseVariance, 0);
   const RGB colour = srgb_to_working(RGB(0.9f, 0.1f, 0.05f));
   for (int k = 0; k < 2; ++k) {
     it.clear();
@@ -136,9 +285,9 @@ TEST(Combination, InverseVarianceResolvesInTheOutputColourSpace) {
       it.add_weight(0, s, 1.0f);
       it.splat(0, s, colour * (s ? 1.2f : 0.8f));  // a known, non-zero variance
     }
-    acc.fold(it);
+    acc.fold(it, uint32_t(2 * k), uint32_t(2 * k + 2));
   }
-  ImageBuffer equal = acc.resolve(Combination::Equal), iv = acc.resolve(Combination::InverseVariance);
+  ImageBuffer equal = resolve_film(acc.total), iv = acc.resolve();
   for (int c = 0; c < 3; ++c) {
     EXPECT_NEAR(equal.data[size_t(c)], RGB(0.9f, 0.1f, 0.05f)[c], 1e-5f) << c;
     EXPECT_NEAR(iv.data[size_t(c)], equal.data[size_t(c)], 1e-5f) << c;

@@ -97,6 +97,11 @@ void RecorderFeature::write_log(nlohmann::json& log) const {
                      {"recorded_vertices", rs.recorded},
                      {"skipped_vertices", rs.skipped_vertices},
                      {"merged_vertices", rs.merged_vertices},
+                     {"untrainable_vertices", rs.untrainable},
+                     {"untrainable_merged", rs.untrainable_merged},
+                     {"samples", rs.samples},
+                     {"sort_seconds", rs.sort_seconds},
+                     {"consume_seconds", rs.consume_seconds},
                      {"dropped", rs.dropped}};
   log["memory"]["recorder"] = recorder_->peak_bytes();
 }

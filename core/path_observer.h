@@ -42,6 +42,9 @@ struct PathVertexInfo {
   bool is_nee = false;
   bool delta_light = false;  // an NEE ray to a point-like light: its direction has no density
   bool in_medium = false;
+  // The engine guides directions at this BSDF (bsdf_is_guidable); a sample
+  // from one it never guides trains nothing, so the recorder does not make one.
+  bool guidable = true;
 };
 
 class PathObserver {

@@ -8,12 +8,12 @@
 //   shadow_rays.cpp   trace shadow rays and splat the unoccluded ones
 #pragma once
 
+#include "core/radix_sort.h"
 #include "core/sampler.h"
 #include "scene/bsdf.h"
 #include "wavefront/engine.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
-#include "wavefront/radix_sort.h"
 #include "wavefront/sample_dims.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -46,6 +46,7 @@ struct ShadingPoint {
   RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
   BounceDims dims{};
   uint8_t caustic_flags = 0;  // kPathCausticReceiver / kPathCausticCaster at this vertex
+  bool guidable = false;      // bsdf_is_guidable: the engine guides here when it has a guide
   uint32_t guide_region = kNoGuideRegion;
   float guide_fraction = 0.0f;  // > 0: directions come from the guide/BSDF mixture
 };

@@ -63,6 +63,11 @@ class PathObserver {
   // Nothing more will arrive at `vertex` from its own ray (one per created or
   // continued vertex).
   virtual void vertex_done(uint32_t vertex) = 0;
+  // A hint, no event: events for `vertex` come in a moment.  The engine's
+  // loops call it a few items ahead, since they visit vertices in hit order,
+  // not in the order the observer stored them, and each visit would otherwise
+  // wait for memory.
+  virtual void prefetch(uint32_t /*vertex*/) const {}
 };
 
 }  // namespace theia

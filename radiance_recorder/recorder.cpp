@@ -105,6 +105,9 @@ struct RadianceRecorder::ThreadCache {
   std::vector<TrainingSample> samples;
   int64_t live = 0;        // allocations minus frees not yet added to live_
   int64_t peak = 0;        // the most live vertices this thread saw in this iteration
+  static constexpr uint32_t kHints = 4;
+  uint32_t hinted[kHints] = {kPVNone, kPVNone, kPVNone, kPVNone};  // the last prefetch() hints
+  uint32_t next_hint = 0;
   uint64_t paths = 0, skipped_paths = 0, vertex_events = 0, recorded = 0, skipped_vertices = 0, merged = 0,
            untrainable = 0, untrainable_merged = 0, dropped = 0;
 };
@@ -185,6 +188,8 @@ PVIndex RadianceRecorder::allocate(ThreadCache& tc) {
   }
   PVIndex i = tc.free.back();
   tc.free.pop_back();
+  // The next allocation takes the next index: have its line ready to be written.
+  if (!tc.free.empty()) __builtin_prefetch(&at(tc.free.back()), 1);
   ++tc.live;
   // The shared count is read here and written once a batch: what this thread
   // sees is exact up to the other threads' unflushed batches.
@@ -300,7 +305,8 @@ uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo&
   v.camera_weight = info.camera_weight;
   v.pixel = info.pixel;
   v.sample = info.sample;
-  v.parent = real_parent;
+  // Atomic only for prefetch(), which may read a stale vertex's parent.
+  std::atomic_ref<PVIndex>(v.parent).store(real_parent, std::memory_order_relaxed);
   v.depth = uint16_t(std::clamp(info.depth, 0, 0xffff));
   v.flags = uint8_t((info.is_nee ? kVertexNEE : 0) | (info.in_medium ? kVertexInMedium : 0) |
                     ((info.lobe_flags & (1 << 4)) || info.delta_light ? kVertexDelta : 0) |
@@ -342,6 +348,24 @@ void RadianceRecorder::vertex_continued(uint32_t vertex) {
 void RadianceRecorder::vertex_done(uint32_t vertex) {
   if (is_special(vertex)) return;
   finish(cache(), vertex & ~kPVMergedBit);
+}
+
+// The vertex's lines now; its parent's (where backpropagation adds its
+// light) a few hints later, when the vertex's line has arrived and names it.
+void RadianceRecorder::prefetch(uint32_t vertex) const {
+  ThreadCache& tc = cache();
+  const uint32_t earlier = tc.hinted[tc.next_hint];
+  tc.hinted[tc.next_hint] = vertex;
+  tc.next_hint = (tc.next_hint + 1) % ThreadCache::kHints;
+  if (!is_special(vertex)) {
+    const char* v = reinterpret_cast<const char*>(&at(vertex & ~kPVMergedBit));
+    __builtin_prefetch(v, 1);
+    __builtin_prefetch(v + 64, 1);
+  }
+  if (is_special(earlier) || (earlier & kPVMergedBit)) return;
+  // A vertex hinted but since freed reads a stale parent: the hint is only a hint.
+  const PVIndex parent = std::atomic_ref<PVIndex>(at(earlier).parent).load(std::memory_order_relaxed);
+  if (!is_special(parent)) __builtin_prefetch(&at(parent), 1);
 }
 
 // Backpropagation (section 3.4.3), as a loop up the parent chain.

@@ -175,6 +175,7 @@ class RadianceRecorder final : public PathObserver {
   void emission_added(uint32_t vertex, uint32_t pixel, const RGB& contribution, float mis_weight) override;
   void vertex_continued(uint32_t vertex) override;
   void vertex_done(uint32_t vertex) override;
+  void prefetch(uint32_t vertex) const override;
 
   // Resuming (checkpoint/).  The engine finishes every path before a
   // checkpoint, so no vertex is live then; what the iteration in progress has

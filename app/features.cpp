@@ -97,6 +97,11 @@ void RecorderFeature::write_log(nlohmann::json& log) const {
                      {"recorded_vertices", rs.recorded},
                      {"skipped_vertices", rs.skipped_vertices},
                      {"merged_vertices", rs.merged_vertices},
+                     {"untrainable_vertices", rs.untrainable},
+                     {"untrainable_merged", rs.untrainable_merged},
+                     {"samples", rs.samples},
+                     {"sort_seconds", rs.sort_seconds},
+                     {"consume_seconds", rs.consume_seconds},
                      {"dropped", rs.dropped}};
   log["memory"]["recorder"] = recorder_->peak_bytes();
 }
@@ -126,20 +131,19 @@ void check(const GuidingOptions& o) {
 namespace {
 
 // The recorder's training samples, as the SD-tree takes them: scalar
-// (luminance) radiance, only from directions that had a density (a delta
-// lobe's sample says nothing about a directional distribution) and never
-// from NEE rays: what NEE samples is the light it already finds, and the
-// BSDF-sampled vertices carry its MIS-weighted share (seeds/001 section 10.7,
-// seeds/000 ch. 1 eq. 23).  The key names the vertex, so the field's spatial
-// jitter is a function of the path.
+// (luminance) radiance.  The recorder sends only directions that had a
+// density at guidable BSDFs (a delta lobe's sample says nothing about a
+// directional distribution), and no NEE rays: what NEE samples is the light
+// it already finds, and the BSDF-sampled vertices carry its MIS-weighted
+// share (seeds/001 section 10.7, seeds/000 ch. 1 eq. 23).  The key names the
+// vertex, so the field's spatial jitter is a function of the path.
 class SDTreeTrainer final : public TrainingSampleSink {
  public:
   explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
+  bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
-    for (const TrainingSample& s : samples) {
-      if (s.flags & (kVertexDelta | kVertexNEE)) continue;
+    for (const TrainingSample& s : samples)
       tree_.add_sample(s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags));
-    }
   }
 
  private:

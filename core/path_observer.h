@@ -42,6 +42,9 @@ struct PathVertexInfo {
   bool is_nee = false;
   bool delta_light = false;  // an NEE ray to a point-like light: its direction has no density
   bool in_medium = false;
+  // The engine guides directions at this BSDF (bsdf_is_guidable); a sample
+  // from one it never guides trains nothing, so the recorder does not make one.
+  bool guidable = true;
 };
 
 class PathObserver {
@@ -60,6 +63,11 @@ class PathObserver {
   // Nothing more will arrive at `vertex` from its own ray (one per created or
   // continued vertex).
   virtual void vertex_done(uint32_t vertex) = 0;
+  // A hint, no event: events for `vertex` come in a moment.  The engine's
+  // loops call it a few items ahead, since they visit vertices in hit order,
+  // not in the order the observer stored them, and each visit would otherwise
+  // wait for memory.
+  virtual void prefetch(uint32_t /*vertex*/) const {}
 };
 
 }  // namespace theia

@@ -1,10 +1,17 @@
 #include "radiance_recorder/recorder.h"
 
 #include "core/hash.h"
+#include "core/stats.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstddef>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 namespace theia {
 
@@ -54,40 +61,65 @@ RGB divide(const RGB& em, const glm::dvec3& tp) {
 
 bool is_special(PVIndex h) { return h == kPVNone || h == kPVSkipped || h == kPVDetached; }
 
+// A vertex flag the recorder keeps for itself (never in a sample): the vertex makes one.
+constexpr uint8_t kVertexTrains = 1 << 7;
+
+int bits_for(uint64_t max_value) { return max_value ? 64 - std::countl_zero(max_value) : 0; }
+
 }  // namespace
 
-// 128 bytes: two cache lines.  Emissions are in film units (see
-// core/path_observer.h) and are summed with float atomics; the throughput,
-// the long product, is double.
-struct RadianceRecorder::Vertex {
-  glm::dvec3 tp;           // path throughput at the vertex (camera weight included)
-  vec3 p;                  // origin of the vertex's ray
-  vec3 wi;                 // its direction
+// 128 bytes, two cache lines, aligned: the first holds what the events touch
+// (a child's reference on its parent, emission, backpropagation), the second
+// what is written once and read when the sample is recorded.  Emissions are
+// in film units (see core/path_observer.h); the throughput, the long
+// product, is double.  Only em_indirect is summed by several threads (the
+// children finish anywhere), so only it takes float atomics; the vertex's own
+// ray adds its direct emission one event after the other.
+struct alignas(64) RadianceRecorder::Vertex {
+  std::atomic<uint32_t> refs;
+  PVIndex parent;
   RGB em_indirect;         // from children and merged (unrecorded) descendants
   RGB em_direct;           // found by the vertex's own ray, MIS-weighted (as splatted)
-  RGB em_direct_unweighted;// the same without the MIS weight (TrainingMode::All)
-  RGB local;               // the scattering's own factor (N-th bounce debug buffer)
-  uint32_t n_oct;          // shading normal, octahedral
-  float pdf;
-  float camera_weight;
-  uint32_t pixel, sample;
-  PVIndex parent;
-  std::atomic<uint32_t> refs;
+  RGB em_direct_unweighted;// the same without the MIS weight (TrainingMode::All only)
   uint16_t depth;
   uint8_t flags;
   uint8_t roughness;       // quantised to 1/255
+  uint32_t pixel, sample;
+  float pdf;
+  float camera_weight;
+  // second line
+  glm::dvec3 tp;           // path throughput at the vertex (camera weight included)
+  vec3 p;                  // origin of the vertex's ray
+  vec3 wi;                 // its direction
+  RGB local;               // the scattering's own factor (N-th bounce debug buffer)
+  uint32_t n_oct;          // shading normal, octahedral
 };
 struct RadianceRecorder::Block {
   static_assert(sizeof(Vertex) == 128, "keep a path vertex at two cache lines (the README says so)");
+  static_assert(offsetof(Vertex, tp) == 64, "the event fields fill the first cache line");
   Vertex v[kPVBlockSize];
 };
 
 struct RadianceRecorder::ThreadCache {
   std::vector<PVIndex> free;
   std::vector<TrainingSample> samples;
+  int64_t live = 0;        // allocations minus frees not yet added to live_
+  int64_t peak = 0;        // the most live vertices this thread saw in this iteration
+  static constexpr uint32_t kHints = 4;
+  uint32_t hinted[kHints] = {kPVNone, kPVNone, kPVNone, kPVNone};  // the last prefetch() hints
+  uint32_t next_hint = 0;
   uint64_t paths = 0, skipped_paths = 0, vertex_events = 0, recorded = 0, skipped_vertices = 0, merged = 0,
-           dropped = 0;
+           untrainable = 0, untrainable_merged = 0, dropped = 0;
 };
+
+namespace {
+
+// Live-count changes reach the shared counter this many at a time.
+constexpr int64_t kLiveBatch = 32;
+
+std::atomic<uint64_t> next_recorder_id{1};
+
+}  // namespace
 
 double path_skip_rate(uint64_t paths, uint64_t vertices, double budget) {
   if (budget <= 0.0 || paths == 0 || vertices == 0) return 0.0;
@@ -98,7 +130,8 @@ double path_skip_rate(uint64_t paths, uint64_t vertices, double budget) {
 size_t RadianceRecorder::vertex_bytes() { return sizeof(Vertex); }
 
 RadianceRecorder::RadianceRecorder(const RecorderOptions& options, TrainingSampleSink* sink)
-    : opt_(options), sink_(sink), caches_(new tbb::enumerable_thread_specific<ThreadCache>()) {
+    : opt_(options), sink_(sink), caches_(new tbb::enumerable_thread_specific<ThreadCache>()),
+      id_(next_recorder_id.fetch_add(1, std::memory_order_relaxed)) {
   opt_.max_blocks = std::clamp<uint32_t>(opt_.max_blocks, 1, kPVMaxBlocks);
   opt_.vertex_skip_probability = std::clamp(opt_.vertex_skip_probability, 0.0f, 1.0f);
   blocks_ = std::make_unique<std::atomic<Block*>[]>(opt_.max_blocks);
@@ -111,6 +144,22 @@ RadianceRecorder::RadianceRecorder(const RecorderOptions& options, TrainingSampl
 RadianceRecorder::~RadianceRecorder() {
   for (uint32_t b = 0; b < block_count_.load(); ++b) delete blocks_[b].load();
   delete caches_;
+}
+
+// Every event needs its thread's cache.  The TBB table hashes the thread id
+// on each lookup; events come by the million, so each thread keeps a pointer
+// to its cache of the recorder it served last (named by id_, which no later
+// recorder reuses, unlike an address).
+RadianceRecorder::ThreadCache& RadianceRecorder::cache() const {
+  thread_local struct {
+    uint64_t id = 0;
+    ThreadCache* tc = nullptr;
+  } last;
+  if (last.id != id_) {
+    last.tc = &caches_->local();
+    last.id = id_;
+  }
+  return *last.tc;
 }
 
 RadianceRecorder::Vertex& RadianceRecorder::at(PVIndex i) const {
@@ -139,15 +188,35 @@ PVIndex RadianceRecorder::allocate(ThreadCache& tc) {
   }
   PVIndex i = tc.free.back();
   tc.free.pop_back();
-  uint64_t now = live_.fetch_add(1, std::memory_order_relaxed) + 1;
-  uint64_t peak = peak_live_.load(std::memory_order_relaxed);
-  while (now > peak && !peak_live_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
-  }
+  // The next allocation takes the next index: have its line ready to be written.
+  if (!tc.free.empty()) __builtin_prefetch(&at(tc.free.back()), 1);
+  ++tc.live;
+  // The shared count is read here and written once a batch: what this thread
+  // sees is exact up to the other threads' unflushed batches.
+  tc.peak = std::max(tc.peak, live_.load(std::memory_order_relaxed) + tc.live);
+  if (tc.live >= kLiveBatch) flush_live(tc);
   return i;
 }
 
+void RadianceRecorder::flush_live(ThreadCache& tc) {
+  live_.fetch_add(tc.live, std::memory_order_relaxed);
+  tc.live = 0;
+}
+
+uint64_t RadianceRecorder::iteration_peak_live() const {
+  int64_t peak = peak_live_;
+  for (const ThreadCache& tc : *caches_) peak = std::max(peak, tc.peak);
+  return uint64_t(peak);
+}
+
+uint64_t RadianceRecorder::live_vertices() const {
+  int64_t live = live_.load(std::memory_order_relaxed);
+  for (const ThreadCache& tc : *caches_) live += tc.live;
+  return uint64_t(live);
+}
+
 void RadianceRecorder::release(ThreadCache& tc, PVIndex i) {
-  live_.fetch_sub(1, std::memory_order_relaxed);
+  if (--tc.live <= -kLiveBatch) flush_live(tc);
   tc.free.push_back(i);
   if (tc.free.size() >= 2 * kFreeBatch) {
     std::lock_guard lock(free_mutex_);
@@ -159,7 +228,7 @@ void RadianceRecorder::release(ThreadCache& tc, PVIndex i) {
 // ---------------------------------------------------------------- events
 
 uint32_t RadianceRecorder::path_started(uint32_t pixel, uint32_t sample) {
-  ThreadCache& tc = caches_->local();
+  ThreadCache& tc = cache();
   ++tc.paths;
   if (skip_rate_ > 0.0 && to_unit_float(uint32_t(hash(opt_.seed, pixel, sample, 0x5c1bu))) < skip_rate_) {
     ++tc.skipped_paths;
@@ -168,8 +237,21 @@ uint32_t RadianceRecorder::path_started(uint32_t pixel, uint32_t sample) {
   return kPVNone;
 }
 
+// A sample the guiding field can learn from: a direction with a density,
+// from a BSDF the engine guides (NEE rays per the options).  Without a sink
+// nothing trains; vertices are then kept only for the debug buffers.
+bool RadianceRecorder::trainable(const PathVertexInfo& info) const {
+  const bool delta = (info.lobe_flags & (1 << 4)) || info.delta_light;  // scene/bsdf.h kLobeSpecular
+  return sink_ && !delta && info.guidable && (!info.is_nee || sink_->wants_nee_samples());
+}
+
+// The debug buffers splat the vertices of these depths.
+bool RadianceRecorder::debug_records(int depth) const {
+  return (!debug_primary_.empty() && depth == 0) || (!debug_bounce_.empty() && depth == opt_.debug_bounce);
+}
+
 uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo& info) {
-  ThreadCache& tc = caches_->local();
+  ThreadCache& tc = cache();
   ++tc.vertex_events;
   if (parent == kPVSkipped) return kPVSkipped;
   const PVIndex real_parent = (parent == kPVNone || parent == kPVDetached) ? kPVNone : parent & ~kPVMergedBit;
@@ -181,6 +263,20 @@ uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo&
     at(real_parent).refs.fetch_add(1, std::memory_order_relaxed);
     return real_parent | kPVMergedBit;
   };
+  // A vertex that cannot train makes no sample.  An NEE vertex has no
+  // children, so merging it gives its parent exactly the sum it would have
+  // had (its emission instead of its total, the same number); a scattering
+  // vertex is still allocated, since merging its subtree into the parent
+  // would change the order, hence the rounding, of the parent's sum.  The
+  // debug buffers keep the vertices they splat.
+  const bool trains = trainable(info);
+  if (!trains) {
+    ++tc.untrainable;
+    if (info.is_nee && !debug_records(info.depth)) {
+      ++tc.untrainable_merged;
+      return merge();
+    }
+  }
   if (opt_.vertex_skip_probability > 0.0f &&
       to_unit_float(uint32_t(hash(opt_.seed, info.pixel, info.sample, uint32_t(info.depth), uint32_t(info.is_nee),
                                   0x5eedu))) < opt_.vertex_skip_probability) {
@@ -209,10 +305,12 @@ uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo&
   v.camera_weight = info.camera_weight;
   v.pixel = info.pixel;
   v.sample = info.sample;
-  v.parent = real_parent;
+  // Atomic only for prefetch(), which may read a stale vertex's parent.
+  std::atomic_ref<PVIndex>(v.parent).store(real_parent, std::memory_order_relaxed);
   v.depth = uint16_t(std::clamp(info.depth, 0, 0xffff));
   v.flags = uint8_t((info.is_nee ? kVertexNEE : 0) | (info.in_medium ? kVertexInMedium : 0) |
-                    ((info.lobe_flags & (1 << 4)) || info.delta_light ? kVertexDelta : 0) | ((info.lobe_flags & (1 << 3)) ? kVertexGlossy : 0));
+                    ((info.lobe_flags & (1 << 4)) || info.delta_light ? kVertexDelta : 0) |
+                    ((info.lobe_flags & (1 << 3)) ? kVertexGlossy : 0) | (trains ? kVertexTrains : 0));
   v.roughness = uint8_t(std::round(std::clamp(info.roughness, 0.0f, 1.0f) * 255.0f));
   // Publish the initialised vertex before anyone can reach it through the handle.
   v.refs.store(1, std::memory_order_release);
@@ -226,7 +324,7 @@ void RadianceRecorder::emission_added(uint32_t vertex, uint32_t pixel, const RGB
     // Seen directly from the camera: part of the beauty, in no vertex.
     if (!debug_primary_.empty()) {
       if (!is_finite(c)) {
-        ++caches_->local().dropped;
+        ++cache().dropped;
         return;
       }
       for (int k = 0; k < 3; ++k) atomic_add(debug_primary_[3 * size_t(pixel) + k], c[k]);
@@ -238,8 +336,8 @@ void RadianceRecorder::emission_added(uint32_t vertex, uint32_t pixel, const RGB
     atomic_add(v.em_indirect, c);
     return;
   }
-  atomic_add(v.em_direct, c);
-  if (mis_weight > 0.0f) atomic_add(v.em_direct_unweighted, c / mis_weight);
+  v.em_direct += c;
+  if (opt_.mode == TrainingMode::All && mis_weight > 0.0f) v.em_direct_unweighted += c / mis_weight;
 }
 
 void RadianceRecorder::vertex_continued(uint32_t vertex) {
@@ -249,7 +347,25 @@ void RadianceRecorder::vertex_continued(uint32_t vertex) {
 
 void RadianceRecorder::vertex_done(uint32_t vertex) {
   if (is_special(vertex)) return;
-  finish(caches_->local(), vertex & ~kPVMergedBit);
+  finish(cache(), vertex & ~kPVMergedBit);
+}
+
+// The vertex's lines now; its parent's (where backpropagation adds its
+// light) a few hints later, when the vertex's line has arrived and names it.
+void RadianceRecorder::prefetch(uint32_t vertex) const {
+  ThreadCache& tc = cache();
+  const uint32_t earlier = tc.hinted[tc.next_hint];
+  tc.hinted[tc.next_hint] = vertex;
+  tc.next_hint = (tc.next_hint + 1) % ThreadCache::kHints;
+  if (!is_special(vertex)) {
+    const char* v = reinterpret_cast<const char*>(&at(vertex & ~kPVMergedBit));
+    __builtin_prefetch(v, 1);
+    __builtin_prefetch(v + 64, 1);
+  }
+  if (is_special(earlier) || (earlier & kPVMergedBit)) return;
+  // A vertex hinted but since freed reads a stale parent: the hint is only a hint.
+  const PVIndex parent = std::atomic_ref<PVIndex>(at(earlier).parent).load(std::memory_order_relaxed);
+  if (!is_special(parent)) __builtin_prefetch(&at(parent), 1);
 }
 
 // Backpropagation (section 3.4.3), as a loop up the parent chain.
@@ -260,7 +376,7 @@ void RadianceRecorder::finish(ThreadCache& tc, PVIndex i) {
     // added (relaxed) before the other threads' decrements.
     if (v.refs.fetch_sub(1, std::memory_order_acq_rel) != 1) return;
     record(tc, v);
-    RGB total = load(v.em_indirect) + load(v.em_direct);
+    RGB total = load(v.em_indirect) + v.em_direct;
     PVIndex parent = v.parent;
     release(tc, i);
     if (parent == kPVNone) return;
@@ -270,7 +386,7 @@ void RadianceRecorder::finish(ThreadCache& tc, PVIndex i) {
 }
 
 void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
-  const RGB indirect = load(v.em_indirect), direct = load(v.em_direct);
+  const RGB indirect = load(v.em_indirect), direct = v.em_direct;
   const RGB total = indirect + direct;
   const double keep = (1.0 - skip_rate_) * (1.0 - double(opt_.vertex_skip_probability));
   const float debug_weight = keep > 0.0 ? float(1.0 / keep) : 0.0f;
@@ -290,11 +406,11 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
     else
       ++tc.dropped;
   }
-  if (!sink_) return;
+  if (!(v.flags & kVertexTrains)) return;
 
   RGB radiance = divide(indirect, v.tp);
   if (opt_.mode == TrainingMode::IndirectPlusMISDirect) radiance += divide(direct, v.tp);
-  if (opt_.mode == TrainingMode::All) radiance += divide(load(v.em_direct_unweighted), v.tp);
+  if (opt_.mode == TrainingMode::All) radiance += divide(v.em_direct_unweighted, v.tp);
   if (!is_finite(radiance)) {
     ++tc.dropped;
     return;
@@ -309,7 +425,7 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
   s.pixel = v.pixel;
   s.sample = v.sample;
   s.depth = v.depth;
-  s.flags = v.flags;
+  s.flags = uint8_t(v.flags & ~kVertexTrains);
   tc.samples.push_back(s);
 }
 
@@ -318,8 +434,10 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
 void RadianceRecorder::update_skip_rate() { skip_rate_ = path_skip_rate(last_paths_, last_events_, opt_.vertex_budget); }
 
 void RadianceRecorder::begin_iteration() {
-  run_peak_live_ = std::max(run_peak_live_, peak_live_.load());
-  peak_live_.store(live_.load());
+  for (ThreadCache& tc : *caches_) flush_live(tc);
+  run_peak_live_ = std::max(run_peak_live_, iteration_peak_live());
+  peak_live_ = live_.load();
+  for (ThreadCache& tc : *caches_) tc.peak = 0;
   RecorderStats s = stats();
   iteration_begin_paths_ = s.paths;
   iteration_begin_events_ = s.vertex_events;
@@ -332,31 +450,83 @@ void RadianceRecorder::end_iteration() {
   carried_paths_ = carried_events_ = 0;
   iteration_begin_paths_ = s.paths;  // nothing is in progress until the next begin
   iteration_begin_events_ = s.vertex_events;
+  for (ThreadCache& tc : *caches_) flush_live(tc);
   if (live_.load() != 0)
     throw std::logic_error("radiance recorder: " + std::to_string(live_.load()) +
                            " path vertices still allocated at the end of an iteration (an event was lost)");
   size_t count = 0;
   for (ThreadCache& tc : *caches_) count += tc.samples.size();
-  peak_sample_bytes_ = std::max<uint64_t>(peak_sample_bytes_, count * sizeof(TrainingSample));
+  // The samples, their sorted copy and the sort's keys, at the sort's peak.
+  peak_sample_bytes_ =
+      std::max<uint64_t>(peak_sample_bytes_, count * (2 * sizeof(TrainingSample) + 2 * sizeof(SortPair)));
   if (!sink_) return;
-  std::vector<TrainingSample> all;
-  all.reserve(count);
-  for (ThreadCache& tc : *caches_) {
-    all.insert(all.end(), tc.samples.begin(), tc.samples.end());
-    tc.samples.clear();
+  std::vector<TrainingSample> sorted;
+  {
+    ScopedTimer timer(sort_seconds_);
+    sorted = sorted_samples();
   }
-  // Deterministic order whatever the threads did.
-  std::sort(all.begin(), all.end(), [](const TrainingSample& a, const TrainingSample& b) {
-    if (a.pixel != b.pixel) return a.pixel < b.pixel;
-    if (a.sample != b.sample) return a.sample < b.sample;
-    if (a.depth != b.depth) return a.depth < b.depth;
-    return a.flags < b.flags;
+  samples_ += sorted.size();
+  ScopedTimer timer(consume_seconds_);
+  sink_->consume(sorted);
+}
+
+// Deterministic order whatever the threads did: (pixel, sample, depth,
+// flags) packed into one key with as many bits as this iteration's largest
+// values need (28 on a 128 x 128 frame at 64 spp), radix-sorted with the
+// record's position, then the records gathered in that order.  The keys are
+// unique (one vertex per pixel, sample, depth and kind), so the order is too.
+std::vector<TrainingSample> RadianceRecorder::sorted_samples() {
+  std::vector<const std::vector<TrainingSample>*> parts;
+  std::vector<size_t> offset{0};
+  for (ThreadCache& tc : *caches_) {
+    if (tc.samples.empty()) continue;
+    parts.push_back(&tc.samples);
+    offset.push_back(offset.back() + tc.samples.size());
+  }
+  const size_t n = offset.back();
+  auto sample_at = [&](size_t index) -> const TrainingSample& {
+    size_t p = size_t(std::upper_bound(offset.begin(), offset.end(), index) - offset.begin()) - 1;
+    return (*parts[p])[index - offset[p]];
+  };
+  uint32_t max_pixel = 0, max_sample = 0, max_depth = 0, max_flags = 0;
+  for (const auto* part : parts)
+    for (const TrainingSample& s : *part) {
+      max_pixel = std::max(max_pixel, s.pixel);
+      max_sample = std::max(max_sample, s.sample);
+      max_depth = std::max<uint32_t>(max_depth, s.depth);
+      max_flags = std::max<uint32_t>(max_flags, s.flags);
+    }
+  const int flag_bits = bits_for(max_flags), depth_bits = bits_for(max_depth), sample_bits = bits_for(max_sample);
+  const int key_bits = bits_for(max_pixel) + sample_bits + depth_bits + flag_bits;
+
+  std::vector<SortPair> keys(n), scratch;
+  if (key_bits <= 64) {
+    tbb::parallel_for(size_t(0), parts.size(), [&](size_t p) {
+      const std::vector<TrainingSample>& part = *parts[p];
+      for (size_t i = 0; i < part.size(); ++i) {
+        const TrainingSample& s = part[i];
+        uint64_t key = (((uint64_t(s.pixel) << sample_bits | s.sample) << depth_bits | s.depth) << flag_bits) | s.flags;
+        keys[offset[p] + i] = {key, uint32_t(offset[p] + i)};
+      }
+    });
+    radix_sort(keys, scratch, key_bits);
+  } else {  // too many bits to pack: compare the fields
+    for (size_t i = 0; i < n; ++i) keys[i] = {0, uint32_t(i)};
+    std::sort(keys.begin(), keys.end(), [&](const SortPair& a, const SortPair& b) {
+      const TrainingSample &x = sample_at(a.index), &y = sample_at(b.index);
+      return std::tie(x.pixel, x.sample, x.depth, x.flags) < std::tie(y.pixel, y.sample, y.depth, y.flags);
+    });
+  }
+  std::vector<TrainingSample> sorted(n);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, size_t(1) << 14), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) sorted[i] = sample_at(keys[i].index);
   });
-  sink_->consume(all);
+  for (ThreadCache& tc : *caches_) tc.samples.clear();
+  return sorted;
 }
 
 RadianceRecorder::ResumeState RadianceRecorder::resume_state() const {
-  if (live_.load() != 0)
+  if (live_vertices() != 0)
     throw std::logic_error("radiance recorder: checkpoint requested with path vertices still allocated");
   ResumeState st;
   st.skip_rate = skip_rate_;
@@ -384,9 +554,14 @@ RecorderStats RadianceRecorder::stats() const {
     s.recorded += tc.recorded;
     s.skipped_vertices += tc.skipped_vertices;
     s.merged_vertices += tc.merged;
+    s.untrainable += tc.untrainable;
+    s.untrainable_merged += tc.untrainable_merged;
     s.dropped += tc.dropped;
   }
-  s.iteration_peak_live_vertices = peak_live_.load();
+  s.samples = samples_;
+  s.sort_seconds = sort_seconds_;
+  s.consume_seconds = consume_seconds_;
+  s.iteration_peak_live_vertices = iteration_peak_live();
   s.peak_live_vertices = std::max(run_peak_live_, s.iteration_peak_live_vertices);
   s.peak_blocks = block_count_.load();
   s.peak_sample_bytes = peak_sample_bytes_;

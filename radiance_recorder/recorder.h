@@ -12,9 +12,11 @@
 #pragma once
 
 #include "core/path_observer.h"
+#include "core/radix_sort.h"
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -68,12 +70,30 @@ struct TrainingSample {
 
 // Where samples go: guiding implements this.  consume() is called from the
 // thread that calls end_iteration(), once, with the iteration's samples
-// sorted by (pixel, sample, depth, flags) so that training is deterministic.
+// sorted by (pixel, sample, depth, flags), an order that does not depend on
+// the thread count, so that training is deterministic.  Only samples that can
+// train are handed over: none for a direction without a density (kVertexDelta)
+// or from a BSDF the engine does not guide (PathVertexInfo::guidable).
 class TrainingSampleSink {
  public:
   virtual ~TrainingSampleSink() = default;
   virtual void consume(std::span<const TrainingSample> samples) = 0;
+  // Whether NEE rays' vertices are samples to it.  When not, they are not
+  // recorded (their light still reaches the parent), as for every vertex
+  // that cannot train.
+  virtual bool wants_nee_samples() const { return true; }
 };
+
+// The sorted samples cut at fixed offsets (the same chunks whatever the
+// thread count), for a sink that trains in parallel: chunk c of
+// training_chunks(n) is [c * kTrainingChunk, min(n, (c + 1) * kTrainingChunk)).
+// Reducing per-chunk results in chunk order keeps training deterministic.
+inline constexpr size_t kTrainingChunk = size_t(1) << 14;
+inline size_t training_chunks(size_t samples) { return (samples + kTrainingChunk - 1) / kTrainingChunk; }
+inline std::span<const TrainingSample> training_chunk(std::span<const TrainingSample> samples, size_t c) {
+  const size_t begin = std::min(samples.size(), c * kTrainingChunk);
+  return samples.subspan(begin, std::min(kTrainingChunk, samples.size() - begin));
+}
 
 // Counts and keeps every sample (tests).
 class StoringSampleSink final : public TrainingSampleSink {
@@ -115,6 +135,9 @@ struct RecorderStats {
   uint64_t vertex_events = 0;          // vertex_created calls (the unskipped path length)
   uint64_t recorded = 0;               // vertices allocated (= samples produced)
   uint64_t skipped_vertices = 0, merged_vertices = 0;
+  uint64_t untrainable = 0;            // vertices that cannot train (delta, unguided BSDF): no sample
+  uint64_t untrainable_merged = 0;     // ... of which not even allocated (merged into the parent)
+  uint64_t samples = 0;                // training samples handed to the sink
   uint64_t dropped = 0;                // non-finite samples or debug splats
   uint64_t peak_live_vertices = 0;           // over the whole run
   uint64_t iteration_peak_live_vertices = 0; // in the current (or last) iteration
@@ -122,6 +145,8 @@ struct RecorderStats {
   uint64_t peak_sample_bytes = 0;
   double path_skip_rate = 0.0;         // of the current (last begun) iteration
   double average_path_length = 0.0;    // vertex events per path in the last finished iteration
+  // end_iteration(), over the run: sorting the samples, and the sink's consume().
+  double sort_seconds = 0.0, consume_seconds = 0.0;
 };
 
 // Path skip rate for an iteration given the previous one (section 3.4.4):
@@ -151,6 +176,7 @@ class RadianceRecorder final : public PathObserver {
   void emission_added(uint32_t vertex, uint32_t pixel, const RGB& contribution, float mis_weight) override;
   void vertex_continued(uint32_t vertex) override;
   void vertex_done(uint32_t vertex) override;
+  void prefetch(uint32_t vertex) const override;
 
   // Resuming (checkpoint/).  The engine finishes every path before a
   // checkpoint, so no vertex is live then; what the iteration in progress has
@@ -165,7 +191,7 @@ class RadianceRecorder final : public PathObserver {
   void restore(const ResumeState& state);
 
   RecorderStats stats() const;
-  uint64_t live_vertices() const { return live_.load(std::memory_order_relaxed); }
+  uint64_t live_vertices() const;      // exact when no event is in progress
   size_t peak_bytes() const;           // vertex blocks at their peak + buffered samples at theirs
   static size_t vertex_bytes();
   // Debug sums (RGB per pixel, in film units: divide by the film's weight).
@@ -178,11 +204,17 @@ class RadianceRecorder final : public PathObserver {
   struct Block;
   struct ThreadCache;
 
+  ThreadCache& cache() const;
   Vertex& at(PVIndex i) const;
+  bool trainable(const PathVertexInfo& info) const;
+  bool debug_records(int depth) const;
   PVIndex allocate(ThreadCache& tc);
   void release(ThreadCache& tc, PVIndex i);
+  void flush_live(ThreadCache& tc);
+  uint64_t iteration_peak_live() const;
   void finish(ThreadCache& tc, PVIndex i);      // drop one reference; backpropagate at zero
   void record(ThreadCache& tc, Vertex& v);
+  std::vector<TrainingSample> sorted_samples(); // every thread's samples, sorted; the threads' emptied
 
   RecorderOptions opt_;
   TrainingSampleSink* sink_;
@@ -191,7 +223,12 @@ class RadianceRecorder final : public PathObserver {
   std::mutex free_mutex_;                       // guards free_ and block creation
   std::vector<PVIndex> free_;                   // global free queue, refilled in batches
   tbb::enumerable_thread_specific<ThreadCache>* caches_;
-  std::atomic<uint64_t> live_{0}, peak_live_{0};  // peak_live_: this iteration's
+  const uint64_t id_;                           // names this recorder to the threads' cache() shortcut
+  // Threads add their allocations here in batches (ThreadCache::live), so the
+  // count is exact between iterations and the peak (ThreadCache::peak) within
+  // a batch per thread.
+  std::atomic<int64_t> live_{0};
+  int64_t peak_live_ = 0;                       // live at the iteration's start
   uint64_t run_peak_live_ = 0;
   uint64_t peak_sample_bytes_ = 0;
   double skip_rate_ = 0.0;
@@ -199,6 +236,8 @@ class RadianceRecorder final : public PathObserver {
   uint64_t iteration_begin_paths_ = 0, iteration_begin_events_ = 0;
   uint64_t carried_paths_ = 0, carried_events_ = 0;              // restored from a checkpoint
   std::vector<float> debug_primary_, debug_bounce_;
+  double sort_seconds_ = 0.0, consume_seconds_ = 0.0;
+  uint64_t samples_ = 0;
 };
 
 }  // namespace theia

@@ -370,6 +370,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   nlohmann::json slot_seconds;
   for (size_t s = 0; s < size_t(BetweenIterationSlot::Count); ++s)
     slot_seconds[kSlotNames[s]] = tasks.seconds(BetweenIterationSlot(s));
+  slot_seconds["end_hooks"] = tasks.end_hook_seconds();  // the recorder's end_iteration(): sort and training
   result.log = {{"schedule", sizes},
                 {"combination", combination_name(cfg.combination)},
                 {"combination_used", acc.choice().log()},

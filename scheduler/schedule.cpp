@@ -59,7 +59,10 @@ void IterationTasks::begin_iteration(const IterationInfo& it) const {
 }
 
 void IterationTasks::end_iteration(const IterationInfo& it) {
-  for (const Task& h : end_hooks_) h(it);
+  {
+    ScopedTimer timer(end_hook_seconds_);
+    for (const Task& h : end_hooks_) h(it);
+  }
   for (size_t s = 0; s < size_t(BetweenIterationSlot::Count); ++s) {
     if (slots_[s].empty()) continue;
     ScopedTimer timer(seconds_[s]);

@@ -82,13 +82,16 @@ class IterationTasks {
   void on_end(Task hook) { end_hooks_.push_back(std::move(hook)); }
 
   void begin_iteration(const IterationInfo& it) const;
-  // end hooks, then every slot in order; each slot's wall time is added to seconds().
+  // end hooks, then every slot in order; each slot's wall time is added to
+  // seconds(), the end hooks' to end_hook_seconds().
   void end_iteration(const IterationInfo& it);
   double seconds(BetweenIterationSlot slot) const { return seconds_[size_t(slot)]; }
+  double end_hook_seconds() const { return end_hook_seconds_; }
 
  private:
   std::vector<Task> slots_[size_t(BetweenIterationSlot::Count)];
   double seconds_[size_t(BetweenIterationSlot::Count)] = {};
+  double end_hook_seconds_ = 0.0;
   std::vector<Task> begin_hooks_, end_hooks_;
 };
 

@@ -288,6 +288,9 @@ void WavefrontEngine::Impl::shade_surface_hits(const Batch& b) {
         __builtin_prefetch(&hits[j]);
         __builtin_prefetch(&pool[b.paths[j]]);
       }
+      // The path record fetched above names the observer's vertex: fetch that too.
+      if (observer && k + kPrefetchDistance / 2 < n)
+        observer->prefetch(pool[b.paths[keys[k + kPrefetchDistance / 2].index]].vertex);
       uint32_t i = keys[k].index;
       if (observer)
         shade_surface<true>(b.rays[i], hits[i], b.paths[i], out);

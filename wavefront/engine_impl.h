@@ -8,13 +8,13 @@
 //   shadow_rays.cpp   trace shadow rays and splat the unoccluded ones
 #pragma once
 
+#include "core/radix_sort.h"
 #include "core/sampler.h"
 #include "scene/bsdf.h"
 #include "wavefront/engine.h"
 #include "wavefront/guided_sampling.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
-#include "wavefront/radix_sort.h"
 #include "wavefront/sample_dims.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -47,11 +47,11 @@ struct ShadingPoint {
   RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
   BounceDims dims{};
   uint8_t caustic_flags = 0;  // kPathCausticReceiver / kPathCausticCaster at this vertex
+  bool guidable = false;      // bsdf_is_guidable: the engine guides here when it has a guide
   uint32_t guide_region = kNoGuideRegion;  // != kNoGuideRegion: the vertex is guided
   float guide_fraction = 0.0f;             // one-sample MIS: the guide's selection probability
   bool guided() const { return guide_region != kNoGuideRegion; }
 };
-
 
 // The ray-sorting key: origin Morton code, then a coarse direction.
 uint64_t ray_sort_key(const Ray& r, const vec3& bounds_min, const vec3& bounds_inv_extent);

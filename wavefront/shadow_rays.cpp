@@ -6,6 +6,10 @@
 
 namespace theia {
 
+// Shadow rays are visited in ray order, their vertices live wherever the
+// observer put them: hint it this many rays ahead.
+constexpr size_t kObserverPrefetch = 8;
+
 void WavefrontEngine::Impl::trace_shadow_rays() {
   const size_t n = shadows.size();
   if (n == 0) return;
@@ -33,6 +37,7 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
     ScopedTimer timer(stats.phases[Phase::Shade]);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
+        if (observer && i + kObserverPrefetch < n) observer->prefetch(s.vertex[i + kObserverPrefetch]);
         if (!blocked[i]) film.splat(s.pixel[i], s.sample[i], s.contribution[i]);
         if (!s.chosen.empty()) light_sampler.record_shadow(s.chosen[i], !blocked[i]);
         if (observer) {

@@ -31,7 +31,8 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   v.dims = bounce_dims(ps.depth);
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ps.beta;
   v.caustic_flags = caustic_flags(ps, v.bsdf);
-  if (hooks.guide && bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness)) {
+  v.guidable = bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness);
+  if (hooks.guide && v.guidable) {
     v.guide_region = hooks.guide->region(si.p);
     if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
   }
@@ -119,6 +120,7 @@ static PathVertexInfo vertex_info(const ShadingPoint& v, const vec3& wi, const R
   info.pixel = v.ps.pixel;
   info.sample = v.ps.sample;
   info.depth = int(v.ps.depth);
+  info.guidable = v.guidable;
   return info;
 }
 

@@ -11,7 +11,10 @@
 
 #include <gtest/gtest.h>
 
+#include <tbb/task_arena.h>
+
 #include <memory>
+#include <tuple>
 
 using namespace theia;
 using namespace theia::test;
@@ -26,19 +29,23 @@ struct RecordedRender {
 
 // Renders `iterations` iterations of `spp` samples each, with the recorder
 // between begin/end_iteration as the scheduler will drive it.
+// With a sink, the recorder makes training samples (and then records only
+// the vertices that can train); `threads` > 0 runs the engine in an arena of
+// that many threads.
 RecordedRender render_recorded(const Scene& scene, const EngineOptions& opt, RecorderOptions ro, int iterations,
-                               int spp, bool record = true) {
+                               int spp, bool record = true, TrainingSampleSink* sink = nullptr, int threads = 0) {
   RenderableScene rs(scene);
   Film film(scene.film.width, scene.film.height);
   ro.width = scene.film.width;
   ro.height = scene.film.height;
   std::unique_ptr<RadianceRecorder> rec;
-  if (record) rec = std::make_unique<RadianceRecorder>(ro);
+  if (record) rec = std::make_unique<RadianceRecorder>(ro, sink);
   WavefrontEngine engine(rs, film, opt, EngineHooks{.observer = rec.get()});
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   RecordedRender out;
   for (int it = 0; it < iterations; ++it) {
     if (rec) rec->begin_iteration();
-    engine.render(uint32_t(it * spp), uint32_t((it + 1) * spp));
+    arena.execute([&] { engine.render(uint32_t(it * spp), uint32_t((it + 1) * spp)); });
     if (rec) {
       rec->end_iteration();
       rec->update_skip_rate();
@@ -103,7 +110,76 @@ Scene virtual_lights_scene(bool is_virtual = true) {
   )");
 }
 
+// A mirror ball (a delta lobe: its vertices cannot train) and a point light
+// (NEE to it has no density) beside an area light over a diffuse floor.
+Scene mirror_scene() {
+  return load_test_scene(R"(
+    Film "rgb" "integer xresolution" [24] "integer yresolution" [24]
+    LookAt 0 2 -4  0 0.5 0  0 1 0
+    Camera "perspective" "float fov" [45]
+    WorldBegin
+    LightSource "point" "point3 from" [1.5 2 -1] "rgb I" [3 3 3]
+    Material "diffuse" "rgb reflectance" [0.6 0.6 0.6]
+    Shape "bilinearmesh" "point3 P" [-3 0 -3  3 0 -3  -3 0 3  3 0 3]
+    AttributeBegin
+      AreaLightSource "diffuse" "rgb L" [5 5 5]
+      Shape "bilinearmesh" "point3 P" [-0.5 3 -0.5  0.5 3 -0.5  -0.5 3 0.5  0.5 3 0.5]
+    AttributeEnd
+    AttributeBegin
+      Material "conductor" "float roughness" [0]
+      Translate 0 0.7 0
+      Shape "sphere" "float radius" [0.7]
+    AttributeEnd
+  )");
+}
+
+bool same_sample(const TrainingSample& a, const TrainingSample& b) {
+  return a.p == b.p && a.wi == b.wi && a.n == b.n && a.radiance == b.radiance && a.pdf == b.pdf &&
+         a.roughness == b.roughness && a.pixel == b.pixel && a.sample == b.sample && a.depth == b.depth &&
+         a.flags == b.flags;
+}
+
 }  // namespace
+
+// The sink gets the samples in (pixel, sample, depth, flags) order, the same
+// samples bit for bit whatever the thread count, and none that cannot train;
+// the vertices that cannot train still pass their light on, so the debug
+// buffer still equals the beauty.
+TEST(RecorderSamples, SortedIdenticalAcrossThreadCountsAndOnlyTrainable) {
+  Scene scene = mirror_scene();
+  EngineOptions opt;
+  opt.batch_size = 2048;
+  RecorderOptions ro;
+  ro.debug = true;
+  ro.vertex_budget = 0.0f;
+  std::vector<std::vector<TrainingSample>> runs;
+  for (int threads : {1, 2}) {
+    StoringSampleSink sink;
+    RecordedRender r = render_recorded(scene, opt, ro, 2, 4, true, &sink, threads);
+    EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4) << threads;
+    EXPECT_GT(r.stats.untrainable, 0u) << "the mirror and the point light make vertices that cannot train";
+    EXPECT_GT(r.stats.untrainable_merged, 0u) << "NEE to the point light is merged into its parent";
+    EXPECT_LT(r.stats.untrainable_merged, r.stats.untrainable) << "mirror vertices are kept (not merged)";
+    EXPECT_EQ(r.stats.samples, sink.samples.size());
+    EXPECT_GT(sink.samples.size(), 1000u);
+    runs.push_back(std::move(sink.samples));
+  }
+  const std::vector<TrainingSample>& s = runs[0];
+  size_t nee = 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    EXPECT_FALSE(s[i].flags & kVertexDelta) << "a sample without a density at " << i;
+    nee += (s[i].flags & kVertexNEE) ? 1 : 0;
+    if (i == 0) continue;
+    // Each iteration's samples are sorted; the second's follow the first's.
+    const TrainingSample &a = s[i - 1], &b = s[i];
+    if (a.sample / 4 == b.sample / 4) {
+      EXPECT_LT(std::tie(a.pixel, a.sample, a.depth, a.flags), std::tie(b.pixel, b.sample, b.depth, b.flags)) << i;
+    }
+  }
+  EXPECT_GT(nee, 0u) << "NEE to the area light trains";
+  ASSERT_EQ(runs[0].size(), runs[1].size());
+  for (size_t i = 0; i < s.size(); ++i) ASSERT_TRUE(same_sample(runs[0][i], runs[1][i])) << "sample " << i;
+}
 
 TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyOnCornellBox) {
   Scene scene = cornell(24);

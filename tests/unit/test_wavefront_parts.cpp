@@ -1,10 +1,10 @@
 // The wavefront's parts on their own: the radix sort, the queue tables, the
 // sample-dimension table, the pool sizes and the film.
+#include "core/radix_sort.h"
 #include "wavefront/engine.h"
 #include "wavefront/film.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
-#include "wavefront/radix_sort.h"
 #include "wavefront/sample_dims.h"
 
 #include <gtest/gtest.h>

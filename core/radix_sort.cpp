@@ -1,4 +1,4 @@
-#include "wavefront/radix_sort.h"
+#include "core/radix_sort.h"
 
 #include <algorithm>
 #include <tbb/parallel_for.h>

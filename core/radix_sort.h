@@ -1,6 +1,6 @@
 // LSD radix sort of (key, index) pairs: the wavefront sorts every ray batch
-// and every hit list, so this must beat std::sort clearly (it does, ~5x on 1M
-// keys).  Only the low `key_bits` bits are sorted, so callers that know how
+// and every hit list, and the radiance recorder its training samples, so this
+// must beat std::sort clearly (it does, ~5x on 1M keys).  Only the low `key_bits` bits are sorted, so callers that know how
 // many bits their keys use pay only for those passes.
 #pragma once
 

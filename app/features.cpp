@@ -142,8 +142,10 @@ class SDTreeTrainer final : public TrainingSampleSink {
   explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
   bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
-    for (const TrainingSample& s : samples)
-      tree_.add_sample(s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags));
+    tree_.add_samples(samples.size(), [&](size_t i) {
+      const TrainingSample& s = samples[i];
+      return SDTreeSample{s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags)};
+    });
   }
 
  private:
@@ -152,10 +154,20 @@ class SDTreeTrainer final : public TrainingSampleSink {
 
 }  // namespace
 
-GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds) : options_(options) {
+int guiding_holdout_iteration(const std::vector<int>& schedule) {
+  int begin = 0;
+  for (size_t i = 0; i + 1 < schedule.size(); begin += schedule[i], ++i)
+    if (begin >= 8 && schedule[i] >= 4 && schedule[i + 1] >= 2) return int(i);
+  return -1;
+}
+
+GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
+                               const std::vector<int>& schedule)
+    : options_(options) {
   if (!options.enabled) return;
   tree_ = std::make_unique<SDTree>(scene_bounds, options);
   trainer_ = std::make_unique<SDTreeTrainer>(*tree_);
+  if (options.auto_off) verdict_.unguided_iteration = guiding_holdout_iteration(schedule);
 }
 
 GuidingFeature::~GuidingFeature() = default;
@@ -169,27 +181,78 @@ void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const 
   engine.guiding.roulette_correction = options_.roulette_correction;
 }
 
-// The field learns from each iteration's samples (handed over by the
-// recorder at the iteration's end); the next iteration samples it.
-void GuidingFeature::add_tasks(IterationTasks& tasks) {
-  if (!tree_) return;
-  tasks.add(BetweenIterationSlot::GuidingUpdate,
-            [this](const IterationInfo&) { tree_->update(); });
+void GuidingFeature::attach(WavefrontEngine& engine) {
+  engine_ = &engine;
+  guided_hooks_ = engine.hooks();
 }
 
-// A resumed render continues the field where the interrupted one left it, so it guides the same.
+// Unguided, the render pays for neither the guide nor the recorder (which
+// exists for guiding alone under --guiding-auto: check_config).
+void GuidingFeature::guide(bool on) {
+  EngineHooks h = guided_hooks_;
+  if (!on) h.guide = nullptr, h.observer = nullptr;
+  engine_->set_hooks(h);
+}
+
+void GuidingFeature::judge(const IterationInfo& it) {
+  const double spp = double(it.spp_end - it.spp_begin);
+  const double efficiency =
+      it.sample_variance > 0.0 && it.seconds > 0.0 ? spp / (it.sample_variance * it.seconds) : 0.0;
+  if (it.index == verdict_.unguided_iteration) {
+    verdict_.unguided_efficiency = efficiency;
+    return;
+  }
+  verdict_.guided_efficiency = efficiency;
+  // Unknown either way (a noiseless image): nothing says guiding loses.
+  const bool known = verdict_.unguided_efficiency > 0.0 && efficiency > 0.0;
+  verdict_.state = !known || efficiency > verdict_.unguided_efficiency ? GuidingVerdict::On : GuidingVerdict::Off;
+  log_info("guiding: efficiency (1 / variance x time) guided {:.4g} against unguided {:.4g}: {}", efficiency,
+           verdict_.unguided_efficiency,
+           verdict_.state == GuidingVerdict::On ? "guiding stays on" : "guiding off for the rest of the render");
+}
+
+// The field learns from each iteration's samples (handed over by the
+// recorder at the iteration's end); the next iteration samples it.  With
+// --guiding-auto the held-out iteration and the one after it are judged.
+void GuidingFeature::add_tasks(IterationTasks& tasks) {
+  if (!tree_) return;
+  if (options_.auto_off && verdict_.unguided_iteration >= 0) {
+    tasks.on_begin([this](const IterationInfo& it) {
+      guide(verdict_.state != GuidingVerdict::Off &&
+            !(verdict_.state == GuidingVerdict::Undecided && it.index == verdict_.unguided_iteration));
+    });
+    tasks.on_end([this](const IterationInfo& it) {
+      if (verdict_.state == GuidingVerdict::Undecided &&
+          (it.index == verdict_.unguided_iteration || it.index == verdict_.unguided_iteration + 1))
+        judge(it);
+    });
+  }
+  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) { tree_->update(); });
+}
+
+// A resumed render continues the field (and guiding-auto's verdict) where the
+// interrupted one left it, so it guides the same.
 void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
   if (!tree_) return;
-  participants.push_back({"guiding", 2,
+  participants.push_back({"guiding", 3,
                           [this] {
                             ByteWriter w;
                             w.put_vector(tree_->serialize());
+                            w.put(int32_t(verdict_.state));
+                            w.put(verdict_.unguided_efficiency);
+                            w.put(verdict_.guided_efficiency);
                             return w.bytes;
                           },
                           [this](const CheckpointSection& section) {
                             ByteReader r(section.bytes, "checkpoint section 'guiding'");
                             std::vector<uint8_t> tree = r.get_vector<uint8_t>();
                             *tree_ = SDTree::deserialize(tree);
+                            const int32_t state = r.get<int32_t>();
+                            if (state < GuidingVerdict::Undecided || state > GuidingVerdict::Off)
+                              throw_error("checkpoint section 'guiding': verdict {} is not one of 0, 1, 2", state);
+                            verdict_.state = GuidingVerdict::State(state);
+                            verdict_.unguided_efficiency = r.get<double>();
+                            verdict_.guided_efficiency = r.get<double>();
                           }});
 }
 
@@ -199,6 +262,13 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
   log["guiding"] = {{"spatial_leaves", gs.spatial_leaves},
                     {"quadtree_nodes", gs.quadtree_nodes},
                     {"bytes", tree_->memory_bytes()}};
+  if (options_.auto_off) {
+    static const char* kStates[] = {"undecided", "on", "off"};
+    log["guiding"]["auto"] = {{"unguided_iteration", verdict_.unguided_iteration},
+                              {"unguided_efficiency", verdict_.unguided_efficiency},
+                              {"guided_efficiency", verdict_.guided_efficiency},
+                              {"verdict", kStates[verdict_.state]}};
+  }
   log["memory"]["guiding"] = tree_->memory_bytes();
 }
 

@@ -28,6 +28,8 @@ class Feature {
   virtual ~Feature() = default;
   // Before the engine is built: the hooks it calls.
   virtual void configure(EngineOptions&, EngineHooks&) const {}
+  // Once the engine is built, for a feature that changes its hooks between iterations.
+  virtual void attach(WavefrontEngine&) {}
   virtual void add_tasks(IterationTasks&) {}
   // What a resumed render needs to continue exactly where this one stopped.
   virtual void add_participants(std::vector<CheckpointParticipant>&) {}
@@ -85,6 +87,7 @@ class RecorderFeature final : public Feature {
 
 struct GuidingOptions : SDTreeOptions {
   bool enabled = false;
+  bool auto_off = false;  // --guiding-auto (implies enabled)
   std::string sampling = "ris";  // ris | mis: EngineOptions::guiding.mixing
   float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
   float defensive = 0.5f;
@@ -95,6 +98,9 @@ template <class V>
 void declare_options(V& v, GuidingOptions& o) {
   v.image("enabled", o.enabled,
           "Path guiding: an SD-tree learned every iteration from the radiance recorder, combined with BSDF sampling");
+  v.image("auto", o.auto_off,
+          "Guiding measures whether it pays (variance x time of an unguided against a guided iteration) and turns "
+          "itself off where it does not; implies --guiding");
   v.image("sampling", o.sampling,
           "Guided directions: ris (resampling one BSDF and one guide candidate) or mis (one-sample MIS)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
@@ -105,23 +111,45 @@ void declare_options(V& v, GuidingOptions& o) {
 }
 void check(const GuidingOptions& o);
 
+// Guiding's efficiency estimate (seeds/000 ch. 2 section 6.3), for
+// --guiding-auto: one iteration is rendered without the guide and without the
+// recorder, the next with both, and each one's efficiency is
+// 1 / (per-sample variance x seconds per spp).  Guiding stays on only if the
+// guided one is more efficient; otherwise the rest of the render is unguided.
+struct GuidingVerdict {
+  int unguided_iteration = -1;  // the held-out iteration (-1: the schedule has none to spare)
+  double unguided_efficiency = 0.0, guided_efficiency = 0.0;
+  enum State : int32_t { Undecided, On, Off } state = Undecided;
+};
+// The first iteration of at least 4 spp that starts after 8 spp and has a
+// successor of at least 2 spp (the variance needs two samples per pixel): the
+// field has learned from the first iterations by then.  -1 if none.
+int guiding_holdout_iteration(const std::vector<int>& schedule);
+
 // The SD-tree the engine samples, trained from the recorder's samples after
 // every iteration.
 class GuidingFeature final : public Feature {
  public:
-  GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds);
+  GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds, const std::vector<int>& schedule);
   ~GuidingFeature() override;
   // Where the recorder hands its training samples; null when off.
   TrainingSampleSink* trainer() const { return trainer_.get(); }
   void configure(EngineOptions& engine, EngineHooks& hooks) const override;
+  void attach(WavefrontEngine& engine) override;
   void add_tasks(IterationTasks& tasks) override;
   void add_participants(std::vector<CheckpointParticipant>& participants) override;
   void write_log(nlohmann::json& log) const override;
 
  private:
+  void guide(bool on);  // the engine's hooks with or without guide and recorder
+  void judge(const IterationInfo& it);
+
   GuidingOptions options_;
   std::unique_ptr<SDTree> tree_;
   std::unique_ptr<TrainingSampleSink> trainer_;
+  WavefrontEngine* engine_ = nullptr;
+  EngineHooks guided_hooks_;
+  GuidingVerdict verdict_;
 };
 
 // --- Caustics traced from the lights (group "caustics") ---------------------

@@ -50,6 +50,8 @@ void check_config(const RenderConfig& c) {
   check(c.checkpoint);
   if (RecorderFeature::debug_layers(c.recorder) && !c.checkpoint.dir.empty())
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
+  if (RecorderFeature::debug_layers(c.recorder) && c.guiding.auto_off)
+    throw_error("--recorder-debug cannot be combined with --guiding-auto: the recorder stops when guiding does");
 }
 
 uint64_t options_fingerprint(const RenderConfig& c) {
@@ -66,6 +68,7 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.spp < 0) c.spp = scene.settings.spp;
   if (c.max_depth < 0) c.max_depth = scene.settings.max_depth;
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
+  if (c.guiding.auto_off) c.guiding.enabled = true;
   c.schedule = schedule_name(c, c.guiding.enabled);
   return c;
 }
@@ -109,7 +112,7 @@ struct Features {
 
   Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule)
       : light_sampler(*rs.light_sampler),
-        guiding(c.guiding, rs.accel.bounds()),
+        guiding(c.guiding, rs.accel.bounds(), schedule),
         recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, guiding.trainer()),
         caustics(c.caustics, caustics_conflict(c), c.seed, rs),
         adaptive(c.adaptive, rs.scene.film.width, rs.scene.film.height, schedule, c.spp) {}
@@ -262,6 +265,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
     f->add_participants(ic.participants);
   }
   WavefrontEngine engine(rs, film, engine_opt, hooks);
+  for (Feature* f : features.all()) f->attach(engine);
   ic.adaptive = features.adaptive.sampler();
 
   ProgressBar bar(c.progress);

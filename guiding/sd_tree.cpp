@@ -3,6 +3,9 @@
 #include "core/hash.h"
 #include "core/log.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -243,13 +246,11 @@ void SDTree::deposit(BuildingQuadNode* nodes, vec2 c, double value) const {
   }
 }
 
-void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) {
+uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) const {
   float len = glm::length(wi);
   if (!finite3(p) || !finite3(wi) || !(len > 0.0f) || !std::isfinite(radiance) || !(radiance >= 0.0f) ||
-      !(pdf > 0.0f) || !std::isfinite(pdf)) {
-    ++dropped_;
-    return;
-  }
+      !(pdf > 0.0f) || !std::isfinite(pdf))
+    return kInvalidLeaf;
   Lookup at = find_leaf(p);
   if (options_.spatial_filter) {
     // Stochastic box filter: jitter p uniformly over a box the size of its
@@ -264,11 +265,55 @@ void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf
     }
     at = find_leaf(q);
   }
-  SpatialLeaf& leaf = leaves_[at.leaf];
+  return at.leaf;
+}
+
+void SDTree::deposit_sample(SpatialLeaf& leaf, const vec3& wi, float radiance, float pdf) {
   leaf.sample_count += 1.0;
-  ++recorded_;
   double value = double(radiance) / double(std::max(pdf, options_.pdf_floor));
-  if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(wi / len), value);
+  if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(wi / glm::length(wi)), value);
+}
+
+void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) {
+  const uint32_t leaf = target_leaf(p, wi, radiance, pdf, key);
+  if (leaf == kInvalidLeaf) {
+    ++dropped_;
+    return;
+  }
+  ++recorded_;
+  deposit_sample(leaves_[leaf], wi, radiance, pdf);
+}
+
+void SDTree::add_samples(size_t count, const std::function<SDTreeSample(size_t)>& sample) {
+  // The leaf of every sample, then the samples of each leaf in index order
+  // (a counting sort), then the leaves in parallel.
+  std::vector<uint32_t> leaf_of(count);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const SDTreeSample s = sample(i);
+      leaf_of[i] = target_leaf(s.p, s.wi, s.radiance, s.pdf, s.key);
+    }
+  });
+  std::vector<uint32_t> first(leaves_.size() + 1, 0);
+  for (uint32_t l : leaf_of)
+    if (l != kInvalidLeaf) ++first[l + 1];
+  for (size_t l = 0; l < leaves_.size(); ++l) first[l + 1] += first[l];
+  const uint64_t valid = first.back();
+  recorded_ += valid;
+  dropped_ += count - valid;
+  std::vector<uint32_t> order(valid);
+  {
+    std::vector<uint32_t> next(first.begin(), first.end() - 1);
+    for (size_t i = 0; i < count; ++i)
+      if (leaf_of[i] != kInvalidLeaf) order[next[leaf_of[i]]++] = uint32_t(i);
+  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves_.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t l = r.begin(); l != r.end(); ++l)
+      for (uint32_t k = first[l]; k < first[l + 1]; ++k) {
+        const SDTreeSample s = sample(order[k]);
+        deposit_sample(leaves_[l], s.wi, s.radiance, s.pdf);
+      }
+  });
 }
 
 void SDTree::update() {

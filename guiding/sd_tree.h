@@ -23,6 +23,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -107,6 +108,13 @@ struct SpatialLeaf {
   bool has_energy = false;    // sampling holds positive flux
 };
 
+// One training sample as add_sample takes it.
+struct SDTreeSample {
+  vec3 p{0.0f}, wi{0.0f};
+  float radiance = 0.0f, pdf = 0.0f;
+  uint64_t key = 0;
+};
+
 class SDTree final : public DirectionalGuide {
  public:
   SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options);
@@ -117,6 +125,11 @@ class SDTree final : public DirectionalGuide {
   // with non-finite or negative radiance, pdf <= 0 or non-finite p / wi are
   // dropped and counted; zero radiance is recorded (it counts).
   void add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key);
+  // add_sample for samples 0 .. count-1 (`sample(i)` gives sample i; it is
+  // called from several threads, twice per sample), in parallel over spatial
+  // leaves: each leaf takes its samples in index order, so the tree is the
+  // one the same add_sample calls in a row build, whatever the thread count.
+  void add_samples(size_t count, const std::function<SDTreeSample(size_t)>& sample);
   // End of an iteration: what building accumulated becomes sampling, busy
   // leaves split, and building is refined around its flux (keeping it).
   void update();
@@ -152,6 +165,10 @@ class SDTree final : public DirectionalGuide {
     vec3 lo, size;  // the leaf box
   };
   Lookup find_leaf(const vec3& p) const;
+  // The leaf a valid sample deposits into (after the spatial jitter); kInvalidLeaf for one add_sample drops.
+  static constexpr uint32_t kInvalidLeaf = 0xffffffffu;
+  uint32_t target_leaf(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) const;
+  void deposit_sample(SpatialLeaf& leaf, const vec3& wi, float radiance, float pdf);
   void refine_spatial();
   void deposit(BuildingQuadNode* nodes, vec2 c, double value) const;
 

@@ -3,6 +3,8 @@
 #include "core/color.h"
 #include "core/log.h"
 
+#include <algorithm>
+
 #include <cmath>
 
 namespace theia {
@@ -32,14 +34,29 @@ std::vector<float> half_buffer_variance(const Film& f) {
   return var;
 }
 
+double robust_relative_variance(const Film& it, const std::vector<float>& var) {
+  std::vector<double> rel;
+  size_t sampled = 0;
+  for (size_t i = 0; i < var.size(); ++i) {
+    if (it.weight[i] > 0.0f) ++sampled;
+    if (!(var[i] >= 0.0f)) continue;
+    const double mean = (double(it.r[i]) + double(it.g[i]) + double(it.b[i])) / (3.0 * double(it.weight[i]));
+    rel.push_back(double(var[i]) * double(it.weight[i]) / (mean * mean + 0.01));
+  }
+  if (rel.empty() || rel.size() * 2 < sampled) return -1.0;
+  const size_t keep = rel.size() - rel.size() / 100;
+  std::nth_element(rel.begin(), rel.begin() + std::ptrdiff_t(keep - 1), rel.end());
+  double sum = 0.0;
+  for (size_t i = 0; i < keep; ++i) sum += rel[i];
+  return sum / double(keep);
+}
+
 nlohmann::json CombinationChoice::log() const {
   return {{"used", combination_name(used)},
           {"why", why},
           {"estimated_variance", {{"equal", equal_variance}, {"inverse_variance", weighted_variance}}},
           {"window_spp", {window_begin, window_end}}};
 }
-
-namespace {
 
 // The per-sample variance of the iteration, averaged over the pixels that
 // have a half-buffer estimate: Var[pixel estimate] * W = sigma^2 per unit of
@@ -56,6 +73,8 @@ double per_sample_variance(const Film& it, const std::vector<float>& var) {
   }
   return known > 0 && known * 2 >= sampled ? sum / double(known) : -1.0;
 }
+
+namespace {
 
 void merge(WeightedRun& into, const WeightedRun& later) {
   into.spp_end = later.spp_end;

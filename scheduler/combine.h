@@ -51,6 +51,15 @@ const char* combination_name(Combination c);
 // (even and odd samples): ((even - odd) / 2)^2 averaged over R, G, B.  Pixels
 // with no sample in one half get -1 (unknown).
 std::vector<float> half_buffer_variance(const Film& film);
+// The iteration's per-sample variance averaged over the pixels that have a
+// half-buffer estimate `var` (Var[pixel estimate] * W); < 0 when too few
+// pixels have one (1-spp iterations).
+double per_sample_variance(const Film& iteration, const std::vector<float>& var);
+// The per-sample relative variance (Var * W / (mean^2 + 0.01), weighted as
+// relMSE weighs errors) averaged over the pixels, the 1% most variable left
+// out: a figure for comparing the noise of two iterations (an efficiency
+// estimate) that one firefly in either does not decide.  < 0: unknown.
+double robust_relative_variance(const Film& iteration, const std::vector<float>& var);
 
 // Consecutive iterations [spp_begin, spp_end), summed with their weights:
 // what the inverse-variance image needs of them.

@@ -335,6 +335,8 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       interrupted = true;
       break;
     }
+    info.seconds = seconds_since(ti);
+    info.sample_variance = robust_relative_variance(film, half_buffer_variance(film));
     acc.fold(film, info.spp_begin, info.spp_end);
     film.clear();
     pos.iteration = i + 1;

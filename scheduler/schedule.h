@@ -52,6 +52,11 @@ struct IterationInfo {
   int count = 0;            // iterations in the schedule
   uint32_t spp_begin = 0;   // samples [spp_begin, spp_end) of every pixel
   uint32_t spp_end = 0;
+  // Set for the end-of-iteration tasks: the iteration's wall seconds (the
+  // render alone) and its robust per-sample relative variance (combine.h;
+  // < 0: unknown, as for 1-spp iterations), what efficiency estimates need.
+  double seconds = 0.0;
+  double sample_variance = -1.0;
   bool last() const { return index + 1 == count; }
 };
 

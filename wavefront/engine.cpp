@@ -341,6 +341,13 @@ uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function
   return done;
 }
 
+void WavefrontEngine::set_hooks(const EngineHooks& hooks) {
+  impl_->hooks = hooks;
+  impl_->observer = hooks.observer;
+}
+
+const EngineHooks& WavefrontEngine::hooks() const { return impl_->hooks; }
+
 void WavefrontEngine::finish_stopped_iteration() {
   auto t0 = std::chrono::steady_clock::now();
   impl_->trace_caustics();

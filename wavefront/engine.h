@@ -163,6 +163,11 @@ class WavefrontEngine {
   // is per pixel, scaled by the pixel's own weight, so a pixel the iteration
   // did not reach gets none and one it reached is complete.
   void finish_stopped_iteration();
+  // Between render() calls only: the hooks the next iterations call (a
+  // feature that turns itself off, as guiding that does not pay, drops its
+  // own, and the engine then shades without them).
+  void set_hooks(const EngineHooks& hooks);
+  const EngineHooks& hooks() const;
 
   const EngineStats& stats() const;
   // The pool and batch sizes in use (engine_sizes of the options).

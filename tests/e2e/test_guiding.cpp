@@ -50,3 +50,29 @@ TEST(Guiding, ImageIndependentOfThreadCount) {
   RenderResult a = render_scene(scene, c1), b = render_scene(scene, c2);
   EXPECT_LT(max_relative_difference(a.image, b.image), 1e-4);
 }
+
+// --guiding-auto holds one iteration out (no guide, no recorder), judges the
+// next against it and logs its verdict; whichever way it goes (it is a
+// measurement of time), the image stays unbiased.
+TEST(Guiding, AutoJudgesOneIterationAndStaysUnbiased) {
+  EXPECT_EQ(guiding_holdout_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16}), 9);  // 4 spp from 10 spp on
+  EXPECT_EQ(guiding_holdout_iteration({16, 16, 32}), 1);                              // from 16 spp
+  EXPECT_EQ(guiding_holdout_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4}), -1);            // no successor
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 1}), -1);                                 // successor of 1 spp
+  Scene scene = load_test_scene_file(kCornell);
+  RenderConfig c = quick_config(256);
+  c.guiding.auto_off = true;
+  RenderResult r = render_scene(scene, c);
+  const nlohmann::json& a = r.log["guiding"]["auto"];
+  std::printf("guiding-auto on cornell-box: %s\n", a.dump().c_str());
+  EXPECT_EQ(r.log["options"]["guiding"].get<bool>(), true);  // auto implies guiding
+  const std::vector<int> schedule = r.log["scheduler"]["schedule"].get<std::vector<int>>();
+  EXPECT_EQ(a["unguided_iteration"].get<int>(), guiding_holdout_iteration(schedule));
+  EXPECT_GT(a["unguided_efficiency"].get<double>(), 0.0);
+  EXPECT_GT(a["guided_efficiency"].get<double>(), 0.0);
+  const std::string verdict = a["verdict"].get<std::string>();
+  EXPECT_TRUE(verdict == "on" || verdict == "off") << verdict;
+  ImageBuffer ref = read_image_file(std::string(THEIA_TEST_DATA) + "/cornell-box.exr");
+  EXPECT_LT(rel_mse(r.image, ref), 0.005);
+  EXPECT_LT(channel_mean_deviation(r.image, ref), 0.02);
+}

@@ -12,6 +12,7 @@
 #include "tests/unit/chi2.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <chrono>
 #include <cstdio>
@@ -584,4 +585,35 @@ TEST(SDTreeTiming, DISABLED_Throughput) {
                 std::chrono::duration<double, std::milli>(t2 - t1).count(), s.spatial_leaves, s.quadtree_nodes,
                 double(s.bytes) / 1e6, double(s.bytes) / double(s.spatial_leaves));
   }
+}
+
+// Training in parallel over leaves builds exactly the tree that add_sample
+// in a row builds, at any thread count (dropped samples counted the same).
+TEST(SDTreeParallel, AddSamplesEqualsAddSampleInARow) {
+  SDTreeOptions o;
+  o.spatial_threshold = 500.0;
+  std::vector<SDTreeSample> batch;
+  for (int i = 0; i < 30'000; ++i) {
+    uint64_t key = hash(uint64_t(i), 71);
+    vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
+    vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
+    float pdf = i % 997 == 0 ? 0.0f : uniform_sphere_pdf();  // some dropped
+    batch.push_back({vec3(a.x, a.y, b.x), w, field_two_lobes(w), pdf, key});
+  }
+  auto train = [&](bool parallel, int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    SDTree t(kUnitBox, o);
+    for (int it = 0; it < 3; ++it) {
+      if (parallel) {
+        t.add_samples(batch.size(), [&](size_t i) { return batch[i]; });
+      } else {
+        for (const SDTreeSample& s : batch) t.add_sample(s.p, s.wi, s.radiance, s.pdf, s.key);
+      }
+      if (it < 2) t.update();
+    }
+    return t.serialize();
+  };
+  const std::vector<uint8_t> serial = train(false, 1);
+  EXPECT_EQ(train(true, 1), serial);
+  EXPECT_EQ(train(true, 2), serial);
 }

@@ -32,7 +32,9 @@ struct PathVertexInfo {
   // The scattering's own factor: f |cos| / pdf (with the Russian-roulette
   // compensation) for a BSDF sample, f |cos| / light pdf for an NEE ray.
   RGB local{0.0f};
-  float pdf = 0.0f;      // solid-angle pdf of wi (light-sampling pdf for NEE rays)
+  // Density of wi being reported: the solid-angle sampling pdf times the
+  // Russian-roulette survival probability (light-sampling pdf for NEE rays).
+  float pdf = 0.0f;
   float camera_weight = 1.0f;  // the camera sample's filter weight (part of prefix)
   uint32_t pixel = 0;
   uint32_t sample = 0;

@@ -129,8 +129,9 @@ struct WavefrontEngine::Impl {
   template <bool kObserve>
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
   std::optional<Continuation> sample_continuation(const ShadingPoint& v) const;
-  bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale, double correction) const;
-  void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local);
+  bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale, double correction,
+                         float& survival) const;
+  void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;
 

@@ -50,9 +50,10 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   const float eta_scale = bs.is_transmission() ? ps.eta_scale * sqr(bs.eta) : ps.eta_scale;
   double correction = 1.0;
   if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
-  if (!survives_roulette(v, beta, local, eta_scale, correction) || !is_finite(beta) || is_black(beta))
+  float survival = 1.0f;
+  if (!survives_roulette(v, beta, local, eta_scale, correction, survival) || !is_finite(beta) || is_black(beta))
     return finish_path<kObserve>(slot, out);
-  if constexpr (kObserve) report_vertex(v, bs, local);
+  if constexpr (kObserve) report_vertex(v, bs, local, survival);
 
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
@@ -179,22 +180,27 @@ std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const Sha
 // Russian roulette on the throughput (times eta_scale), as pbrt-v4 does it;
 // a survivor's throughput and local factor carry the compensation.  A
 // guided path's throughput is first corrected to what BSDF sampling would
-// have made it (`correction`, seeds/000 ch. 1 eq. 19).
+// have made it (`correction`, seeds/000 ch. 1 eq. 19).  `survival`: the
+// probability the path had of surviving.
 bool WavefrontEngine::Impl::survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale,
-                                              double correction) const {
+                                              double correction, float& survival) const {
   if (int(v.ps.depth) + 1 <= opt.rr_min_depth) return true;
   const float rr = float(double(max_component(beta * eta_scale)) * correction);
   if (rr >= 1.0f) return true;
   const float q = std::max(0.0f, 1.0f - rr);
   if (sample1(v.ps, v.dims.roulette) < q) return false;
-  beta /= 1.0f - q;
-  local /= 1.0f - q;
+  survival = 1.0f - q;
+  beta /= survival;
+  local /= survival;
   return true;
 }
 
 // The scattering vertex, to the observer: the path's handle moves to it.
-void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local) {
-  PathVertexInfo info = vertex_info(v, bs.wi, local, bs.pdf);
+// Only survivors of roulette are reported, so the density of a reported
+// direction is the sampling pdf times the survival probability: training
+// with that pdf does not learn survival times radiance.
+void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local, float survival) {
+  PathVertexInfo info = vertex_info(v, bs.wi, local, bs.pdf * survival);
   info.lobe_flags = bs.flags;
   info.roughness = bs.roughness;
   uint32_t child = observer->vertex_created(v.ps.vertex, info);

@@ -197,6 +197,31 @@ TEST(RadianceRecorder, TrainingModesSplitDirectAndIndirect) {
   }
 }
 
+// Guiding's trainer wants no NEE samples (seeds/001 10.7: what NEE samples
+// is not guided): on the section-3.2 example it gets exactly the three
+// scattering vertices' samples, as a sink that takes all six does.
+TEST(RadianceRecorder, SinkWithoutNEESamplesGetsTheSameScatteringSamples) {
+  struct NoNEE final : TrainingSampleSink {
+    std::vector<TrainingSample> samples;
+    void consume(std::span<const TrainingSample> s) override { samples.insert(samples.end(), s.begin(), s.end()); }
+    bool wants_nee_samples() const override { return false; }
+  } no_nee;
+  StoringSampleSink all;
+  for (TrainingSampleSink* sink : {static_cast<TrainingSampleSink*>(&no_nee), static_cast<TrainingSampleSink*>(&all)}) {
+    RadianceRecorder rec(RecorderOptions{}, sink);
+    ComplexExample ex;
+    ex.run(rec);
+  }
+  ASSERT_EQ(all.samples.size(), 6u);
+  ASSERT_EQ(no_nee.samples.size(), 3u);
+  auto m = by_vertex(all.samples), n = by_vertex(no_nee.samples);
+  for (int depth = 0; depth < 3; ++depth) {
+    const std::pair<int, int> key{depth, 0};
+    ASSERT_EQ(n.count(key), 1u) << depth;
+    expect_rgb_near(n[key].radiance, m[key].radiance, "a scattering vertex's sample");
+  }
+}
+
 TEST(RadianceRecorder, OccludedNEEGivesZeroSample) {
   StoringSampleSink sink;
   RadianceRecorder rec(RecorderOptions{}, &sink);

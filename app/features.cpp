@@ -29,6 +29,7 @@ void check(const RecorderOptions& o) {
     throw_error("--recorder-vertex-skip-probability must be in [0, 1), got {}", o.vertex_skip_probability);
   if (!(o.min_distance >= 0.0f))
     throw_error("--recorder-min-distance must be zero or positive, got {}", o.min_distance);
+  parse_training_mode(o.training);
 }
 
 RecorderFeature::RecorderFeature(const RecorderOptions& options, bool guiding, uint32_t seed, int width, int height,

@@ -1,6 +1,7 @@
 #include "radiance_recorder/recorder.h"
 
 #include "core/hash.h"
+#include "core/log.h"
 #include "core/stats.h"
 
 #include <tbb/blocked_range.h>
@@ -121,6 +122,13 @@ std::atomic<uint64_t> next_recorder_id{1};
 
 }  // namespace
 
+TrainingMode parse_training_mode(const std::string& name) {
+  if (name == "mis-direct") return TrainingMode::IndirectPlusMISDirect;
+  if (name == "all") return TrainingMode::All;
+  if (name == "indirect") return TrainingMode::IndirectOnly;
+  throw_error("--recorder-training {}: expected mis-direct, all or indirect", name);
+}
+
 double path_skip_rate(uint64_t paths, uint64_t vertices, double budget) {
   if (budget <= 0.0 || paths == 0 || vertices == 0) return 0.0;
   double keep = budget * double(paths) / double(vertices);
@@ -130,7 +138,7 @@ double path_skip_rate(uint64_t paths, uint64_t vertices, double budget) {
 size_t RadianceRecorder::vertex_bytes() { return sizeof(Vertex); }
 
 RadianceRecorder::RadianceRecorder(const RecorderOptions& options, TrainingSampleSink* sink)
-    : opt_(options), sink_(sink), caches_(new tbb::enumerable_thread_specific<ThreadCache>()),
+    : opt_(options), mode_(parse_training_mode(options.training)), sink_(sink), caches_(new tbb::enumerable_thread_specific<ThreadCache>()),
       id_(next_recorder_id.fetch_add(1, std::memory_order_relaxed)) {
   opt_.max_blocks = std::clamp<uint32_t>(opt_.max_blocks, 1, kPVMaxBlocks);
   opt_.vertex_skip_probability = std::clamp(opt_.vertex_skip_probability, 0.0f, 1.0f);
@@ -337,7 +345,7 @@ void RadianceRecorder::emission_added(uint32_t vertex, uint32_t pixel, const RGB
     return;
   }
   v.em_direct += c;
-  if (opt_.mode == TrainingMode::All && mis_weight > 0.0f) v.em_direct_unweighted += c / mis_weight;
+  if (mode_ == TrainingMode::All && mis_weight > 0.0f) v.em_direct_unweighted += c / mis_weight;
 }
 
 void RadianceRecorder::vertex_continued(uint32_t vertex) {
@@ -409,8 +417,8 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
   if (!(v.flags & kVertexTrains)) return;
 
   RGB radiance = divide(indirect, v.tp);
-  if (opt_.mode == TrainingMode::IndirectPlusMISDirect) radiance += divide(direct, v.tp);
-  if (opt_.mode == TrainingMode::All) radiance += divide(v.em_direct_unweighted, v.tp);
+  if (mode_ == TrainingMode::IndirectPlusMISDirect) radiance += divide(direct, v.tp);
+  if (mode_ == TrainingMode::All) radiance += divide(v.em_direct_unweighted, v.tp);
   if (!is_finite(radiance)) {
     ++tc.dropped;
     return;

@@ -22,6 +22,7 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace theia {
@@ -49,12 +50,15 @@ enum VertexFlags : uint8_t {
   kVertexGlossy = 1 << 3,   // sampled from a glossy lobe
 };
 
-// What a training sample's radiance holds.
+// What a training sample's radiance holds (seeds/000 ch. 1 section 5).
 enum class TrainingMode {
   All,                  // direct (unweighted) + indirect: the full incident-radiance estimate
   IndirectOnly,         // what arrives through later scattering only
   IndirectPlusMISDirect // indirect + MIS-weighted direct (Ruppert et al. 2020; course notes ch. 1 eq. 23)
 };
+
+// "mis-direct" | "all" | "indirect"; throws theia::Error naming the flag otherwise.
+TrainingMode parse_training_mode(const std::string& name);
 
 struct TrainingSample {
   vec3 p{0.0f};
@@ -105,7 +109,9 @@ class StoringSampleSink final : public TrainingSampleSink {
 // ---------------------------------------------------------------- options and stats
 
 struct RecorderOptions {
-  TrainingMode mode = TrainingMode::IndirectPlusMISDirect;
+  // What a sample's radiance holds (TrainingMode): "mis-direct" (eq. 23,
+  // the default), "all" (eq. 21) or "indirect" (eq. 22).
+  std::string training = "mis-direct";
   float vertex_budget = 4.0f;          // target recorded vertices per path; <= 0: no path skipping
   float vertex_skip_probability = 0.0f;// stochastic vertex skipping
   float min_distance = 0.0f;           // closer to its parent than this: the parent is continued instead
@@ -122,6 +128,9 @@ struct RecorderOptions {
 // renderer (seed, film size) or keep their defaults.
 template <class V>
 void declare_options(V& v, RecorderOptions& o) {
+  v.image("training", o.training,
+          "What training samples hold: mis-direct (indirect + MIS-weighted direct, eq. 23), all (eq. 21) or "
+          "indirect (eq. 22)");
   v.image("vertex_budget", o.vertex_budget, "Recorded vertices per path (path skipping); 0: off");
   v.image("vertex_skip_probability", o.vertex_skip_probability, "Probability of skipping a path vertex, in [0, 1)");
   v.image("min_distance", o.min_distance, "Closer than this to its parent, a vertex is merged into the parent");
@@ -217,6 +226,7 @@ class RadianceRecorder final : public PathObserver {
   std::vector<TrainingSample> sorted_samples(); // every thread's samples, sorted; the threads' emptied
 
   RecorderOptions opt_;
+  TrainingMode mode_;
   TrainingSampleSink* sink_;
   std::unique_ptr<std::atomic<Block*>[]> blocks_;
   std::atomic<uint32_t> block_count_{0};

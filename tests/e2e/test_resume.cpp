@@ -288,6 +288,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--schedule", {"guiding"}},
     {"--combine", {"inverse-variance"}},
     {"--recorder-vertex-budget", {"2"}},
+    {"--recorder-training", {"all"}},
     {"--recorder-vertex-skip-probability", {"0.25"}},
     {"--recorder-min-distance", {"0.1"}},
     {"--recorder-debug", {}},

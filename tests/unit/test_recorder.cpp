@@ -2,6 +2,7 @@
 // Hyperion course notes (ch. 2, sections 3.1 and 3.2) in wave order, training
 // modes, skipping arithmetic, and random orders / thread interleavings.
 #include "core/hash.h"
+#include "core/log.h"
 #include "radiance_recorder/recorder.h"
 
 #include <gtest/gtest.h>
@@ -167,10 +168,10 @@ TEST(RadianceRecorder, ComplexExampleSixVerticesWithNEE) {
 }
 
 TEST(RadianceRecorder, TrainingModesSplitDirectAndIndirect) {
-  auto run = [](TrainingMode mode) {
+  auto run = [](const char* mode) {
     StoringSampleSink sink;
     RecorderOptions o;
-    o.mode = mode;
+    o.training = mode;
     RadianceRecorder rec(o, &sink);
     ComplexExample ex;
     ex.w[1] = 0.5f;  // e1 is MIS-weighted: the unweighted direct light is 2 e1
@@ -178,9 +179,10 @@ TEST(RadianceRecorder, TrainingModesSplitDirectAndIndirect) {
     ex.run(rec);
     return std::make_pair(by_vertex(sink.samples), ex);
   };
-  auto [mis, ex] = run(TrainingMode::IndirectPlusMISDirect);
-  auto [all, ex2] = run(TrainingMode::All);
-  auto [ind, ex3] = run(TrainingMode::IndirectOnly);
+  auto [mis, ex] = run("mis-direct");
+  auto [all, ex2] = run("all");
+  auto [ind, ex3] = run("indirect");
+  EXPECT_THROW(parse_training_mode("direct"), Error);
   const RGB* e = ex.e;
   // P1 sees only direct light (its own ray passes Q1 and meets the environment).
   expect_rgb_near(mis[{0, 1}].radiance, (e[1] + e[2]) / ex.tp(1), "MIS-weighted direct at P1");

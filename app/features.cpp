@@ -218,6 +218,7 @@ void GuidingFeature::judge(const IterationInfo& it) {
 void GuidingFeature::add_tasks(IterationTasks& tasks) {
   if (!tree_) return;
   if (options_.auto_off && verdict_.unguided_iteration >= 0) {
+    tasks.measure_variance();
     tasks.on_begin([this](const IterationInfo& it) {
       guide(verdict_.state != GuidingVerdict::Off &&
             !(verdict_.state == GuidingVerdict::Undecided && it.index == verdict_.unguided_iteration));

@@ -336,7 +336,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       break;
     }
     info.seconds = seconds_since(ti);
-    info.sample_variance = robust_relative_variance(film, half_buffer_variance(film));
+    if (tasks.measures_variance()) info.sample_variance = robust_relative_variance(film, half_buffer_variance(film));
     acc.fold(film, info.spp_begin, info.spp_end);
     film.clear();
     pos.iteration = i + 1;

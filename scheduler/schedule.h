@@ -53,8 +53,9 @@ struct IterationInfo {
   uint32_t spp_begin = 0;   // samples [spp_begin, spp_end) of every pixel
   uint32_t spp_end = 0;
   // Set for the end-of-iteration tasks: the iteration's wall seconds (the
-  // render alone) and its robust per-sample relative variance (combine.h;
-  // < 0: unknown, as for 1-spp iterations), what efficiency estimates need.
+  // render alone) and, when a task asked for it (IterationTasks::
+  // measure_variance), its robust per-sample relative variance (combine.h;
+  // < 0: unknown, as for 1-spp iterations): what efficiency estimates need.
   double seconds = 0.0;
   double sample_variance = -1.0;
   bool last() const { return index + 1 == count; }
@@ -85,6 +86,9 @@ class IterationTasks {
   void add(BetweenIterationSlot slot, Task task);
   void on_begin(Task hook) { begin_hooks_.push_back(std::move(hook)); }
   void on_end(Task hook) { end_hooks_.push_back(std::move(hook)); }
+  // A task reads IterationInfo::sample_variance (a pass over the film, paid only then).
+  void measure_variance() { measure_variance_ = true; }
+  bool measures_variance() const { return measure_variance_; }
 
   void begin_iteration(const IterationInfo& it) const;
   // end hooks, then every slot in order; each slot's wall time is added to
@@ -98,6 +102,7 @@ class IterationTasks {
   double seconds_[size_t(BetweenIterationSlot::Count)] = {};
   double end_hook_seconds_ = 0.0;
   std::vector<Task> begin_hooks_, end_hooks_;
+  bool measure_variance_ = false;
 };
 
 }  // namespace theia

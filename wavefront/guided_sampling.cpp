@@ -23,7 +23,7 @@ std::optional<Continuation> sample_guided_ris(const BSDF& bsdf, const vec3& wo, 
   };
   auto weigh = [&](Candidate& c) {
     if (!c.bs || !(c.bs->pdf > 0.0f) || !(c.g >= 0.0f)) return;
-    const float p = guided_mis_pdf(c.bs->pdf, c.g, 0.5f);
+    const float p = guided_mis_pdf(c.bs->pdf, c.g, kRISCandidateShare);
     c.t = luminance(c.bs->f) * std::abs(glm::dot(c.bs->wi, ns)) * (defensive * kInv4Pi + (1.0f - defensive) * c.g);
     c.weight = p > 0.0f && std::isfinite(c.t) ? c.t / p : 0.0f;
   };
@@ -44,8 +44,8 @@ std::optional<Continuation> sample_guided_ris(const BSDF& bsdf, const vec3& wo, 
   Continuation c;
   c.bs = *pick.bs;
   const float bsdf_pdf = c.bs.pdf;
-  c.bs.pdf = pick.t / (0.5f * sum);
-  c.mis_pdf = guided_mis_pdf(bsdf_pdf, pick.g, 0.5f);
+  c.bs.pdf = pick.t / (kRISCandidateShare * sum);  // t / mean(weights) over the two
+  c.mis_pdf = guided_mis_pdf(bsdf_pdf, pick.g, kRISCandidateShare);
   c.roulette = double(c.bs.pdf) / double(bsdf_pdf);
   return c;
 }

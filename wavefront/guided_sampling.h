@@ -26,6 +26,9 @@ struct GuidedDraw {
   float u_pick = 0.0f;  // RIS: which candidate
 };
 
+// RIS draws one candidate from each: their mixture is half and half (eq. 9).
+inline constexpr float kRISCandidateShare = 0.5f;
+
 // RIS over two candidates, one from the BSDF and one from the guide.
 // `defensive` is the uniform share a of the target's radiance estimate.
 std::optional<Continuation> sample_guided_ris(const BSDF& bsdf, const vec3& wo, const vec3& ns,

@@ -31,7 +31,8 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   v.dims = bounce_dims(ps.depth);
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ps.beta;
   v.caustic_flags = caustic_flags(ps, v.bsdf);
-  v.guidable = bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness);
+  // Only a guide or the recorder (which trains only where guiding applies) asks.
+  v.guidable = (kObserve || hooks.guide) && bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness);
   if (hooks.guide && v.guidable) {
     v.guide_region = hooks.guide->region(si.p);
     if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
@@ -105,7 +106,7 @@ uint8_t WavefrontEngine::Impl::caustic_flags(const PathState& ps, const BSDF& bs
 float WavefrontEngine::Impl::scattering_pdf(const ShadingPoint& v, const vec3& wi) const {
   const float p = bsdf_pdf(v.bsdf, v.si.wo, wi);
   if (!v.guided()) return p;
-  const float c = opt.guiding.mixing == GuideMixing::Resampled ? 0.5f : v.guide_fraction;
+  const float c = opt.guiding.mixing == GuideMixing::Resampled ? kRISCandidateShare : v.guide_fraction;
   return guided_mis_pdf(p, hooks.guide->pdf(v.guide_region, wi), c);
 }
 
@@ -170,10 +171,12 @@ std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const Sha
     if (!bs) return std::nullopt;
     return Continuation{*bs, bs->pdf, 1.0};
   }
-  const GuidedDraw u{sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir),
-                     sample2(v.ps, v.dims.guide_dir), sample1(v.ps, v.dims.guide_pick)};
-  if (opt.guiding.mixing == GuideMixing::Resampled)
+  GuidedDraw u{sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir)};
+  if (opt.guiding.mixing == GuideMixing::Resampled) {
+    u.u_guide = sample2(v.ps, v.dims.guide_dir);
+    u.u_pick = sample1(v.ps, v.dims.guide_pick);
     return sample_guided_ris(v.bsdf, v.si.wo, v.ns, *hooks.guide, v.guide_region, opt.guiding.defensive, u);
+  }
   return sample_guided_mis(v.bsdf, v.si.wo, *hooks.guide, v.guide_region, v.guide_fraction, u);
 }
 

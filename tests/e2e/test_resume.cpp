@@ -181,7 +181,12 @@ TEST(Resume, CheckpointShareOfWallTimeIsLoggedWithAndWithoutSkipping) {
   // 1 x8, 2 4 8 2 = cumulative 1..8 10 14 22 24; ideals 4 8 16 24 -> 4 written.
   EXPECT_EQ(skip["checkpoint"]["written"].get<int>(), 4);
   EXPECT_EQ(all["checkpoint"]["written"].get<int>(), 12);
-  EXPECT_GT(all["checkpoint"]["share_of_wall"].get<double>(), skip["checkpoint"]["share_of_wall"].get<double>());
+  // Logged for both; which share is larger is a measurement of time (two
+  // processes on a shared machine), so it is not asserted here.
+  for (const nlohmann::json* s : {&skip, &all}) {
+    EXPECT_GT((*s)["checkpoint"]["share_of_wall"].get<double>(), 0.0);
+    EXPECT_LT((*s)["checkpoint"]["share_of_wall"].get<double>(), 1.0);
+  }
   EXPECT_EQ(skip["iterations"].size(), 12u);
 }
 

@@ -1,5 +1,6 @@
 #include "core/image.h"
 
+#include "core/image_readers.h"
 #include "core/log.h"
 #include "core/oiio_module.h"
 
@@ -233,6 +234,11 @@ ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info) {
     } catch (const std::exception& e) {
       throw_error("{}: cannot read image ({})", path, e.what());
     }
+  }
+  switch (image_reader_for(path)) {
+    case ImageReader::PFM: return read_pfm(path, info);
+    case ImageReader::StbImage: return read_with_stb_image(path, info);
+    default: break;
   }
   ImageBuffer img;
   ImageFileInfo file_info;

@@ -1,8 +1,9 @@
 // Image buffers and image files.  Everything in memory is linear float,
 // interleaved, row 0 at the top (OpenImageIO's and pbrt-v4's raster order).
 // EXR is read and written with OpenEXR, the PNG preview written with libpng;
-// every other format is read through OpenImageIO, loaded only when such a
-// file is read (core/oiio_module.h says why).  The libraries' headers stay in
+// PFM, PNG, JPEG, TGA, BMP and HDR are read by core/image_readers.h, every
+// other format through OpenImageIO, loaded only when such a file is read
+// (core/oiio_module.h says why).  The libraries' headers stay in
 // image.cpp so that this header is cheap to include.
 #pragma once
 
@@ -42,11 +43,11 @@ struct ImageBuffer {
 // What the file held before conversion to float: decides the default
 // colour encoding of textures (8/16-bit integer files are display-encoded).
 struct ImageFileInfo {
-  std::string format_name;    // "openexr", or OpenImageIO's plugin name: "png", "pfm", ...
+  std::string format_name;    // "openexr", or OpenImageIO's plugin name: "png", "targa", "pnm" (PFM), ...
   bool float_pixels = false;  // half/float/double samples in the file
 };
 
-// Any format OpenImageIO reads (EXR, PFM, PNG, TGA, JPEG, HDR), first subimage,
+// Any format OpenImageIO reads (EXR, PFM, PNG, TGA, JPEG, HDR, ...), first subimage,
 // all channels, values as stored (no colour conversion, alpha not premultiplied).
 // EXR (told by its magic number, not the name) comes back as OpenImageIO
 // presented it: channels by layer, R G B A first within one.

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -134,23 +135,33 @@ TEST_F(ImageFiles, PngPreviewIsSrgbEncodedAndClamped) {
   }
 }
 
-// EXR files are read with OpenEXR itself, and must come back as OpenImageIO
-// reads them: the same channel order (colour first within a layer, not
-// OpenEXR's alphabetical B G R), the same values, the data window's size.
-void expect_read_as_openimageio_reads(const std::string& path) {
-  auto in = OIIO::ImageInput::open(path);
+// EXR (read with OpenEXR itself) and PNG, JPEG, TGA, BMP, HDR and PFM (read
+// by core/image_readers.h) must come back as OpenImageIO reads them: the
+// same shape, channel names and order (for EXR colour first within a layer,
+// not OpenEXR's alphabetical B G R), values and format name.  JPEG decoders
+// may round their inverse DCT differently: within `tolerance`.
+void expect_read_as_openimageio_reads(const std::string& path, float tolerance = 0.0f) {
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  auto in = OIIO::ImageInput::open(path, &config);
   ASSERT_TRUE(in) << OIIO::geterror();
   const OIIO::ImageSpec& spec = in->spec();
   std::vector<float> expected(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
   ASSERT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, expected.data())) << in->geterror();
   ImageFileInfo info;
   ImageBuffer img = read_image_file(path, &info);
-  EXPECT_EQ(info.format_name, "openexr");
-  EXPECT_TRUE(info.float_pixels);
-  EXPECT_EQ(img.width, spec.width);
-  EXPECT_EQ(img.height, spec.height);
+  EXPECT_EQ(info.format_name, in->format_name());
+  auto bt = OIIO::TypeDesc::BASETYPE(spec.format.basetype);
+  EXPECT_EQ(info.float_pixels, bt == OIIO::TypeDesc::HALF || bt == OIIO::TypeDesc::FLOAT);
+  ASSERT_EQ(img.width, spec.width);
+  ASSERT_EQ(img.height, spec.height);
   EXPECT_EQ(img.channels, spec.channelnames);
-  EXPECT_EQ(img.data, expected);
+  ASSERT_EQ(img.data.size(), expected.size());
+  if (tolerance == 0.0f) {
+    EXPECT_EQ(img.data, expected);
+  } else {
+    for (size_t i = 0; i < expected.size(); ++i) ASSERT_NEAR(img.data[i], expected[i], tolerance) << i;
+  }
 }
 
 TEST_F(ImageFiles, ExrChannelOrderAndValuesMatchOpenImageIO) {
@@ -260,6 +271,83 @@ TEST_F(ImageFiles, ReadsEightBitPngAndTgaAsStoredCodeValues) {
     ASSERT_EQ(img.num_channels(), 4) << name;
     EXPECT_EQ(img.channels[3], "A") << name;
     for (size_t i = 0; i < px.size(); ++i) EXPECT_FLOAT_EQ(img.data[i], float(px[i]) / 255.0f) << name << " " << i;
+  }
+}
+
+// A test image with gradients and edges (so JPEG has something to round), as `type`.
+void write_with_openimageio(const std::string& path, int nc, OIIO::TypeDesc type,
+                            const std::string& compression = "") {
+  const int w = 37, h = 21;
+  std::vector<float> px(size_t(w) * h * size_t(nc));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < nc; ++c)
+        px[(size_t(y) * w + size_t(x)) * size_t(nc) + size_t(c)] =
+            c == 3 ? float((x * 7 + y) % 11) / 10.0f : float((x * (c + 1) + y * 3) % 17) / 16.0f * (x < 18 ? 1.0f : 0.5f);
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out) << OIIO::geterror();
+  OIIO::ImageSpec spec(w, h, nc, type);
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (!compression.empty()) spec.attribute("compression", compression);
+  if (path.ends_with(".jpg")) spec.attribute("CompressionQuality", 100);
+  ASSERT_TRUE(out->open(path, spec)) << out->geterror();
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, px.data())) << out->geterror();
+  ASSERT_TRUE(out->close());
+}
+
+TEST_F(ImageFiles, TextureFormatsReadWithoutOpenImageIOAsOpenImageIOReadsThem) {
+  for (int nc : {1, 2, 3, 4}) {
+    SCOPED_TRACE(nc);
+    write_with_openimageio(file("u8.png"), nc, OIIO::TypeDesc::UINT8);
+    expect_read_as_openimageio_reads(file("u8.png"), 0.0f);
+    write_with_openimageio(file("u16.png"), nc, OIIO::TypeDesc::UINT16);
+    expect_read_as_openimageio_reads(file("u16.png"), 0.0f);
+  }
+  for (int nc : {3, 4}) {
+    SCOPED_TRACE(nc);
+    write_with_openimageio(file("raw.tga"), nc, OIIO::TypeDesc::UINT8);
+    expect_read_as_openimageio_reads(file("raw.tga"), 0.0f);
+    write_with_openimageio(file("rle.tga"), nc, OIIO::TypeDesc::UINT8, "rle");
+    expect_read_as_openimageio_reads(file("rle.tga"), 0.0f);
+  }
+  write_with_openimageio(file("img.bmp"), 3, OIIO::TypeDesc::UINT8);
+  expect_read_as_openimageio_reads(file("img.bmp"), 0.0f);
+  write_with_openimageio(file("img.hdr"), 3, OIIO::TypeDesc::FLOAT);
+  expect_read_as_openimageio_reads(file("img.hdr"), 0.0f);
+  for (int nc : {1, 3}) {
+    write_with_openimageio(file("img.jpg"), nc, OIIO::TypeDesc::UINT8);
+    expect_read_as_openimageio_reads(file("img.jpg"), 2.5f / 255.0f);
+  }
+  // PFM, written by hand: RGB little-endian, grey big-endian.
+  std::vector<float> rgb(4 * 3 * 3);
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = 0.5f * float(i) - 3.0f;
+  write_pfm(file("rgb.pfm"), 4, 3, rgb);
+  expect_read_as_openimageio_reads(file("rgb.pfm"), 0.0f);
+  {
+    std::ofstream f(file("grey.pfm"), std::ios::binary);
+    f << "Pf\n2 3\n1.0\n";
+    for (int i = 0; i < 6; ++i) {
+      const uint32_t bits = std::bit_cast<uint32_t>(float(i) * 0.75f), be = __builtin_bswap32(bits);
+      f.write(reinterpret_cast<const char*>(&be), 4);
+    }
+  }
+  expect_read_as_openimageio_reads(file("grey.pfm"), 0.0f);
+}
+
+// A header that claims more pixels than its file can hold is refused before
+// anything that size is allocated.
+TEST_F(ImageFiles, HeadersClaimingMoreThanTheFileHoldsAreRefused) {
+  std::ofstream(file("huge.pfm"), std::ios::binary) << "PF\n16000 16000\n-1.0\n" << std::string(100, 'x');
+  std::string png("\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\x3e\x80\0\0\x3e\x80\x08\x02\0\0\0", 33);
+  std::ofstream(file("huge.png"), std::ios::binary) << png << std::string(100, '\0');
+  for (const char* name : {"huge.pfm", "huge.png"}) {
+    try {
+      read_image_file(file(name));
+      FAIL() << name << ": expected theia::Error";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(file(name) + ":", 0), 0u) << e.what();
+      EXPECT_NE(std::string(e.what()).find("16000x16000"), std::string::npos) << e.what();
+    }
   }
 }
 

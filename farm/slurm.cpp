@@ -176,13 +176,13 @@ std::string batch_script(const BatchJob& job) {
   s += fmt::format("#SBATCH --output={}\n#SBATCH --open-mode=append\n", job.output);
   if (job.requeue) s += "#SBATCH --requeue\n";
   for (const std::string& o : job.sbatch) s += "#SBATCH " + o + "\n";
-  s += "set -u\ntask=${SLURM_ARRAY_TASK_ID:-0}\ncommands=(\n";
-  for (const std::string& c : job.commands) s += "  " + quote(c) + "\n";
-  s += ")\n";
+  s += "set -u\ntask=${SLURM_ARRAY_TASK_ID:-0}\n";
+  for (size_t k = 0; k < job.commands.size(); ++k)
+    s += fmt::format("task_{}() {{ exec {}; }}\n", k, job.commands[k]);
   s += R"SH(echo "farm: start task=$task restart=${SLURM_RESTART_COUNT:-0} job=${SLURM_JOB_ID:-none} time=$(date +%s) host=$(hostname)"
 # The render runs in the background so that this shell can pass on the
 # SIGTERM Slurm sends it (--signal=B:TERM@N before the time limit; scancel -b).
-bash -c "${commands[$task]}" &
+"task_$task" &
 pid=$!
 trap 'kill -TERM "$pid" 2>/dev/null' TERM INT
 while :; do

@@ -238,7 +238,7 @@ std::vector<int> iteration_sizes(const IterationConfig& config) {
   std::vector<int> sizes = make_schedule(config.schedule, config.total_spp);
   if (config.sample_end == 0) return sizes;
   if (config.sample_begin >= config.sample_end || config.sample_end > uint32_t(config.total_spp))
-    throw_error("the sample range [{}, {}) is not within the frame's {} samples", config.sample_begin,
+    throw_error("--sample-range {}:{} is not within the frame's {} samples per pixel", config.sample_begin,
                 config.sample_end, config.total_spp);
   return clip_schedule(sizes, int(config.sample_begin), int(config.sample_end));
 }

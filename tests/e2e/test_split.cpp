@@ -147,7 +147,7 @@ TEST(Split, RefusesWhatLearnsFromEarlierSamplesAndBadRanges) {
   refused("--sample-range 0:8 --time-limit 5", "--time-limit");
   refused("--sample-range 8:4", "BEGIN must be below END");
   refused("--sample-range 8", "expected BEGIN:END");
-  refused("--sample-range 0:17", "not within the frame's 16 samples");
+  refused("--sample-range 0:17", "--sample-range 0:17 is not within the frame's 16 samples per pixel");
 }
 
 TEST(Split, StoppedPartResumesExactlyAndOnlyForItsOwnRange) {

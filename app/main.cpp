@@ -1,5 +1,6 @@
 // The `theia` command line.
 #include "app/diff.h"
+#include "app/farm_commands.h"
 #include "app/render.h"
 #include "core/log.h"
 
@@ -28,6 +29,8 @@ int main(int argc, char** argv) {
   render->add_option("--log", rc.log_path, "JSON log file (default: OUTPUT with .json)");
   render->add_option("--reference", rc.reference_path,
                      "Reference image (linear sRGB EXR): log time, spp and relMSE/RMSE/MAPE at every iteration");
+  render->add_option("--sample-range", rc.sample_range,
+                     "BEGIN:END: render samples [BEGIN, END) of every pixel as a part of a split frame (theia merge)");
   render->add_flag("-q,--quiet", quiet, "Print only warnings and errors");
   OptionBinder binder(*render);
   declare_render_options(binder, rc);
@@ -40,6 +43,8 @@ int main(int argc, char** argv) {
   diff->add_option("a", diff_a, "Test image")->required();
   diff->add_option("b", diff_b, "Reference image")->required();
   diff->add_option("--error-image", diff_image, "Write a false-colour relative-error PNG");
+
+  FarmCommands farm(app);
 
   CLI11_PARSE(app, argc, argv);
   try {
@@ -60,6 +65,7 @@ int main(int argc, char** argv) {
       return run_render(rc);
     }
     if (diff->parsed()) return run_diff(diff_a, diff_b, diff_image);
+    if (farm.parsed()) return farm.run();
   } catch (const Error& e) {
     std::fprintf(stderr, "%s\n", error_line(e.what()).c_str());
     return 1;

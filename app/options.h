@@ -84,16 +84,22 @@ struct OptionBinder : OptionVisitor {
   }
 };
 
-// log["options"]: every option under its one name.
+// log["options"]: every option under its one name (the image options alone
+// with image_only: what a split frame's parts must agree on, farm/part.h).
 struct OptionLog : OptionVisitor {
   nlohmann::json json = nlohmann::json::object();
+  bool image_only = false;
 
   template <class T>
   void image(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
   template <class T>
-  void order(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
+  void order(const char* name, const T& field, const char*) {
+    if (!image_only) json[option_name(group, name)] = field;
+  }
   template <class T>
-  void output(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
+  void output(const char* name, const T& field, const char*) {
+    if (!image_only) json[option_name(group, name)] = field;
+  }
 };
 
 // The text the options fingerprint hashes: NAME=VALUE; for every image option.

@@ -2,10 +2,12 @@
 
 #include "app/progress.h"
 #include "checkpoint/fingerprint.h"
+#include "core/atomic_file.h"
 #include "core/hash.h"
 #include "core/log.h"
 #include "core/metrics.h"
 #include "core/stats.h"
+#include "farm/part.h"
 #include "scene/mipmap.h"
 #include "scene/parser.h"
 #include "scene/texture.h"
@@ -19,7 +21,6 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 
 namespace theia {
@@ -40,6 +41,23 @@ void check(const RenderOptions& c) {
     throw_error("--throughput-reset-bounce must be zero or positive, got {}", c.throughput_reset_bounce);
 }
 
+// A split frame's parts must add up to the whole render: nothing may depend
+// on the samples before a part's range (what guiding and adaptive sampling
+// learn, the iterations inverse-variance weighting compares), and a part must
+// render its whole range (no time limit).
+static void check_split(const RenderConfig& c) {
+  parse_sample_range(c.sample_range);
+  auto refuse = [&](const char* flag, const char* why) {
+    throw_error("--sample-range cannot be combined with {}: {}", flag, why);
+  };
+  const char* learns = "it learns from the samples before a part's range, so the parts would not add up to one render";
+  if (c.guiding.enabled || c.guiding.auto_off) refuse(c.guiding.enabled ? "--guiding" : "--guiding-auto", learns);
+  if (c.adaptive.enabled) refuse("--adaptive", learns);
+  if (c.combine != "equal") refuse("--combine inverse-variance", "its weights compare the iterations of one render");
+  if (RecorderFeature::debug_layers(c.recorder)) refuse("--recorder-debug", "its buffers are not part of the film");
+  if (c.time_limit > 0) refuse("--time-limit", "a part must render its whole range");
+}
+
 void check_config(const RenderConfig& c) {
   check(static_cast<const RenderOptions&>(c));
   check(static_cast<const LightSamplerOptions&>(c));
@@ -52,6 +70,7 @@ void check_config(const RenderConfig& c) {
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
   if (RecorderFeature::debug_layers(c.recorder) && c.guiding.auto_off)
     throw_error("--recorder-debug cannot be combined with --guiding-auto: the recorder stops when guiding does");
+  if (!c.sample_range.empty()) check_split(c);
 }
 
 uint64_t options_fingerprint(const RenderConfig& c) {
@@ -70,6 +89,7 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
   if (c.guiding.auto_off) c.guiding.enabled = true;
   c.schedule = schedule_name(c, c.guiding.enabled);
+  if (!c.sample_range.empty()) c.caustics.may_switch_off = false;
   return c;
 }
 
@@ -148,6 +168,14 @@ static IterationConfig iteration_config(const RenderConfig& c, const Scene& scen
   ic.stop = stop;
   ic.time_limit = c.time_limit;
   ic.clock_start = render_start;
+  if (!c.sample_range.empty()) {
+    const SampleRange r = parse_sample_range(c.sample_range);
+    ic.sample_begin = r.begin;
+    ic.sample_end = r.end;
+    ic.keep_sums = true;
+    // A part's checkpoint is resumed only by the same range.
+    ic.options_hash = hash(ic.options_hash, uint64_t(r.begin), uint64_t(r.end));
+  }
   return ic;
 }
 
@@ -217,12 +245,29 @@ static nlohmann::json options_log(const RenderConfig& c) {
   return log.json;
 }
 
+// What the merge checks a split frame's part against the others with.
+static PartInfo part_info(const RenderConfig& c, const IterationConfig& ic) {
+  PartInfo p;
+  p.range = {ic.sample_begin, ic.sample_end};
+  p.spp = c.spp;
+  p.scene_fingerprint = ic.scene_hash;
+  p.options_fingerprint = options_fingerprint(c);
+  p.seed = c.seed;
+  RenderConfig declared = c;
+  OptionLog log;
+  log.image_only = true;
+  declare_render_options(log, declared);
+  p.image_options = log.json;
+  return p;
+}
+
 static RenderResult make_result(IterationResult iterations, Features& features, const RenderConfig& c,
                                 const WavefrontEngine& engine, const RenderableScene& rs, const Film& film) {
   RenderResult result;
   result.image = std::move(iterations.image);
   result.interrupted = iterations.interrupted;
   result.weight = iterations.weight;
+  result.sums = std::move(iterations.sums);
   // The recorder's debug buffers sum over every iteration: they share the
   // combined film's per-pixel weight (compare them with --combine equal).
   if (!iterations.interrupted) append_film_layers(result.image, features.recorder.layers(), iterations.weight);
@@ -254,7 +299,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   RenderableScene rs(scene, c.light_sampler);
   Film film(scene.film.width, scene.film.height);
   IterationConfig ic = iteration_config(c, scene, stop, render_start);
-  const std::vector<int> sizes = make_schedule(ic.schedule, c.spp);
+  const std::vector<int> sizes = iteration_sizes(ic);
   Features features(c, rs, sizes);
   EngineOptions engine_opt = engine_options(c, stop);
   EngineHooks hooks{.observer = features.recorder.recorder()};
@@ -272,31 +317,25 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   const std::vector<int> cumulative = cumulative_spp(sizes);
   ic.progress = [&](int it, double fraction) {
     double before = it > 0 ? cumulative[size_t(it) - 1] : 0;
-    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / c.spp, engine.stats().total_rays());
+    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / cumulative.back(),
+               engine.stats().total_rays());
     if (c.on_iteration_progress) c.on_iteration_progress(it, fraction);
   };
   ReferenceEvaluation evaluation{reference, wall_start, render_start};
   if (!c.reference_path.empty()) ic.evaluate = std::ref(evaluation);
 
   IterationResult iterations = render_iterations(engine, film, tasks, ic);
-  return make_result(std::move(iterations), features, c, engine, rs, film);
-}
-
-static void write_text_atomically(const std::string& path, const std::string& text) {
-  std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw_error("{}: cannot open for writing", tmp);
-    f << text;
-    f.flush();
-    if (!f) throw_error("{}: write failed", tmp);
-  }
-  fs::rename(tmp, path);
+  RenderResult result = make_result(std::move(iterations), features, c, engine, rs, film);
+  if (!c.sample_range.empty()) result.log["part"] = part_json(part_info(c, ic));
+  return result;
 }
 
 int run_render(const RenderConfig& in) {
   RenderConfig config = in;
   check_config(config);
+  if (!config.sample_range.empty() && !config.log_path.empty())
+    throw_error("--sample-range cannot be combined with --log: a part's log is PART.json beside PART.exr, where the "
+                "merge reads it");
   auto t0 = std::chrono::steady_clock::now();
   if (!config.wall_start) config.wall_start = t0;
   Scene scene = load_scene(config.scene_path);
@@ -318,7 +357,7 @@ int run_render(const RenderConfig& in) {
     return kExitInterrupted;
   }
   std::string png = fs::path(config.output).replace_extension(".png").string();
-  write_exr(config.output, result.image);
+  write_exr(config.output, config.sample_range.empty() ? result.image : part_image(result.image, result.sums));
   write_png_srgb(png, result.image, 0, 1, 2);
 
   result.log["time"]["load"] = load_seconds;

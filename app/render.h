@@ -54,6 +54,10 @@ struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions {
   // --reference: at every iteration boundary log wall and render time, cumulative spp and
   // relMSE / RMSE / MAPE against this image (linear sRGB, the film's size).  Empty: none.
   std::string reference_path;
+  // --sample-range BEGIN:END: render samples [BEGIN, END) of the frame's spp
+  // and write them as a part of a split frame (farm/part.h), for `theia merge`.
+  // Empty: the whole frame.
+  std::string sample_range;
   // When the command started (scene loading included), for the log's wall time; unset: when
   // render_scene was called.
   std::optional<std::chrono::steady_clock::time_point> wall_start;
@@ -115,6 +119,7 @@ struct RenderResult {
   nlohmann::json log;
   bool interrupted = false;         // stopped early: no image; resume from the checkpoint
   std::vector<float> weight;        // per-pixel sum of filter weights (box filter: samples per pixel)
+  ImageBuffer sums;                 // --sample-range: the film's sums (sum.NAME), what the merge adds
 };
 
 // Renders an already-loaded scene (images must be loaded).  Throws theia::Error on bad options.

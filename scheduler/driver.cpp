@@ -220,12 +220,35 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
 
 }  // namespace
 
+std::pair<uint32_t, uint32_t> checkpoint_spp(const Checkpoint& c) {
+  const CheckpointSection* s = c.find(kSchedulerSection);
+  if (!s || s->version != kSchedulerSectionVersion) throw_error("checkpoint {}: no scheduler section", c.generation);
+  ByteReader r(s->bytes, "checkpoint scheduler section");
+  r.get<int32_t>();  // total spp
+  const std::vector<int> sizes = r.get_vector<int>();
+  Position pos;
+  pos.iteration = r.get<int32_t>();
+  pos.camera_done = r.get<uint64_t>();
+  if (pos.iteration < 0 || pos.iteration > int(sizes.size())) throw_error("checkpoint {}: iteration out of range", c.generation);
+  // Adaptive sampling's per-pixel ranges are its own section: counted here as if uniform.
+  return spp_range(pos, sizes, cumulative_spp(sizes), c.image.pixel_count(), nullptr);
+}
+
+std::vector<int> iteration_sizes(const IterationConfig& config) {
+  std::vector<int> sizes = make_schedule(config.schedule, config.total_spp);
+  if (config.sample_end == 0) return sizes;
+  if (config.sample_begin >= config.sample_end || config.sample_end > uint32_t(config.total_spp))
+    throw_error("--sample-range {}:{} is not within the frame's {} samples per pixel", config.sample_begin,
+                config.sample_end, config.total_spp);
+  return clip_schedule(sizes, int(config.sample_begin), int(config.sample_end));
+}
+
 IterationResult render_iterations(WavefrontEngine& engine, Film& film, IterationTasks tasks,
                                   const IterationConfig& config) {
   IterationConfig cfg = config;
   if (cfg.adaptive) cfg.participants.push_back(cfg.adaptive->participant());
   auto t0 = std::chrono::steady_clock::now();
-  const std::vector<int> sizes = make_schedule(cfg.schedule, cfg.total_spp);
+  const std::vector<int> sizes = iteration_sizes(cfg);
   const std::vector<int> cumulative = cumulative_spp(sizes);
   const std::vector<bool> planned =
       checkpoint_iterations(cumulative, cfg.checkpoint.first, cfg.checkpoint.every_iteration);
@@ -292,8 +315,8 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       break;
     }
     info.index = i;
-    info.spp_begin = uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
-    info.spp_end = uint32_t(cumulative[size_t(i)]);
+    info.spp_begin = cfg.sample_begin + uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
+    info.spp_end = cfg.sample_begin + uint32_t(cumulative[size_t(i)]);
     auto ti = std::chrono::steady_clock::now();
     tasks.begin_iteration(info);
     auto progress = [&](double f) {
@@ -367,6 +390,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   if (!interrupted) {
     result.image = acc.resolve();
     result.weight = acc.total.weight;
+    if (cfg.keep_sums) result.sums = film_sums_image(acc.total, "sum.");
   }
   double wall = seconds_since(t0);
   nlohmann::json slot_seconds;

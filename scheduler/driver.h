@@ -67,7 +67,16 @@ struct IterationConfig {
   // iteration's log entry (the error against a reference image, --reference).
   // Unset: nothing is resolved or logged, so it costs nothing.
   std::function<nlohmann::json(const IterationInfo&, const ImageAccumulator&)> evaluate;
+  // A split frame's part (--sample-range): samples [sample_begin, sample_end)
+  // of every pixel, in the iterations of the whole frame's schedule clipped to
+  // them (iteration_sizes); sample_end 0: the whole frame.
+  uint32_t sample_begin = 0, sample_end = 0;
+  bool keep_sums = false;  // IterationResult::sums (a part's mergeable film)
 };
+
+// The sizes of the iterations this config renders: the schedule for total_spp,
+// clipped to the sample range when there is one.
+std::vector<int> iteration_sizes(const IterationConfig& config);
 
 struct IterationResult {
   ImageBuffer image;
@@ -76,8 +85,14 @@ struct IterationResult {
   uint32_t spp_min = 0, spp_max = 0; // colour samples per pixel in the image, counted from the sample ranges
   uint64_t dropped_samples = 0;    // non-finite samples dropped over every iteration
   std::vector<float> weight;       // per-pixel sum of filter weights over every iteration
+  ImageBuffer sums;                // keep_sums: every film plane summed over the iterations (film_sums_image)
   nlohmann::json log;              // schedule, per-iteration times, checkpoint share of wall time
 };
+
+// The samples per pixel (smallest, largest) a checkpoint holds: what `theia
+// farm status` reports for a render still under way.  Throws theia::Error
+// when the checkpoint has no readable scheduler section.
+std::pair<uint32_t, uint32_t> checkpoint_spp(const Checkpoint& c);
 
 // `tasks` is copied: the driver adds its own checkpoint task to the copy.
 // `film` must be the film the engine splats into; the engine's options.stop

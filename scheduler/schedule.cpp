@@ -30,6 +30,17 @@ std::vector<int> make_schedule(const ScheduleOptions& o, int total_spp) {
   return sizes;
 }
 
+std::vector<int> clip_schedule(const std::vector<int>& sizes, int begin, int end) {
+  std::vector<int> clipped;
+  int at = 0;
+  for (int n : sizes) {
+    const int lo = std::max(at, begin), hi = std::min(at + n, end);
+    if (hi > lo) clipped.push_back(hi - lo);
+    at += n;
+  }
+  return clipped;
+}
+
 std::vector<int> cumulative_spp(const std::vector<int>& sizes) {
   std::vector<int> c(sizes.size());
   int sum = 0;

@@ -35,6 +35,11 @@ inline ScheduleOptions guiding_schedule() { return {1, 8, 2.0, 16}; }
 // options that cannot make progress (non-positive sizes, growth < 1).
 std::vector<int> make_schedule(const ScheduleOptions& options, int total_spp);
 
+// A split frame's part: the iterations of `sizes` intersected with samples
+// [begin, end) (the empty intersections left out), so a part renders the
+// iterations a whole render has there, cut at the range's ends.
+std::vector<int> clip_schedule(const std::vector<int>& sizes, int begin, int end);
+
 // Running totals of a schedule: cumulative[i] = sizes[0] + ... + sizes[i].
 std::vector<int> cumulative_spp(const std::vector<int>& sizes);
 

@@ -271,7 +271,8 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
   stats_.dropped += pass.dropped.load();
   stats_.seconds += seconds_since(t0);
   ++passes_;
-  if (stats_.paths >= kCausticDecisionPaths && double(stats_.splats) < kCausticMinSplatRate * double(stats_.paths))
+  if (options_.may_switch_off && stats_.paths >= kCausticDecisionPaths &&
+      double(stats_.splats) < kCausticMinSplatRate * double(stats_.paths))
     stats_.switched_off_after = passes_;
 }
 

@@ -33,6 +33,10 @@ struct CausticOptions {
   // Casters: conductors and dielectrics whose every lobe is at most this rough.
   float caster_roughness = 0.1f;
   uint32_t seed = 0;
+  // Whether the pass may switch itself off (kCausticDecisionPaths).  A split
+  // frame's part cannot see the passes before its samples, so it keeps the
+  // pass on: every part then traces the same light paths (farm/README.md).
+  bool may_switch_off = true;
 };
 
 // The options a render sets (flags --caustics-NAME; see app/options.h);

@@ -1,6 +1,7 @@
 #include "wavefront/film.h"
 
 #include "core/color.h"
+#include "core/log.h"
 
 namespace theia {
 
@@ -130,6 +131,29 @@ void Film::add_resolved(const std::vector<float>& rgb, const std::vector<float>&
     r_odd[j] += rgb_odd[3 * j] * weight_odd[j];
     g_odd[j] += rgb_odd[3 * j + 1] * weight_odd[j];
     b_odd[j] += rgb_odd[3 * j + 2] * weight_odd[j];
+  }
+}
+
+ImageBuffer film_sums_image(const Film& film, const std::string& prefix) {
+  std::vector<std::string> names;
+  for (const char* n : Film::kPlaneNames) names.push_back(prefix + n);
+  ImageBuffer img(film.width, film.height, std::move(names));
+  for (size_t p = 0; p < Film::kPlaneCount; ++p) {
+    const std::vector<float>& v = *film.plane(p);
+    for (size_t i = 0; i < v.size(); ++i) img.data[i * Film::kPlaneCount + p] = v[i];
+  }
+  return img;
+}
+
+void add_film_sums(Film& film, const ImageBuffer& image, const std::string& prefix, const std::string& what) {
+  if (image.width != film.width || image.height != film.height)
+    throw_error("{}: the image is {}x{}, expected {}x{}", what, image.width, image.height, film.width, film.height);
+  const size_t nc = image.channels.size();
+  for (size_t p = 0; p < Film::kPlaneCount; ++p) {
+    const int c = image.channel_index(prefix + Film::kPlaneNames[p]);
+    if (c < 0) throw_error("{}: no channel {}{} (not a film's sums)", what, prefix, Film::kPlaneNames[p]);
+    std::vector<float>& v = *film.plane(p);
+    for (size_t i = 0; i < v.size(); ++i) v[i] += image.data[i * nc + size_t(c)];
   }
 }
 

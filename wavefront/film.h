@@ -81,6 +81,14 @@ inline float resolve_sum(float sum, float weight) {
 // as NAME.R/G/B in linear sRGB, divided by the per-pixel weight sums.
 void append_film_layers(ImageBuffer& image, const std::vector<FilmLayer>& layers, const std::vector<float>& weight);
 
+// The film's sums as an image: channel PREFIX + kPlaneNames[i] for every
+// plane (float32 EXR keeps them exactly), so that films rendered apart (a
+// frame's sample ranges) can be written, read and added.
+ImageBuffer film_sums_image(const Film& film, const std::string& prefix);
+// film += the planes of `image` named PREFIX + kPlaneNames[i]; throws
+// theia::Error naming `what` and the channel when one is missing or the size differs.
+void add_film_sums(Film& film, const ImageBuffer& image, const std::string& prefix, const std::string& what);
+
 // Resolve to an image with channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z depth.Z,
 // then LAYER.R LAYER.G LAYER.B for each extra layer.
 ImageBuffer resolve_film(const Film& film);

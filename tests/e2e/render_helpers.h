@@ -63,6 +63,26 @@ inline std::string mirror_room_scene(int width, int height, float ceiling_roughn
 )";
 }
 
+// A diffuse sphere of this radius on a floor, a small emitter, an environment:
+// a few bounces, fast (the resume and split-frame tests' scene, 32x24 at 40 spp).
+inline std::string sphere_floor_scene(float radius) {
+  return R"(Film "rgb" "integer xresolution" [32] "integer yresolution" [24]
+LookAt 0 1 -5  0 0 0  0 1 0
+Camera "perspective" "float fov" [35]
+Sampler "sobol" "integer pixelsamples" [40]
+WorldBegin
+LightSource "infinite" "rgb L" [1 1 1]
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [4 4 4]
+  Shape "sphere" "float radius" [0.3]
+AttributeEnd
+Material "diffuse" "rgb reflectance" [0.7 0.5 0.3]
+Shape "sphere" "float radius" [)" +
+         std::to_string(radius) + R"(]
+Shape "trianglemesh" "point3 P" [-4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4] "integer indices" [0 1 2 0 2 3]
+)";
+}
+
 inline RenderConfig quick_config(int spp) {
   RenderConfig c;
   c.spp = spp;

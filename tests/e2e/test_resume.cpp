@@ -38,31 +38,14 @@ fs::path temp_dir(const std::string& name) {
   return d;
 }
 
-// Diffuse sphere and floor under an environment: a few bounces, fast.
-std::string scene_text(float radius) {
-  return R"(Film "rgb" "integer xresolution" [32] "integer yresolution" [24]
-LookAt 0 1 -5  0 0 0  0 1 0
-Camera "perspective" "float fov" [35]
-Sampler "sobol" "integer pixelsamples" [40]
-WorldBegin
-LightSource "infinite" "rgb L" [1 1 1]
-AttributeBegin
-  AreaLightSource "diffuse" "rgb L" [4 4 4]
-  Shape "sphere" "float radius" [0.3]
-AttributeEnd
-Material "diffuse" "rgb reflectance" [0.7 0.5 0.3]
-Shape "sphere" "float radius" [)" +
-         std::to_string(radius) + R"(]
-Shape "trianglemesh" "point3 P" [-4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4] "integer indices" [0 1 2 0 2 3]
-)";
-}
+using test::sphere_floor_scene;
 
 struct Fixture {
   fs::path dir;
   std::string scene, common;
   explicit Fixture(const std::string& name, const std::string& extra = "") : dir(temp_dir(name)) {
     scene = (dir / "s.pbrt").string();
-    std::ofstream(scene) << scene_text(1.0f);
+    std::ofstream(scene) << sphere_floor_scene(1.0f);
     // A small pool so that one iteration takes many camera-ray generations:
     // a stop can land in the middle of it.
     common = " --max-paths 1024 -q " + extra;
@@ -156,13 +139,13 @@ TEST(Resume, RefusedOnAChangedSceneOrImageOption) {
   RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --seed 7");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("different image-affecting options"), std::string::npos) << r.output;
-  std::ofstream(f.scene) << scene_text(1.1f);
+  std::ofstream(f.scene) << sphere_floor_scene(1.1f);
   r = f.render("out.exr", " --checkpoint-dir " + ck);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("different scene"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(f.out("out.exr")));
   // Back to the same scene; threads do not change the image: accepted.
-  std::ofstream(f.scene) << scene_text(1.0f);
+  std::ofstream(f.scene) << sphere_floor_scene(1.0f);
   r = f.render("out.exr", " --checkpoint-dir " + ck + " --threads 1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
 
@@ -341,7 +324,7 @@ RenderConfig parse(std::vector<std::string> args) {
 
 struct ResumeOptionsCheckpoint : ::testing::Test {
   test::TempDir tmp{"theia_resume_options"};
-  Scene scene = test::load_test_scene(scene_text(1.0f));
+  Scene scene = test::load_test_scene(sphere_floor_scene(1.0f));
   std::string checkpoints = (tmp.path / "ck").string();
   StopRequest stop;
 

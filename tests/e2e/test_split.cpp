@@ -1,0 +1,166 @@
+// Split frames: `theia render --sample-range` parts merged by `theia merge`
+// equal the whole render (every channel, to float summation order), and the
+// merge refuses parts that are not of one frame or do not tile its samples.
+#include "core/image.h"
+#include "render_helpers.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+using namespace theia;
+
+namespace {
+
+struct SplitFixture {
+  fs::path dir;
+  std::string scene;
+  SplitFixture(const std::string& name, const std::string& text) {
+    dir = fs::temp_directory_path() / ("theia_split_" + name + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    scene = (dir / "s.pbrt").string();
+    std::ofstream(scene) << text;
+  }
+  ~SplitFixture() { fs::remove_all(dir); }
+  std::string out(const std::string& name) const { return (dir / name).string(); }
+  test::RunResult render(const std::string& output, const std::string& more) const {
+    return test::run_theia("render " + scene + " -o " + out(output) + " -q " + more);
+  }
+  test::RunResult merge(const std::vector<std::string>& parts, const std::string& output) const {
+    std::string cmd = "merge";
+    for (const std::string& p : parts) {
+      cmd += ' ';
+      cmd += out(p);
+    }
+    return test::run_theia(cmd + " -o " + out(output));
+  }
+};
+
+// Largest |a - b| / max(|a|, |b|, floor) over every channel, matched by name.
+double max_channel_difference(const ImageBuffer& a, const ImageBuffer& b, double floor = 1e-3) {
+  EXPECT_EQ(a.channels, b.channels);
+  EXPECT_EQ(a.data.size(), b.data.size());
+  double worst = 0.0;
+  for (size_t i = 0; i < std::min(a.data.size(), b.data.size()); ++i)
+    worst = std::max(worst, std::abs(double(a.data[i]) - double(b.data[i])) /
+                                std::max({std::abs(double(a.data[i])), std::abs(double(b.data[i])), floor}));
+  return worst;
+}
+
+// Renders the parts [cuts[k], cuts[k+1]) and the whole frame; merges the parts.
+void render_split(const SplitFixture& f, const std::vector<int>& cuts, const std::string& options) {
+  ASSERT_EQ(f.render("whole.exr", options).exit_code, 0);
+  std::vector<std::string> parts;
+  // Given out of order: the merge sorts them by range.
+  for (size_t k = cuts.size() - 1; k-- > 0;) {
+    parts.push_back("part" + std::to_string(k) + ".exr");
+    test::RunResult r = f.render(parts.back(), options + " --sample-range " + std::to_string(cuts[k]) + ":" +
+                                                   std::to_string(cuts[k + 1]));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  test::RunResult r = f.merge(parts, "merged.exr");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+}
+
+}  // namespace
+
+TEST(Split, FourPartsMergeToTheWholeRenderInEveryChannel) {
+  SplitFixture f("four", test::sphere_floor_scene(1.0f));
+  // Cuts inside and across the schedule's iterations (16 16 8).
+  render_split(f, {0, 7, 16, 33, 40}, "--threads 2");
+  const ImageBuffer whole = read_image_file(f.out("whole.exr")), merged = read_image_file(f.out("merged.exr"));
+  EXPECT_LT(max_channel_difference(merged, whole), 1e-5);
+  // The parts differ from one another (each is a quarter of the samples), so equality is not trivial.
+  const ImageBuffer part = read_image_file(f.out("part0.exr"));
+  EXPECT_GT(test::max_relative_difference(part, whole), 1e-3);
+  nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("merged.json")));
+  EXPECT_EQ(log["merged_from"].size(), 4u);
+  EXPECT_EQ(log["scheduler"]["spp_per_pixel"]["min"], 40);
+  EXPECT_TRUE(fs::exists(f.out("merged.png")));
+  nlohmann::json part_log = nlohmann::json::parse(std::ifstream(f.out("part1.json")));
+  EXPECT_EQ(part_log["part"]["sample_range"], nlohmann::json({7, 16}));
+  EXPECT_EQ(part_log["scheduler"]["spp_per_pixel"]["min"], 9);
+}
+
+TEST(Split, CausticPassPartsMergeToTheWholeRender) {
+  // A mirror ceiling over the light: the light-traced caustic pass is on, and
+  // stays on in every part (farm/README.md); with 24x16 pixels it traces too
+  // few paths for the whole render to switch it off, so the two agree.
+  SplitFixture f("caustic", test::mirror_room_scene(24, 16, 0.05f));
+  render_split(f, {0, 16, 32, 64}, "--spp 64");
+  nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("whole.json")));
+  ASSERT_GT(log["caustics"]["paths"].get<uint64_t>(), 0u) << log["caustics"].dump();
+  ASSERT_EQ(log["caustics"]["switched_off_after_passes"], -1);
+  EXPECT_LT(max_channel_difference(read_image_file(f.out("merged.exr")), read_image_file(f.out("whole.exr"))), 1e-4);
+}
+
+TEST(Split, MergeRefusesPartsOfAnotherFrameAndRangesThatDoNotTile) {
+  SplitFixture f("refuse", test::sphere_floor_scene(1.0f));
+  auto part = [&](const std::string& name, const std::string& range, const std::string& more = "") {
+    test::RunResult r = f.render(name, "--spp 16 --sample-range " + range + more);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  };
+  part("a.exr", "0:8");
+  part("b.exr", "8:16");
+  part("late.exr", "4:16");
+  part("seed.exr", "8:16", " --seed 3");
+  part("depth.exr", "8:16", " --max-depth 2");
+  ASSERT_EQ(f.merge({"a.exr", "b.exr"}, "ok.exr").exit_code, 0);
+  auto refused = [&](const std::vector<std::string>& parts, const std::string& says) {
+    test::RunResult r = f.merge(parts, "bad.exr");
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(says), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(f.out("bad.exr")));
+  };
+  refused({"a.exr", "late.exr"}, "overlap");
+  refused({"a.exr"}, "samples [8, 16) of the frame's 16 are in no part");
+  refused({"b.exr"}, "samples [0, 8) of the frame's 16 are in no part");
+  refused({"a.exr", "seed.exr"}, "different seeds (0 vs 3)");
+  refused({"a.exr", "depth.exr"}, "max_depth (5 vs 2)");
+  // Another scene: the same file with one value changed.
+  std::ofstream(f.scene) << test::sphere_floor_scene(1.1f);
+  part("other.exr", "8:16");
+  refused({"a.exr", "other.exr"}, "different scenes");
+  // A whole render is not a part.
+  ASSERT_EQ(f.render("whole.exr", "--spp 16").exit_code, 0);
+  refused({"whole.exr"}, "not a part of a split frame");
+}
+
+TEST(Split, RefusesWhatLearnsFromEarlierSamplesAndBadRanges) {
+  SplitFixture f("learn", test::sphere_floor_scene(1.0f));
+  auto refused = [&](const std::string& more, const std::string& says) {
+    test::RunResult r = f.render("p.exr", "--spp 16 " + more);
+    EXPECT_EQ(r.exit_code, 1) << r.output;
+    EXPECT_NE(r.output.find(says), std::string::npos) << r.output;
+  };
+  refused("--sample-range 0:8 --guiding", "--sample-range cannot be combined with --guiding");
+  refused("--sample-range 0:8 --adaptive", "--sample-range cannot be combined with --adaptive");
+  refused("--sample-range 0:8 --combine inverse-variance", "--combine inverse-variance");
+  refused("--sample-range 0:8 --time-limit 5", "--time-limit");
+  refused("--sample-range 8:4", "BEGIN must be below END");
+  refused("--sample-range 8", "expected BEGIN:END");
+  refused("--sample-range 0:17", "--sample-range 0:17 is not within the frame's 16 samples per pixel");
+}
+
+TEST(Split, StoppedPartResumesExactlyAndOnlyForItsOwnRange) {
+  SplitFixture f("resume", test::sphere_floor_scene(1.0f));
+  const std::string opt = "--spp 40 --threads 2 --max-paths 512 --sample-range 8:40";
+  ASSERT_EQ(f.render("ref.exr", opt).exit_code, 0);
+  const std::string ck = " --checkpoint-dir " + f.out("ck");
+  EXPECT_EQ(f.render("p.exr", opt + ck + " --test-sigterm-at 1:0.5").exit_code, 75);
+  // Another range is refused: its samples would land on this one's.
+  test::RunResult r = f.render("q.exr", "--spp 40 --sample-range 0:32" + ck);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("refusing to resume"), std::string::npos) << r.output;
+  r = f.render("p.exr", opt + ck);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(max_channel_difference(read_image_file(f.out("p.exr")), read_image_file(f.out("ref.exr"))), 1e-5);
+}

@@ -157,7 +157,11 @@ std::vector<RGB> tabulate_conductor_fresnel(const SpectrumFn& eta, const Spectru
     double cos_i = double(i) / (kConductorFresnelTableSize - 1);
     RGB c = reflectance_srgb_under_d65([&](double l) {
       size_t j = size_t(std::clamp(int(std::lround(l)) - kLambdaMin, 0, kLambdaMax - kLambdaMin));
-      return double(fresnel_complex(float(cos_i), e[j], kk[j]));
+      // eta = k = 0 (a tabulated spectrum that stops short of the visible
+      // range is 0 beyond it) has no Fresnel term: the limit of a vanishing
+      // index, total reflection, rather than a NaN in every render.
+      double f = double(fresnel_complex(float(cos_i), e[j], kk[j]));
+      return std::isfinite(f) ? f : 1.0;
     });
     table[size_t(i)] = glm::clamp(srgb_to_working(c), RGB(0.0f), RGB(1.0f));
   }

@@ -148,3 +148,16 @@ TEST(SpectrumConductor, GreyAndTexturedConstantsKeepPerBandFresnel) {
       "<test>", ".");
   EXPECT_TRUE(only_material(t).conductor_fresnel.empty());
 }
+
+TEST(SpectrumConductor, SpectraShorterThanTheVisibleRangeGiveAFiniteTable) {
+  // Zero beyond 500-600 nm: eta = k = 0 there.
+  Scene s = scene_with("\"conductor\" \"spectrum eta\" [500 0.5 600 1.0] \"spectrum k\" [500 3 600 2]");
+  const Material& m = only_material(s);
+  ASSERT_EQ(m.conductor_fresnel.size(), size_t(kConductorFresnelTableSize));
+  for (const RGB& c : m.conductor_fresnel)
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_TRUE(std::isfinite(c[i]));
+      EXPECT_GE(c[i], 0.0f);
+      EXPECT_LE(c[i], 1.0f);
+    }
+}

@@ -238,6 +238,7 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
     } else {
       c.eta = tex_rgb(scene, eta, tc, RGB(1.0f));
       c.k = glm::max(tex_rgb(scene, k, tc, RGB(0.0f)), RGB(0.0f));
+      if (!m->conductor_fresnel.empty()) c.fresnel_table = m->conductor_fresnel.data();
     }
     return c;
   };

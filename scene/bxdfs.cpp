@@ -3,12 +3,16 @@
 #include "core/color.h"
 #include "core/hash.h"
 #include "core/sampling.h"
+#include "scene/conductor_spectral.h"
 
 #include <bit>
 
 namespace theia {
 
-RGB conductor_fresnel(float cos_i, const ConductorBxDF& b) { return srgb_to_working(fresnel_complex(cos_i, b.eta, b.k)); }
+RGB conductor_fresnel(float cos_i, const ConductorBxDF& b) {
+  if (b.fresnel_table) return lookup_conductor_fresnel(b.fresnel_table, cos_i);
+  return srgb_to_working(fresnel_complex(cos_i, b.eta, b.k));
+}
 
 namespace {
 

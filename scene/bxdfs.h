@@ -54,13 +54,17 @@ struct DiffuseBxDF {
 struct ConductorBxDF {
   TrowbridgeReitz distrib;
   RGB eta{1.0f}, k{0.0f};
+  // Material::conductor_fresnel when it has one (scene/conductor_spectral.h):
+  // the spectral reflectance over cos theta replaces the per-band Fresnel of eta and k.
+  const RGB* fresnel_table = nullptr;
 };
 
 // A conductor's Fresnel reflectance, in the working colour space.  eta and k
 // are optical constants per band, not colours, so they stay in the linear-sRGB
 // bands the scene (or the named spectrum) gives them; the reflectance they
 // produce is a colour and joins the working space.  Converting eta and k
-// instead would saturate metals beyond what their spectra reflect.
+// instead would saturate metals beyond what their spectra reflect.  With a
+// table (spectral eta and k) the table is the reflectance.
 RGB conductor_fresnel(float cos_i, const ConductorBxDF& b);
 struct DielectricBxDF {
   TrowbridgeReitz distrib;
@@ -96,7 +100,7 @@ struct CoatedConductorBxDF {
 // One BxDF as a tagged union: `kind` names the one member that is live.
 // Built from the variant it holds (`BxDF b = DielectricBxDF{...}`), so the
 // tag and the member cannot disagree; a BSDF is made per shading point, and
-// this keeps it as small as its largest variant (hair) rather than the sum.
+// this keeps it as small as its largest variant (the coated conductor) rather than the sum.
 struct BxDF {
   BxDFKind kind = BxDFKind::None;
   union {

@@ -1,7 +1,10 @@
 #include "scene/material_params.h"
 
+#include "scene/conductor_spectral.h"
 #include "scene/spectrum.h"
 #include "scene/tokenizer.h"
+
+#include <optional>
 
 namespace theia {
 
@@ -73,6 +76,57 @@ void parse_hair(const ParamList& params, const SourceLoc& loc, const MaterialLoo
   m->hair_alpha = ftex("alpha", 2.0f);
 }
 
+// A conductor's eta or k as the spectrum pbrt-v4 makes of it: an "rgb" by its
+// unbounded upsampling, a named or tabulated spectrum as given, absent as the
+// named default.  Empty for textures and for names theia does not tabulate
+// (those keep the per-band value the texture lookup gives); `grey` is set
+// when the spectrum is constant, where per-band Fresnel is already exact.
+std::optional<SpectrumFn> conductor_spectrum(const ParamList& p, const std::string& name, const char* default_name,
+                                             bool* grey) {
+  const Param* e = p.find_any(name, {ParamType::RGB, ParamType::Spectrum, ParamType::Float, ParamType::Texture,
+                                     ParamType::Blackbody});
+  *grey = false;
+  auto tabulated = [](const NamedSpectrum* s) -> std::optional<SpectrumFn> {
+    if (!s || s->lambda.empty()) return std::nullopt;
+    return [s](double l) { return double(spectrum_at(s->lambda, s->value, float(l))); };
+  };
+  if (!e) return tabulated(find_named_spectrum(default_name));
+  if (e->type == ParamType::RGB && e->numbers.size() == 3) {
+    RGB c(float(e->numbers[0]), float(e->numbers[1]), float(e->numbers[2]));
+    *grey = c.x == c.y && c.y == c.z;
+    SigmoidSpectrum s = rgb_unbounded_spectrum(glm::max(c, RGB(0.0f)));
+    // A colour the sigmoid cannot reach (a zero next to a large component)
+    // keeps per-band Fresnel rather than a spectrum of another colour.
+    RGB back = reflectance_srgb_under_d65(s);
+    if (max_component(glm::abs(back - c)) > 1e-3f * float(s.scale)) return std::nullopt;
+    return [s](double l) { return s(l); };
+  }
+  if (e->type == ParamType::Float && !e->numbers.empty()) {
+    *grey = true;
+    return [v = e->numbers[0]](double) { return v; };
+  }
+  if (e->type != ParamType::Spectrum) return std::nullopt;
+  if (!e->strings.empty()) return tabulated(find_named_spectrum(e->strings[0]));
+  std::vector<float> lambda, value;
+  for (size_t i = 0; i + 1 < e->numbers.size(); i += 2) {
+    lambda.push_back(float(e->numbers[i]));
+    value.push_back(float(e->numbers[i + 1]));
+  }
+  return [lambda, value](double l) { return double(spectrum_at(lambda, value, float(l))); };
+}
+
+// The conductor's spectral Fresnel table (relative to the medium of index
+// `outside_eta` it sits in), or nothing where per-band eta and k are exact or
+// the constants are textured.
+std::vector<RGB> conductor_fresnel_table(const ParamList& p, const std::string& prefix, float outside_eta) {
+  bool eta_grey = false, k_grey = false;
+  std::optional<SpectrumFn> eta = conductor_spectrum(p, prefix + "eta", "metal-Cu-eta", &eta_grey);
+  std::optional<SpectrumFn> k = conductor_spectrum(p, prefix + "k", "metal-Cu-k", &k_grey);
+  if (!eta || !k || (eta_grey && k_grey)) return {};
+  double inv = 1.0 / double(outside_eta);
+  return tabulate_conductor_fresnel([&](double l) { return (*eta)(l)*inv; }, [&](double l) { return (*k)(l)*inv; });
+}
+
 }  // namespace
 
 Material parse_material(const std::string& type, const ParamList& params, const SourceLoc& loc,
@@ -93,7 +147,7 @@ Material parse_material(const std::string& type, const ParamList& params, const 
     *u = has(prefix + "uroughness") ? ftex(prefix + "uroughness", 0.0f) : r;
     *v = has(prefix + "vroughness") ? ftex(prefix + "vroughness", 0.0f) : r;
   };
-  auto conductor = [&](const std::string& prefix) {
+  auto conductor = [&](const std::string& prefix, float outside_eta) {
     if (has("reflectance") && (has(prefix + "eta") || has(prefix + "k")))
       throw_at(loc, "{} with both \"reflectance\" and \"{}eta\"/\"{}k\", expected one of the two forms", type, prefix, prefix);
     if (has("reflectance")) {
@@ -102,6 +156,7 @@ Material parse_material(const std::string& type, const ParamList& params, const 
     }
     m.conductor_eta = L.texture(params, prefix + "eta", false, named_rgb("metal-Cu-eta"), SpectrumUse::Unbounded);
     m.conductor_k = L.texture(params, prefix + "k", false, named_rgb("metal-Cu-k"), SpectrumUse::Unbounded);
+    m.conductor_fresnel = conductor_fresnel_table(params, prefix, outside_eta);
   };
   auto layer = [&]() {
     m.thickness = ftex("thickness", 0.01f);
@@ -119,7 +174,7 @@ Material parse_material(const std::string& type, const ParamList& params, const 
     m.reflectance = L.texture(params, "reflectance", false, RGB(0.5f), SpectrumUse::Reflectance);
   } else if (type == "conductor") {
     m.kind = MaterialKind::Conductor;
-    conductor("");
+    conductor("", 1.0f);
     roughness("", &m.uroughness, &m.vroughness);
   } else if (type == "dielectric") {
     m.kind = MaterialKind::Dielectric;
@@ -143,7 +198,7 @@ Material parse_material(const std::string& type, const ParamList& params, const 
     m.kind = MaterialKind::CoatedConductor;
     roughness("interface.", &m.uroughness, &m.vroughness);
     m.eta = parse_eta(params, "interface.eta", loc);
-    conductor("conductor.");
+    conductor("conductor.", m.eta);
     roughness("conductor.", &m.conductor_uroughness, &m.conductor_vroughness);
     layer();
   } else if (type == "hair") {

@@ -103,6 +103,10 @@ struct Material {
   float eta = 1.5f;              // dielectric, thindielectric, coated interface (at ~550 nm), hair
   int conductor_eta = -1, conductor_k = -1;  // spectrum (RGB): conductor, coatedconductor base
   int conductor_uroughness = -1, conductor_vroughness = -1;  // float: coatedconductor base
+  // The conductor's Fresnel reflectance over cos theta (kConductorFresnelTableSize entries, working
+  // space) from its spectral eta and k, as pbrt-v4 evaluates it per wavelength
+  // (scene/conductor_spectral.h); empty where the per-band eta and k are exact (grey) or textured.
+  std::vector<RGB> conductor_fresnel;
   int thickness = -1, g = -1, albedo = -1;  // coated: float, float, spectrum
   int max_depth = 10, n_samples = 1;        // coated
   // hair: sigma_a (spectrum, sRGB bands) wins over reflectance, which wins

@@ -4,7 +4,7 @@
 // pbrt-v4's own 256-spp render comes to it (from the references' README).
 // theia must reach: relMSE <= 2x pbrt's, 8x8-block relMSE <= max(3x pbrt's,
 // 5e-4) (noise averages out there, bias does not), and every channel's mean
-// within pbrt's deviation + 0.02.  The Cornell box has its own test
+// within pbrt's deviation + 0.02 (+ 0.005 for the material sweep).  The Cornell box has its own test
 // (test_cornell.cpp).  veach-mis relies on the caustic pass (on by default): its tiny
 // bright sphere seen in a near-mirror plate, on the diffuse back wall, is a
 // caustic that camera paths alone find once in ~3000 samples at ~3000 times
@@ -23,13 +23,42 @@ namespace {
 struct PbrtYardstick {
   const char* scene;
   double rel_mse, block_rel_mse, mean_deviation;
+  double mean_slack = 0.02;  // allowed channel-mean deviation beyond pbrt's own
+  bool pbrt_brighter = false;  // pbrt's reference carries its LayeredBxDF bias (below)
 };
+
+// The one-material scenes (scenes/material-sweep/README.md) isolate a BSDF
+// each, so they can hold theia to pbrt's mean within 0.005.
+constexpr double kSweepSlack = 0.005;
+// Except where pbrt-v4's own layered f is wrong: a rough coat over a diffuse
+// or rough conductor base, or a medium in the coat.  Against explicit geometry
+// (tests/unit/test_layered_truth.cpp) theia's f is right and pbrt-v4's MIS
+// weight for a base-sampled exit (scene/README.md) puts its f 4-13% high; with
+// that one statement swapped into theia, these four scenes' mean deviations
+// fall from 0.0052 / 0.0137 / 0.0062 / 0.0077 to 0.0026 / 0.0060 / 0.0018 /
+// 0.0022 and their block relMSE by 4-12x.  So they keep the usual bar, and
+// theia must be darker than pbrt-v4 overall, as that bias makes it.
+constexpr double kPbrtLayeredBiasSlack = 0.02;
 
 constexpr PbrtYardstick kPbrt[] = {
     {"living-room", 0.0055, 7.6e-5, 0.0003},
     {"material-testball", 0.0256, 0.00123, 0.0021},
     {"veach-ajar", 0.679, 0.0093, 0.0046},
     {"veach-mis", 0.0359, 0.00066, 0.0122},
+    {"material-sweep/coatedconductor", 0.00063971, 7.11768e-06, 0.000201699, kPbrtLayeredBiasSlack, true},
+    {"material-sweep/coateddiffuse-colour", 0.000554812, 1.34028e-05, 0.000414782, kPbrtLayeredBiasSlack, true},
+    {"material-sweep/coateddiffuse-r0", 0.00116968, 1.97623e-05, 0.000676796, kSweepSlack},
+    {"material-sweep/coateddiffuse-r01", 0.000607113, 1.07257e-05, 0.000535317, kPbrtLayeredBiasSlack, true},
+    {"material-sweep/coateddiffuse-r03", 0.000525582, 8.08793e-06, 0.000127071, kPbrtLayeredBiasSlack, true},
+    {"material-sweep/conductor-cu", 0.000290157, 5.28922e-06, 0.000411302, kSweepSlack},
+    {"material-sweep/conductor-grey", 0.000287996, 6.45411e-06, 0.000728189, kSweepSlack},
+    {"material-sweep/conductor-reflectance", 0.000244161, 4.09504e-06, 0.000335971, kSweepSlack},
+    {"material-sweep/conductor-rgb-rough", 0.000238421, 3.42863e-06, 0.00048372, kSweepSlack},
+    {"material-sweep/conductor-rgb-smooth", 0.00111984, 2.42346e-05, 0.000336585, kSweepSlack},
+    {"material-sweep/dielectric-rough", 0.00724428, 6.51342e-05, 0.000676642, kSweepSlack},
+    {"material-sweep/diffuse-colour", 0.000191741, 2.45521e-06, 0.000161531, kSweepSlack},
+    {"material-sweep/diffusetransmission", 0.000457904, 7.54608e-06, 0.000542248, kSweepSlack},
+    {"material-sweep/thindielectric", 0.0200866, 0.000219651, 0.00110136, kSweepSlack},
 };
 
 class Validation : public ::testing::TestWithParam<PbrtYardstick> {};
@@ -47,14 +76,26 @@ TEST_P(Validation, MatchesPbrtReferenceAt256spp) {
               y.mean_deviation, r.log["time"]["render"].get<double>());
   EXPECT_LE(m.rel_mse, 2.0 * y.rel_mse);
   EXPECT_LE(m.block_rel_mse, std::max(3.0 * y.block_rel_mse, 5e-4));
-  EXPECT_LE(m.channel_mean_deviation, y.mean_deviation + 0.02);
+  EXPECT_LE(m.channel_mean_deviation, y.mean_deviation + y.mean_slack);
   EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u);
+  if (y.pbrt_brighter) {
+    // Summed over R, G, B, theia is darker by more than pbrt's own 256-spp deviation.
+    auto rgb_sum = [](const ImageBuffer& im) {
+      double sum = 0.0;
+      for (int c : im.rgb_channel_indices())
+        for (size_t i = 0; i < im.pixel_count(); ++i) sum += im.data[i * im.channels.size() + size_t(c)];
+      return sum / double(im.pixel_count());
+    };
+    double ratio = rgb_sum(r.image) / rgb_sum(ref);
+    std::printf("  theia / pbrt over R + G + B: %.4f\n", ratio);
+    EXPECT_LT(ratio, 1.0 - y.mean_deviation);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, Validation, ::testing::ValuesIn(kPbrt),
                          [](const ::testing::TestParamInfo<PbrtYardstick>& info) {
                            std::string n = info.param.scene;
                            for (char& c : n)
-                             if (c == '-') c = '_';
+                             if (c == '-' || c == '/') c = '_';
                            return n;
                          });

@@ -105,8 +105,19 @@ float medium_density(const Medium& m, const vec3& p) {
   return lerp(d.z, lerp(d.y, d00, d10), lerp(d.y, d01, d11));
 }
 
+// pbrt-v4 scales a grid's Le by "Lescale" looked up in a 1 x 1 x 1 grid,
+// trilinearly like the density: 1 at the box's centre, falling linearly to
+// 1/2 at each face (a product over the axes).
+float grid_emission_scale(const Medium& m, const vec3& p) {
+  const vec3 u = (p - m.p0) / (m.p1 - m.p0);
+  const vec3 f = glm::max(vec3(1.0f) - glm::abs(u - vec3(0.5f)), vec3(0.0f));
+  return f.x * f.y * f.z;
+}
+
 MediumProps medium_props(const Medium& m, const vec3& p) {
   const float d = medium_density(m, p);
+  if (m.kind == MediumKind::UniformGrid && !is_black(m.Le))
+    return MediumProps{m.sigma_a * d, m.sigma_s * d, m.Le * grid_emission_scale(m, p)};
   return MediumProps{m.sigma_a * d, m.sigma_s * d, m.Le};
 }
 

@@ -228,6 +228,18 @@ TEST(MediaGrid, TrilinearBetweenVoxelCentres) {
   EXPECT_FLOAT_EQ(medium_density(m, vec3(2.0f, 0.5f, 0.5f)), 0.0f);
 }
 
+// A grid's emission follows pbrt-v4's one-voxel "Lescale" lookup: Le at the
+// box's centre, Le / 2 at a face's centre, Le / 8 at a corner.
+TEST(MediaGrid, EmissionScaleAsPbrtLookup) {
+  Medium m;
+  m.kind = MediumKind::UniformGrid;
+  m.density = {1.0f};
+  m.Le = RGB(2.0f);
+  EXPECT_FLOAT_EQ(medium_props(m, vec3(0.5f)).Le.x, 2.0f);
+  EXPECT_FLOAT_EQ(medium_props(m, vec3(0.0f, 0.5f, 0.5f)).Le.x, 1.0f);
+  EXPECT_FLOAT_EQ(medium_props(m, vec3(1.0f)).Le.x, 0.25f);
+}
+
 // Zero density everywhere: nothing happens and nothing is divided by zero.
 TEST(MediaTracking, ZeroDensityPassesUntouched) {
   Medium m = homogeneous(RGB(0.0f), RGB(0.0f));

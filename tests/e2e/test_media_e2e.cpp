@@ -161,3 +161,27 @@ TEST(ExtremeMedia, SigmaRangeAndExtremeG) {
     }
   }
 }
+
+// The same absorbing medium sphere at scales 1e-4 and 1e5 (coefficients
+// divided by the scale, so optical depths are unchanged) renders the image
+// it renders at scale 1: ray offsets and tracking distances hold at both ends.
+TEST(ExtremeMedia, HugeAndTinySceneScales) {
+  auto mean_at = [](double k) {
+    auto num = [](double v) { return fmt::format("{:.9g}", v); };
+    const std::string sa = num(0.5 / k), ss = num(2.0 / k);
+    Scene scene = load_test_scene(
+        "Film \"rgb\" \"integer xresolution\" [16] \"integer yresolution\" [16]\n"
+        "Integrator \"volpath\" \"integer maxdepth\" [200]\n"
+        "LookAt 0 0 " + num(-5 * k) + "  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [30]\nWorldBegin\n"
+        "LightSource \"infinite\" \"rgb L\" [1 1 1]\n"
+        "MakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [" + sa + " " + sa + " " + sa +
+        "] \"rgb sigma_s\" [" + ss + " " + ss + " " + ss + "] \"float g\" 0.3\n"
+        "MediumInterface \"m\" \"\"\nMaterial \"interface\"\nShape \"sphere\" \"float radius\" [" + num(k) + "]\n");
+    RenderResult r = render_scene(scene, quick_config(64));
+    EXPECT_EQ(r.log["dropped_samples"].get<uint64_t>(), 0u) << "scale " << k;
+    return image_mean(r.image).x;
+  };
+  const float unit = mean_at(1.0);
+  EXPECT_LT(unit, 0.9f) << "the sphere should absorb";
+  for (double k : {1e-4, 1e5}) EXPECT_NEAR(mean_at(k), unit, 0.01f) << "scale " << k;
+}

@@ -88,6 +88,15 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.max_depth < 0) c.max_depth = scene.settings.max_depth;
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
   if (c.guiding.auto_off) c.guiding.enabled = true;
+  // The recorder does not record in-medium vertices yet, so neither it nor
+  // the guide it trains may run where paths scatter in media.
+  if (scene.has_media() && (c.guiding.enabled || RecorderFeature::debug_layers(c.recorder))) {
+    log_warning("{}: guiding and the radiance recorder are off: the scene has participating media, which they do not "
+                "handle yet", scene.path);
+    c.guiding.enabled = c.guiding.auto_off = false;
+    c.recorder.debug = false;
+    c.recorder.debug_bounce = -1;
+  }
   c.schedule = schedule_name(c, c.guiding.enabled);
   if (!c.sample_range.empty()) c.caustics.may_switch_off = false;
   return c;
@@ -113,7 +122,8 @@ static std::unique_ptr<tbb::global_control> limit_threads(int threads) {
 // The caustic pass's light paths cannot be counted with per-pixel sample
 // ranges (adaptive sampling) or by the recorder's debug comparisons, which
 // see camera paths only; it has nothing to do below maximum depth 2.
-static std::string caustics_conflict(const RenderConfig& c) {
+static std::string caustics_conflict(const RenderConfig& c, const Scene& scene) {
+  if (scene.has_media()) return "participating media (its light paths do not track them)";
   if (c.adaptive.enabled) return "adaptive sampling";
   if (RecorderFeature::debug_layers(c.recorder)) return "recorder debug layers";
   if (c.throughput_reset_bounce >= 0) return "--throughput-reset-bounce";
@@ -134,7 +144,7 @@ struct Features {
       : light_sampler(*rs.light_sampler),
         guiding(c.guiding, rs.accel.bounds(), schedule),
         recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, guiding.trainer()),
-        caustics(c.caustics, caustics_conflict(c), c.seed, rs),
+        caustics(c.caustics, caustics_conflict(c, rs.scene), c.seed, rs),
         adaptive(c.adaptive, rs.scene.film.width, rs.scene.film.height, schedule, c.spp) {}
   std::array<Feature*, 5> all() { return {&light_sampler, &guiding, &recorder, &caustics, &adaptive}; }
 };

@@ -115,6 +115,28 @@ uint64_t scene_fingerprint(const Scene& s) {
     h.pod(i.prototype);
     h.pod(i.render_from_instance);
   }
+  // Media only where the scene has them, so other scenes keep their fingerprints.
+  if (s.has_media()) {
+    for (const Shape& sh : s.shapes) {
+      h.pod(sh.medium_inside);
+      h.pod(sh.medium_outside);
+    }
+    for (const Medium& m : s.media) {
+      h.pod(m.kind);
+      h.pod(m.sigma_a);
+      h.pod(m.sigma_s);
+      h.pod(m.Le);
+      h.pod(m.g);
+      h.pod(m.nx);
+      h.pod(m.ny);
+      h.pod(m.nz);
+      h.vec(m.density);
+      h.pod(m.p0);
+      h.pod(m.p1);
+      h.pod(m.render_from_medium);
+    }
+    h.pod(s.camera_medium);
+  }
   h.pod(s.camera.kind);
   h.pod(s.camera.mapping);
   h.pod(s.camera.render_from_camera);

@@ -6,6 +6,7 @@
 #include "scene/light_params.h"
 #include "scene/loop_subdiv.h"
 #include "scene/material_params.h"
+#include "scene/medium_params.h"
 #include "scene/params.h"
 #include "scene/ply.h"
 #include "scene/spectrum.h"
@@ -35,6 +36,7 @@ struct GraphicsState {
   int material = -1;           // -1: the default diffuse 0.5
   bool area_light = false;
   AreaLightParams area;        // resolved per shape by make_area_light
+  int medium_inside = -1, medium_outside = -1;  // MediumInterface: Scene::media indices, -1 vacuum
   ParamList shape_attrs, light_attrs, material_attrs, texture_attrs;
 };
 
@@ -131,7 +133,8 @@ class SceneParser {
   int object_ = -1;  // prototype being defined
   bool warned_motion_ = false, warned_transform_begin_ = false;
   std::unordered_map<std::string, Transform> named_coords_;
-  std::unordered_map<std::string, int> named_materials_, float_textures_, spectrum_textures_, objects_;
+  std::unordered_map<std::string, int> named_materials_, float_textures_, spectrum_textures_, objects_, named_media_;
+  int medium_index(const std::string& name, const SourceLoc& loc) const;
   std::map<std::tuple<float, float, float, bool>, int> constants_;
   std::map<std::tuple<std::string, std::string, bool>, int> images_;
   int default_material_ = -1;
@@ -488,13 +491,17 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
     } else if (d == "MakeNamedMedium") {
       std::string name = string_arg(tok, d);
       ParamList params = parse_params(tok);
-      params.mark_all_used();
-      warn_at(loc, "participating media are not supported yet; medium \"{}\" ignored", name);
+      if (named_media_.count(name)) throw_at(loc, "medium \"{}\" defined twice, expected one MakeNamedMedium per name", name);
+      const Param* type = params.find("type", ParamType::String);
+      if (!type) throw_at(loc, "MakeNamedMedium \"{}\" without \"string type\", expected \"homogeneous\" or \"uniformgrid\"", name);
+      scene_.media.push_back(read_medium(name, type->strings[0], params, loc, gs_.ctm));
+      named_media_[name] = int(scene_.media.size()) - 1;
     } else if (d == "MediumInterface") {
+      // One name is both sides; pbrt-v4's order is inside, then outside.
       std::string inside = string_arg(tok, d), outside = inside;
       if (tok.peek().kind == Token::String) outside = string_arg(tok, d);
-      if (!inside.empty() || !outside.empty())
-        warn_at(loc, "participating media are not supported yet; MediumInterface ignored");
+      gs_.medium_inside = medium_index(inside, loc);
+      gs_.medium_outside = medium_index(outside, loc);
     } else if (d == "WorldEnd") {
       // pbrt-v3's terminator: accepted silently, as pbrt-v4 does when upgrading.
     } else {
@@ -518,6 +525,7 @@ void SceneParser::camera(const std::string& type, ParamList& params, const Sourc
                   "value?), expected an invertible transform");
   named_coords_["camera"] = gs_.ctm.inverse();
   scene_.camera.render_from_camera = gs_.ctm.inverse();
+  scene_.camera_medium = gs_.medium_outside;  // pbrt-v4's CameraTransform-time outside medium
   read_camera(type, params, loc, scene_.camera);
 }
 
@@ -754,11 +762,23 @@ void SceneParser::bake(TriangleMesh& m) const {
     for (vec3& n : m.n) n = -n;
 }
 
+// "" is vacuum; a name must be defined before it is used (pbrt-v4 resolves
+// names when the scene is built, so it also takes later definitions).
+int SceneParser::medium_index(const std::string& name, const SourceLoc& loc) const {
+  if (name.empty()) return -1;
+  auto it = named_media_.find(name);
+  if (it == named_media_.end())
+    throw_at(loc, "unknown medium \"{}\", expected a medium defined earlier with MakeNamedMedium (or \"\")", name);
+  return it->second;
+}
+
 void SceneParser::add_shape(Shape s, const ParamList& params) {
   s.reverse_orientation = gs_.reverse_orientation;
   s.transform_swaps_handedness = gs_.ctm.swaps_handedness();
   s.material = gs_.material >= 0 ? gs_.material : default_material();
   s.holdout = params.get_bool("holdout", false);
+  s.medium_inside = gs_.medium_inside;
+  s.medium_outside = gs_.medium_outside;
   if (params.find_any("alpha", {ParamType::Float, ParamType::Texture})) {
     s.alpha = texture_param(params, "alpha", true, RGB(1.0f), SpectrumUse::Unbounded);
     const Texture& t = scene_.textures[size_t(s.alpha)];

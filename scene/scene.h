@@ -180,6 +180,10 @@ struct Shape {
   int area_light = -1;              // index into Scene::lights, if emissive
   int alpha = -1;                   // float texture: cut-out where < 1 (issue 3)
   bool holdout = false;             // "bool holdout": blocks rays, contributes neither colour nor alpha
+  // MediumInterface: indices into Scene::media, -1 = vacuum.  Only a shape
+  // whose two sides differ changes a ray's medium (pbrt-v4's IsMediumTransition).
+  int medium_inside = -1, medium_outside = -1;
+  bool medium_transition() const { return medium_inside != medium_outside; }
   SourceLoc loc;
 };
 
@@ -287,6 +291,30 @@ struct RenderSettings {
 
 // ---------------------------------------------------------------- the scene
 
+// ---------------------------------------------------------------- media
+
+// pbrt-v4's MakeNamedMedium, resolved at parse time (scene/medium_params.h):
+// "scale" is applied to sigma_a and sigma_s, "Lescale" to Le.  A uniformgrid
+// scales both coefficients by its trilinearly interpolated density
+// (scene/media.h), in the medium's space: distances there are measured in
+// that space, as pbrt-v4 measures them.
+enum class MediumKind { Homogeneous, UniformGrid };
+struct Medium {
+  std::string name;
+  MediumKind kind = MediumKind::Homogeneous;
+  RGB sigma_a{1.0f}, sigma_s{1.0f};  // per unit length (times density for a grid)
+  RGB Le{0.0f};                      // emitted radiance (times sigma_a along a path)
+  float g = 0.0f;                    // Henyey-Greenstein asymmetry
+  // uniformgrid: nx * ny * nz densities (x fastest) over the box p0-p1 of medium space.
+  int nx = 1, ny = 1, nz = 1;
+  std::vector<float> density;
+  float max_density = 1.0f;          // the majorant's density (1 for homogeneous)
+  std::vector<float> majorants;      // uniformgrid: the majorant grid's densities (scene/media.h)
+  vec3 p0{0.0f}, p1{1.0f};
+  Transform render_from_medium;
+  SourceLoc loc;
+};
+
 struct Scene {
   std::string path;                          // the file it was loaded from
   CameraParams camera;
@@ -304,6 +332,15 @@ struct Scene {
   std::vector<Texture> textures;
   std::vector<Image> images;
   std::vector<Light> lights;
+  std::vector<Medium> media;
+  int camera_medium = -1;  // pbrt-v4: the outside medium of the MediumInterface current at Camera
+  // True when a ray can be in a medium: the camera's, or a shape's interface names one.
+  bool has_media() const {
+    if (camera_medium >= 0) return true;
+    for (const Shape& s : shapes)
+      if (s.medium_inside >= 0 || s.medium_outside >= 0) return true;
+    return false;
+  }
 };
 
 }  // namespace theia

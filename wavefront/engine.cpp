@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include <chrono>
+#include <stdexcept>
 
 namespace theia {
 
@@ -56,13 +57,15 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
       sizes(engine_sizes(o, uint64_t(f.pixel_count()),
                          int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)))),
       pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty(),
-                                         .guiding = h.guide != nullptr && o.guiding.roulette_correction}) {
+                                         .guiding = h.guide != nullptr && o.guiding.roulette_correction,
+                                         .media = rs.scene.has_media()}) {
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     bounds_min = b.min;
     bounds_inv_extent = 1.0f / glm::max(b.max - b.min, vec3(1e-30f));
   }
   uses_footprint = scene_uses_footprint(scene);
+  check_media_hooks();
   light_sampler_learns = light_sampler.wants_feedback();
   footprint_scale = footprint_spp_scale(opt.footprint_spp);
 }
@@ -148,6 +151,7 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   if (!b.camera) stats.continuation_rays += b.size();
   if (opt.sort && !b.camera) sort_rays(b);
   trace_closest(b);
+  if (!pool.medium.empty()) handle_medium_interactions(b);
   sort_hits(b);
   handle_escaped_rays();
   shade_surface_hits(b);
@@ -344,6 +348,14 @@ uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function
 void WavefrontEngine::set_hooks(const EngineHooks& hooks) {
   impl_->hooks = hooks;
   impl_->observer = hooks.observer;
+  impl_->check_media_hooks();
+}
+
+// Paths that end in a medium do not report to an observer, and the caustic
+// pass's light paths do not track media: the caller switches both off.
+void WavefrontEngine::Impl::check_media_hooks() const {
+  if (!pool.medium.empty() && (hooks.observer || hooks.caustics))
+    throw std::invalid_argument("a scene with participating media renders without a path observer or caustic pass");
 }
 
 const EngineHooks& WavefrontEngine::hooks() const { return impl_->hooks; }

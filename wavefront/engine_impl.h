@@ -6,11 +6,14 @@
 //   escaped_rays.cpp  rays that left the scene: infinite lights
 //   surface.cpp       shade surface hits (emission, pass-through, NEE, continuation, roulette)
 //   shadow_rays.cpp   trace shadow rays and splat the unoccluded ones
+//   media.cpp         medium interactions (free flight, in-medium vertices) and
+//                     shadow-ray transmittance; only in scenes with media
 #pragma once
 
 #include "core/radix_sort.h"
 #include "core/sampler.h"
 #include "scene/bsdf.h"
+#include "scene/media.h"
 #include "wavefront/engine.h"
 #include "wavefront/guided_sampling.h"
 #include "wavefront/path_state.h"
@@ -117,7 +120,14 @@ struct WavefrontEngine::Impl {
   void handle_escaped_rays();               // escaped_rays.cpp
   void shade_surface_hits(const Batch& b);  // surface.cpp
   void merge_outputs();
+  void check_media_hooks() const;
   void trace_shadow_rays();                 // shadow_rays.cpp
+  // ---- media (media.cpp): only called when the pool has the medium table
+  void handle_medium_interactions(Batch& b);  // free flight; scattered and absorbed paths leave the batch
+  bool interact_in_medium(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
+  void scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium, ShadeOutput& out);
+  void attenuate_shadow_rays_in_media();      // transmittance through every segment, across interfaces
+  RGB shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const;
 
   template <bool kObserve>
   void handle_escaped(const Ray& ray, uint32_t slot, ShadeOutput& out);
@@ -129,8 +139,8 @@ struct WavefrontEngine::Impl {
   template <bool kObserve>
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
   std::optional<Continuation> sample_continuation(const ShadingPoint& v) const;
-  bool survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale, double correction,
-                         float& survival) const;
+  bool survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local, float eta_scale,
+                         double correction, float& survival) const;
   void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;
@@ -156,6 +166,20 @@ struct WavefrontEngine::Impl {
     out.rays.rays.push_back(ray);
     out.rays.paths.push_back(slot);
     if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
+    if (!pool.medium.empty()) pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
+  }
+  // Queues a shadow ray with the fields every NEE vertex fills (the
+  // observer's are the caller's).
+  void queue_shadow(ShadeOutput& out, const Ray& ray, const RGB& contribution, const PathState& ps,
+                    const SampledLight& chosen, const PrimRef& skip, int medium) const {
+    ShadowQueue& q = out.shadows;
+    q.rays.push_back(ray);
+    q.contribution.push_back(contribution);
+    q.pixel.push_back(ps.pixel);
+    q.sample.push_back(ps.sample);
+    if (!pool.curve_skip.empty()) q.skip.push_back(skip);
+    if (light_sampler_learns) q.chosen.push_back(chosen);
+    if (!pool.medium.empty()) q.medium.push_back(medium);
   }
   void enqueue(const Ray& ray, uint32_t path);
   Batch take_spare();

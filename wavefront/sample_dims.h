@@ -27,7 +27,8 @@ inline constexpr uint32_t kPageStride = 1u << 24;  // page p of bounce d starts 
   F(roulette,      0, 7, 1, "Russian roulette")                                       \
   F(guide_dir,     1, 0, 2, "the guide's candidate direction (RIS)")                  \
   F(guide_pick,    1, 2, 1, "which RIS candidate")                                    \
-  /* page 1, offsets 3..7: free for the next feature (medium, cache points) */
+  F(medium_flight, 1, 3, 1, "the first free-flight distance in a medium (delta tracking)") \
+  /* page 1, offsets 4..7: free for the next feature (cache points) */
 
 struct CameraDims {
   static constexpr uint32_t film = 0;  // 2D: the point on the pixel (filter importance sampling)

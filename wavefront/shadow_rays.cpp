@@ -24,7 +24,9 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
   if (opt.capture_shadow_rays)
     opt.capture_shadow_rays->insert(opt.capture_shadow_rays->end(), s.rays.begin(), s.rays.end());
   blocked.assign(n, 0);
-  {
+  if (!s.medium.empty()) {
+    attenuate_shadow_rays_in_media();
+  } else {
     ScopedTimer timer(stats.phases[Phase::TraceShadow]);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
       std::span<const PrimRef> skips;

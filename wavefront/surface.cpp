@@ -52,7 +52,8 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   double correction = 1.0;
   if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
   float survival = 1.0f;
-  if (!survives_roulette(v, beta, local, eta_scale, correction, survival) || !is_finite(beta) || is_black(beta))
+  if (!survives_roulette(ps, v.dims.roulette, beta, local, eta_scale, correction, survival) || !is_finite(beta) ||
+      is_black(beta))
     return finish_path<kObserve>(slot, out);
   if constexpr (kObserve) report_vertex(v, bs, local, survival);
 
@@ -145,13 +146,10 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   const RGB contribution = ps.filter_weight * v.beta * f * (ls->L * (w / light_pdf));
   if (!is_finite(contribution) || is_black(contribution)) return;
 
+  const Ray ray = spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light);
+  const int medium = pool.medium.empty() ? -1 : medium_after(scene, v.si.shape, v.si.ng, ray.d, pool.medium[v.slot]);
+  queue_shadow(out, ray, contribution, ps, *sl, v.si.skip, medium);
   ShadowQueue& q = out.shadows;
-  q.rays.push_back(spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light));
-  q.contribution.push_back(contribution);
-  q.pixel.push_back(ps.pixel);
-  q.sample.push_back(ps.sample);
-  if (!pool.curve_skip.empty()) q.skip.push_back(v.si.skip);
-  if (light_sampler_learns) q.chosen.push_back(*sl);
   if constexpr (kObserve) {
     q.mis_weight.push_back(w);
     PathVertexInfo info = vertex_info(v, ls->wi, f / light_pdf, light_pdf);
@@ -185,13 +183,13 @@ std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const Sha
 // guided path's throughput is first corrected to what BSDF sampling would
 // have made it (`correction`, seeds/000 ch. 1 eq. 19).  `survival`: the
 // probability the path had of surviving.
-bool WavefrontEngine::Impl::survives_roulette(const ShadingPoint& v, RGB& beta, RGB& local, float eta_scale,
-                                              double correction, float& survival) const {
-  if (int(v.ps.depth) + 1 <= opt.rr_min_depth) return true;
+bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local,
+                                              float eta_scale, double correction, float& survival) const {
+  if (int(ps.depth) + 1 <= opt.rr_min_depth) return true;
   const float rr = float(double(max_component(beta * eta_scale)) * correction);
   if (rr >= 1.0f) return true;
   const float q = std::max(0.0f, 1.0f - rr);
-  if (sample1(v.ps, v.dims.roulette) < q) return false;
+  if (sample1(ps, roulette_dim) < q) return false;
   survival = 1.0f - q;
   beta /= survival;
   local /= survival;

@@ -422,3 +422,32 @@ TEST(ResumeOptions, ParsedFlagsReachTheirFields) {
   EXPECT_TRUE(parse({"--sort"}).sort);
   EXPECT_THROW(parse({"--sort", "maybe"}), CLI::ParseError);
 }
+
+// A scene with a medium around the camera: its per-path medium state starts
+// afresh with every camera sample, so a stop anywhere resumes exactly.
+TEST(Resume, MediaSceneResumesExactly) {
+  Fixture f("media");
+  std::ofstream(f.scene) << R"(Film "rgb" "integer xresolution" [32] "integer yresolution" [24]
+Sampler "sobol" "integer pixelsamples" [40]
+MakeNamedMedium "fog" "string type" "homogeneous" "rgb sigma_a" [0.05 0.1 0.2] "rgb sigma_s" [0.3 0.3 0.3] "float g" 0.4
+MediumInterface "fog" "fog"
+LookAt 0 1 -5  0 0 0  0 1 0
+Camera "perspective" "float fov" [35]
+WorldBegin
+MediumInterface "fog" "fog"
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [4 4 4]
+  Shape "sphere" "float radius" [0.3]
+AttributeEnd
+Material "diffuse" "rgb reflectance" [0.7 0.5 0.3]
+Shape "trianglemesh" "point3 P" [-4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4] "integer indices" [0 1 2 0 2 3]
+)";
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  ImageBuffer ref = read_image_file(f.out("ref.exr"));
+  EXPECT_GT(test::image_mean(ref).x, 0.01f) << "the fog should be lit";
+  std::string ck = f.out("ck");
+  ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at 2:0.5").exit_code, kInterrupted);
+  RunResult r = f.render("out.exr", " --checkpoint-dir " + ck);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), ref), 1e-5);
+}

@@ -101,7 +101,8 @@ TEST(Queues, AppendGatherAndClearEveryFieldThatIsPresent) {
 TEST(Queues, BytesFollowTheTable) {
   EXPECT_EQ(RayQueue::kItemBytes, sizeof(Ray) + sizeof(uint32_t));
   EXPECT_EQ(ShadowQueue::kItemBytes,
-            sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(SampledLight) + sizeof(PrimRef));
+            sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(SampledLight) + sizeof(PrimRef) +
+                sizeof(int32_t));
   ShadowQueue q;
   q.rays.reserve(100);
   q.pixel.reserve(100);
@@ -115,6 +116,10 @@ TEST(PathState, ColdTablesExistOnlyForFeaturesThatAreOn) {
   EXPECT_TRUE(plain.curve_skip.empty());
   EXPECT_EQ(curves.curve_skip.size(), 1000u);
   EXPECT_EQ(curves.memory_bytes() - plain.memory_bytes(), 1000 * sizeof(PrimRef));
+  // Media: the path's medium and its stratified-flight depth, nothing else.
+  PathStatePool media(1000, PathFeatures{.media = true});
+  EXPECT_TRUE(plain.medium.empty() && plain.flight_depth.empty());
+  EXPECT_EQ(media.memory_bytes() - plain.memory_bytes(), 1000 * (sizeof(int32_t) + sizeof(uint16_t)));
   // Slots are handed out low first.
   EXPECT_EQ(plain.free_slots.back(), 0u);
   EXPECT_EQ(plain.live(), 0u);

@@ -1,0 +1,175 @@
+// Stage: medium interactions, between tracing and surface shading, only in
+// scenes with media.  Each ray of a path inside a medium is tracked to its
+// hit (or to infinity): it passes with its throughput reweighted and goes on
+// to the surface or escaped-ray stage, or it is absorbed, or it scatters at
+// a medium vertex (NEE through the media, a phase-function sample, roulette)
+// and leaves the batch.  Shadow rays in such scenes carry their start medium
+// and are attenuated segment by segment through every medium they cross.
+#include "wavefront/engine_impl.h"
+
+#include "scene/microfacet.h"
+
+#include <tbb/parallel_for.h>
+
+#include <bit>
+
+namespace theia {
+
+namespace {
+
+// Tracking numbers are keyed by the ray itself as well as the path sample,
+// so two segments of one path (across an interface, at one depth) never
+// share a stream.
+uint64_t ray_key(const Ray& r, uint64_t salt) {
+  return hash(salt, std::bit_cast<uint32_t>(r.o.x), std::bit_cast<uint32_t>(r.o.y), std::bit_cast<uint32_t>(r.o.z),
+              std::bit_cast<uint32_t>(r.d.x), std::bit_cast<uint32_t>(r.d.y), std::bit_cast<uint32_t>(r.d.z));
+}
+
+// A point in a medium as an interaction: no surface, no normal, no offset.
+SurfaceInteraction medium_point(const vec3& p, const vec3& wo) {
+  SurfaceInteraction si;
+  si.p = p;
+  si.wo = wo;
+  return si;
+}
+
+}  // namespace
+
+void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
+  ScopedTimer timer(stats.phases[Phase::Shade]);
+  const size_t n = b.size();
+  blocked.assign(n, 0);  // here: 1 = the path left the batch in the medium
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+    ShadeOutput& out = outputs.local();
+    for (size_t i = r.begin(); i < r.end(); ++i) blocked[i] = interact_in_medium(b.rays[i], hits[i], b.paths[i], out);
+  });
+  // The passing rays keep their order; surface shading and escaped rays see only them.
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (blocked[i]) continue;
+    b.rays[kept] = b.rays[i];
+    b.paths[kept] = b.paths[i];
+    hits[kept] = hits[i];
+    ++kept;
+  }
+  b.rays.resize(kept);
+  b.paths.resize(kept);
+  hits.resize(kept);
+}
+
+// True when the path left the batch here (scattered or absorbed).
+bool WavefrontEngine::Impl::interact_in_medium(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
+  PathState& ps = pool[slot];
+  const int medium = pool.medium[slot];
+  if (medium < 0 || ps.alpha_only) return false;
+  TrackingRng rng{ray_key(ray, hash(opt.seed, ps.pixel, ps.sample, ps.depth))};
+  // The first flight at a depth starts with the path's stratified number;
+  // a second one at the same depth (beyond an interface) must not reuse it.
+  if (pool.flight_depth[slot] != ps.depth + 1) {
+    rng.first = sample1(ps, bounce_dims(ps.depth).medium_flight);
+    pool.flight_depth[slot] = uint16_t(ps.depth + 1);
+  }
+  const float tmax = hit.geom == kInvalidId ? kInfinity : hit.t;
+  const FreeFlight ff = sample_free_flight(scene.media[size_t(medium)], ray, tmax, ps.beta, rng);
+  // pbrt-v4 adds a medium's emission below the depth limit only.
+  if (!is_black(ff.emitted) && int(ps.depth) < opt.max_depth)
+    film.splat(ps.pixel, ps.sample, ps.filter_weight * ff.emitted);
+  switch (ff.event) {
+    case MediumEvent::None:
+      ps.beta = ff.beta;
+      return false;
+    case MediumEvent::Absorb:
+      break;
+    case MediumEvent::Scatter:
+      scatter_in_medium(ray, ff, slot, medium, out);
+      return true;
+  }
+  finish_path<false>(slot, out);
+  return true;
+}
+
+// A real scattering vertex: NEE with MIS against the phase function, then
+// the phase-function sample (exact, so its weight is 1) and roulette.
+void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium,
+                                              ShadeOutput& out) {
+  PathState& ps = pool[slot];
+  if (int(ps.depth) >= opt.max_depth) return finish_path<false>(slot, out);
+  ++out.vertices;
+  const float g = scene.media[size_t(medium)].g;
+  const SurfaceInteraction si = medium_point(ray.o + ray.d * ff.t, -glm::normalize(ray.d));
+  const BounceDims dims = bounce_dims(ps.depth);
+
+  const LightSampleContext ctx{si.p, vec3(0.0f), vec3(0.0f), vec3(0.0f)};
+  if (auto sl = light_sampler.sample(ctx, sample1(ps, dims.light_choice))) {
+    auto ls = sample_li(lights, sl->light, ctx, sample2(ps, dims.light_point), sample1(ps, dims.light_prim));
+    const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
+    if (ls && light_pdf > 0.0f && std::isfinite(light_pdf)) {
+      const float phase = henyey_greenstein(glm::dot(si.wo, ls->wi), g);
+      const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, phase);
+      const RGB contribution = ps.filter_weight * ff.beta * (phase * w / light_pdf) * ls->L;
+      if (is_finite(contribution) && !is_black(contribution))
+        queue_shadow(out, spawn_ray_to(si, ls->p_light, ls->p_light_error, ls->n_light), contribution, ps, *sl, {},
+                     medium);
+    }
+  }
+
+  float pdf = 0.0f;
+  const vec3 wi = sample_henyey_greenstein(si.wo, g, sample2(ps, dims.bsdf_dir), &pdf);
+  RGB beta = ff.beta, local(1.0f);
+  float survival = 1.0f;
+  if (!(pdf > 0.0f) || !survives_roulette(ps, dims.roulette, beta, local, ps.eta_scale, 1.0, survival) ||
+      !is_finite(beta) || is_black(beta))
+    return finish_path<false>(slot, out);
+  ps.beta = beta;
+  ps.depth = uint16_t(ps.depth + 1);
+  ps.prev_pdf = pdf;
+  ps.flags = 0;
+  ps.prev_p = si.p;
+  ps.prev_ng = vec3(0.0f);
+  queue_ray(slot, si, Ray{si.p, 0.0f, wi, kInfinity}, out);
+}
+
+// ---------------------------------------------------------------- shadow rays
+
+void WavefrontEngine::Impl::attenuate_shadow_rays_in_media() {
+  ShadowQueue& s = shadows;
+  ScopedTimer timer(stats.phases[Phase::TraceShadow]);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, s.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const PrimRef skip = s.skip.empty() ? PrimRef{} : s.skip[i];
+      const RGB T = shadow_transmittance(s.rays[i], s.medium[i], skip, hash(opt.seed, s.pixel[i], s.sample[i]));
+      s.contribution[i] *= T;
+      blocked[i] = is_black(T) ? 1 : 0;
+    }
+  });
+}
+
+// Transmittance from the ray's origin to its end: traced hit by hit, each
+// segment attenuated by ratio tracking in its medium; an "interface"
+// surface (or a virtual light) passes the ray on into the medium beyond it,
+// any other surface blocks it.
+RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const {
+  RGB T(1.0f);
+  const vec3 end = ray.o + ray.d * ray.tmax;
+  // Interfaces are thin: a ray crosses few of them.  The bound only guards a degenerate loop.
+  for (int crossing = 0; crossing < 256; ++crossing) {
+    const Hit hit = accel.intersect1(ray, skip);
+    const float t = hit.geom == kInvalidId ? ray.tmax : hit.t;
+    if (medium >= 0) {
+      TrackingRng rng{ray_key(ray, key)};
+      T *= ratio_tracking(scene.media[size_t(medium)], ray, t, rng);
+      if (is_black(T)) return T;
+    }
+    if (hit.geom == kInvalidId) return T;
+    const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+    const bool virtual_light = si.area_light >= 0 && scene.lights[size_t(si.area_light)].is_virtual;
+    const bool holdout = si.shape >= 0 && scene.shapes[size_t(si.shape)].holdout;
+    if (holdout || (!virtual_light && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{})))) return RGB(0.0f);
+    medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
+    ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));
+    skip = si.skip;
+  }
+  return RGB(0.0f);
+}
+
+}  // namespace theia

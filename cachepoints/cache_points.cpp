@@ -541,12 +541,14 @@ void CachePointSampler::update() {
   if (impl_->tree) impl_->fold_visibility();
 }
 
-// The counts (everything else is rebuilt from the scene): the entry count,
-// then attempts and successes, little-endian uint32 (the machines theia runs on).
+// The counts and the visibility in effect (everything else is rebuilt from
+// the scene): a checkpoint can fall inside an iteration, whose rest must
+// sample with the weights of its start.  Layout: the entry count, then
+// attempts and successes (uint32) and the weights (float), little-endian.
 std::vector<uint8_t> CachePointSampler::save_state() const {
   const Impl& m = *impl_;
   const uint64_t n = m.entries();
-  std::vector<uint8_t> bytes(sizeof(n) + 2 * n * sizeof(uint32_t));
+  std::vector<uint8_t> bytes(sizeof(n) + 3 * n * sizeof(uint32_t));
   std::memcpy(bytes.data(), &n, sizeof(n));
   uint8_t* out = bytes.data() + sizeof(n);
   for (size_t k = 0; k < n; ++k) {
@@ -554,6 +556,7 @@ std::vector<uint8_t> CachePointSampler::save_state() const {
     std::memcpy(out + k * sizeof(uint32_t), &a, sizeof(a));
     std::memcpy(out + (n + k) * sizeof(uint32_t), &s, sizeof(s));
   }
+  std::memcpy(out + 2 * n * sizeof(uint32_t), m.entry_visibility.data(), n * sizeof(float));
   return bytes;
 }
 
@@ -561,8 +564,8 @@ void CachePointSampler::restore(const std::vector<uint8_t>& state) {
   Impl& m = *impl_;
   uint64_t n = 0;
   if (state.size() >= sizeof(n)) std::memcpy(&n, state.data(), sizeof(n));
-  if (state.size() < sizeof(n) || n != m.entries() || state.size() != sizeof(n) + 2 * n * sizeof(uint32_t))
-    throw_error("checkpoint section 'light-sampler': {} bytes do not hold the {} visibility counters of these cache points",
+  if (state.size() < sizeof(n) || n != m.entries() || state.size() != sizeof(n) + 3 * n * sizeof(uint32_t))
+    throw_error("checkpoint section 'light-sampler': {} bytes do not hold the {} visibility entries of these cache points",
                 state.size(), m.entries());
   const uint8_t* in = state.data() + sizeof(n);
   for (size_t k = 0; k < n; ++k) {
@@ -572,7 +575,7 @@ void CachePointSampler::restore(const std::vector<uint8_t>& state) {
     m.attempts[k].store(a);
     m.successes[k].store(s);
   }
-  update();
+  std::memcpy(m.entry_visibility.data(), in + 2 * n * sizeof(uint32_t), n * sizeof(float));
 }
 
 std::vector<std::pair<std::string, double>> CachePointSampler::statistics() const {

@@ -9,8 +9,8 @@
 #include "core/hash.h"
 #include "core/log.h"
 #include "scene/parser.h"
+#include "tests/street_scene.h"
 
-#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -19,40 +19,9 @@
 #include <string>
 
 using namespace theia;
+using theia::test::street_scene;
 
 namespace {
-
-// A floor split by a wall; `n` x `n` small one-sided emissive quads on each
-// side of the wall (radiance from `radiance(i)`), and optionally a dim sky.
-std::string street_scene(int n, float (*radiance)(int), bool sky, bool coincident = false) {
-  std::string s =
-      "Film \"rgb\" \"integer xresolution\" [32] \"integer yresolution\" [24]\n"
-      "LookAt 0 3 -12  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" [50]\nWorldBegin\n";
-  if (sky) s += "LightSource \"infinite\" \"rgb L\" [0.01 0.01 0.02]\n";
-  s += "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
-       "Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point3 P\" [-10 0 -10 10 0 -10 10 0 10 -10 0 10]\n"
-       "Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point3 P\" [0 0 -10 0 0 10 0 6 10 0 6 -10]\n";
-  int k = 0;
-  for (int side = 0; side < 2; ++side)
-    for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j, ++k) {
-        const float L = radiance(k);
-        const float x = coincident ? 0.5f : (side == 0 ? -0.05f : 0.05f);
-        const float z = coincident ? 0.0f : -8.0f + 16.0f * (float(i) + 0.5f) / float(n);
-        const float y = coincident ? 1.0f : 0.5f + 5.0f * (float(j) + 0.5f) / float(n);
-        const float h = 0.2f;
-        // Facing away from the wall: -x on the left side, +x on the right.
-        std::string P = side == 0 ? fmt::format("{} {} {} {} {} {} {} {} {} {} {} {}", x, y - h, z - h, x, y - h, z + h,
-                                                x, y + h, z + h, x, y + h, z - h)
-                                  : fmt::format("{} {} {} {} {} {} {} {} {} {} {} {}", x, y - h, z - h, x, y + h,
-                                                z - h, x, y + h, z + h, x, y - h, z + h);
-        s += fmt::format(
-            "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [{} {} {}]\n"
-            "Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point3 P\" [{}]\nAttributeEnd\n",
-            L, L, L, P);
-      }
-  return s;
-}
 
 float varied(int k) { return 0.3f * std::pow(10.0f, float(hash(uint64_t(k)) % 1000) / 333.0f); }
 float dark(int k) { return k % 3 == 0 ? 0.0f : 1.0f; }

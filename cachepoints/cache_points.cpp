@@ -516,23 +516,38 @@ void CachePointSampler::record_shadow(const SampledLight& chosen, bool unocclude
 
 // Section 3.2.2: each entry's W blurred with the neighbours that list the
 // same emitter (normalised over those, so an unlisted neighbour does not
-// count as an occluder).  A pure function of the counts.
+// count as an occluder).  A pure function of the counts.  Only entries whose
+// emitter has W < 1 at the point or a neighbour can differ from 1 (a sum of
+// weights times 1 over the same sum is exactly 1), so only those are blurred.
 void CachePointSampler::Impl::fold_visibility() {
   std::vector<float> w(entries());
-  for (size_t k = 0; k < entries(); ++k)
-    w[k] = visibility_weight(attempts[k].load(std::memory_order_relaxed), successes[k].load(std::memory_order_relaxed),
-                             prm.r_min);
+  std::vector<std::vector<uint32_t>> lowered(points());
   tbb::parallel_for(size_t(0), points(), [&](size_t c) {
     for (uint32_t k = begin[c]; k < begin[c + 1]; ++k) {
-      float sum = 0.0f, norm = 0.0f;
-      for (uint32_t j = neighbours.begin[c]; j < neighbours.begin[c + 1]; ++j) {
-        const uint32_t q = neighbours.index[j];
-        const int kq = q == c ? int(k) : find_entry(q, entry_emitter[k]);
-        if (kq < 0) continue;
-        sum += neighbours.weight[j] * w[size_t(kq)];
-        norm += neighbours.weight[j];
+      w[k] = visibility_weight(attempts[k].load(std::memory_order_relaxed),
+                               successes[k].load(std::memory_order_relaxed), prm.r_min);
+      if (w[k] < 1.0f) lowered[c].push_back(k);
+    }
+  });
+  auto blurred = [&](uint32_t c, uint32_t k) {
+    float sum = 0.0f, norm = 0.0f;
+    for (uint32_t j = neighbours.begin[c]; j < neighbours.begin[c + 1]; ++j) {
+      const uint32_t q = neighbours.index[j];
+      const int kq = q == c ? int(k) : find_entry(q, entry_emitter[k]);
+      if (kq < 0) continue;
+      sum += neighbours.weight[j] * w[size_t(kq)];
+      norm += neighbours.weight[j];
+    }
+    return norm > 0.0f ? sum / norm : 1.0f;
+  };
+  tbb::parallel_for(size_t(0), points(), [&](size_t c) {
+    std::fill(entry_visibility.begin() + begin[c], entry_visibility.begin() + begin[c + 1], 1.0f);
+    for (uint32_t j = neighbours.begin[c]; j < neighbours.begin[c + 1]; ++j) {
+      const uint32_t q = neighbours.index[j];
+      for (uint32_t kq : lowered[q]) {
+        const int k = q == c ? int(kq) : find_entry(uint32_t(c), entry_emitter[kq]);
+        if (k >= 0) entry_visibility[size_t(k)] = blurred(uint32_t(c), uint32_t(k));
       }
-      entry_visibility[k] = norm > 0.0f ? sum / norm : 1.0f;
     }
   });
 }

@@ -1,7 +1,7 @@
 // A many-lights test scene for the cache-point tests (unit and e2e): a floor
 // split by a wall, with `n` x `n` small one-sided emissive quads on each side
 // of the wall facing away from it (quad k's radiance from `radiance(k)`),
-// optionally a dim sky; `coincident` puts every quad at one place.
+// optionally a dim sky; `coincident` puts every quad at one place, in the wall.
 #pragma once
 
 #include <fmt/format.h>
@@ -23,7 +23,7 @@ inline std::string street_scene(int n, float (*radiance)(int), bool sky, bool co
     for (int i = 0; i < n; ++i)
       for (int j = 0; j < n; ++j, ++k) {
         const float L = radiance(k), h = half;
-        const float x = coincident ? 0.5f : (side == 0 ? -0.05f : 0.05f);
+        const float x = coincident ? 0.0f : (side == 0 ? -0.05f : 0.05f);
         const float z = coincident ? 0.0f : -8.0f + 16.0f * (float(i) + 0.5f) / float(n);
         const float y = coincident ? 1.0f : 0.5f + 5.0f * (float(j) + 0.5f) / float(n);
         // Winding: facing -x on the left side, +x on the right.

@@ -172,7 +172,7 @@ TEST(CachePoints, LearnedVisibilityLowersOccludedLightsAndIsDeterministic) {
 }
 
 TEST(CachePoints, DegenerateLightSets) {
-  // Every light at the same place, a third of them black, and lights inside the wall.
+  // Every light at the same place inside the wall; a third of them black.
   for (const std::string& text : {street_scene(6, varied, false, true), street_scene(6, dark, true)}) {
     Fixture f(text);
     CachePointSampler s(f.lights, f.accel);

@@ -281,8 +281,11 @@ std::vector<FarEntry> blurred_far(const std::vector<PointLists>& lists, const Ne
   return select_far(std::move(merged), prm);
 }
 
-// Bins weighted by a unit normal's similarity to their directions (summing
-// to one); the fluence bin alone where there is no normal.
+// Bins weighted by a unit normal's similarity to their directions; the
+// fluence bin alone where there is no normal.  The geometric normal's side is
+// the mesh's winding, not the side the path arrived from (which the MIS pmf
+// at an emitter hit cannot know), so both bins of an axis count: the
+// receiver is two-sided, as emitter_importance's.
 SensorValues bin_weights(const vec3& n) {
   SensorValues w{};
   const float sum = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
@@ -290,10 +293,7 @@ SensorValues bin_weights(const vec3& n) {
     w[kFluenceBin] = 1.0f;
     return w;
   }
-  for (int axis = 0; axis < 3; ++axis) {
-    w[size_t(2 * axis)] = std::max(n[axis], 0.0f) / sum;
-    w[size_t(2 * axis + 1)] = std::max(-n[axis], 0.0f) / sum;
-  }
+  for (int axis = 0; axis < 3; ++axis) w[size_t(2 * axis)] = w[size_t(2 * axis + 1)] = std::abs(n[axis]) / sum;
   return w;
 }
 

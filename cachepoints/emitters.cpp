@@ -154,10 +154,10 @@ EmitterSet build_emitters(const LightSet& lights) {
 float emitter_importance(const LightSet& lights, const Emitter& e, const vec3& p, const vec3& n) {
   const bool surface = glm::dot(n, n) > 0.0f;
   if (e.kind == EmitterKind::Infinite) return e.radiance * (surface ? kPi : 4.0f * kPi);
-  if (e.kind == EmitterKind::Distant) return e.radiance * (surface ? std::max(0.0f, glm::dot(n, e.direction)) : 1.0f);
+  if (e.kind == EmitterKind::Distant) return e.radiance * (surface ? std::abs(glm::dot(n, e.direction)) : 1.0f);
   Incoming in = incoming(lights, e, p);
   if (!surface || in.value == 0.0f) return in.value;
-  return in.value * cos_bound(glm::dot(n, in.w), in.sin_a, in.cos_a);
+  return in.value * cos_bound(std::abs(glm::dot(n, in.w)), in.sin_a, in.cos_a);
 }
 
 SensorValues emitter_sensors(const LightSet& lights, const Emitter& e, const vec3& p) {

@@ -63,7 +63,8 @@ inline constexpr int kSensorBins = 7;
 inline constexpr int kFluenceBin = 6;
 using SensorValues = std::array<float, kSensorBins>;
 
-// Unoccluded estimates at p (luminance): on a surface with unit normal n, or
+// Unoccluded estimates at p (luminance): on a surface with unit normal n
+// (either side: a geometric normal's orientation is the mesh's winding), or
 // the fluence where n is zero (media, hair).
 float emitter_importance(const LightSet& lights, const Emitter& e, const vec3& p, const vec3& n);
 SensorValues emitter_sensors(const LightSet& lights, const Emitter& e, const vec3& p);

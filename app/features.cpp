@@ -1,5 +1,6 @@
 #include "app/features.h"
 
+#include "cachepoints/light_sampler.h"
 #include "core/hash.h"
 #include "core/log.h"
 
@@ -10,13 +11,25 @@ namespace theia {
 // --- Light sampler ----------------------------------------------------------
 
 void check(const LightSamplerOptions& o) {
-  if (o.light_sampler != "uniform" && o.light_sampler != "power")
-    throw_error("--light-sampler {}: expected uniform or power", o.light_sampler);
+  if (!light_sampler_name_known(o.light_sampler))
+    throw_error("--light-sampler {}: expected uniform, power, cachepoints or auto", o.light_sampler);
 }
 
 void LightSamplerFeature::add_tasks(IterationTasks& tasks) {
   if (sampler_.wants_feedback())
     tasks.add(BetweenIterationSlot::CachePointUpdate, [this](const IterationInfo&) { sampler_.update(); });
+}
+
+void LightSamplerFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
+  if (!sampler_.wants_feedback()) return;
+  participants.push_back({"light-sampler", 1, [this] { return sampler_.save_state(); },
+                          [this](const CheckpointSection& section) { sampler_.restore(section.bytes); }});
+}
+
+void LightSamplerFeature::write_log(nlohmann::json& log) const {
+  nlohmann::json& j = log["light_sampler"];
+  j["name"] = sampler_.name();
+  for (const auto& [key, value] : sampler_.statistics()) j[key] = value;
 }
 
 // --- Radiance recorder ------------------------------------------------------

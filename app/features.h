@@ -40,21 +40,28 @@ class Feature {
 // --- Light sampler (group: none) --------------------------------------------
 
 struct LightSamplerOptions {
-  std::string light_sampler = "power";  // uniform | power (cachepoints/light_sampler.h)
+  // uniform | power | cachepoints | auto (cachepoints/light_sampler.h): auto
+  // builds cache points where the scene has enough emitters, else power.
+  std::string light_sampler = "auto";
 };
 
 template <class V>
 void declare_options(V& v, LightSamplerOptions& o) {
-  v.image("light_sampler", o.light_sampler, "Light selection: uniform or power");
+  v.image("light_sampler", o.light_sampler,
+          "Light selection: uniform, power, cachepoints (occlusion-aware many-lights sampling) or auto (cache points "
+          "where the scene has enough emitters, else power)");
 }
 void check(const LightSamplerOptions& o);
 
 // The scene's light sampler (RenderableScene builds it from the option):
-// one that learns from shadow rays folds what it learned in between iterations.
+// one that learns from shadow rays folds what it learned in between
+// iterations, checkpoints it, and reports its costs in the log.
 class LightSamplerFeature final : public Feature {
  public:
   explicit LightSamplerFeature(LightSampler& sampler) : sampler_(sampler) {}
   void add_tasks(IterationTasks& tasks) override;
+  void add_participants(std::vector<CheckpointParticipant>& participants) override;
+  void write_log(nlohmann::json& log) const override;
 
  private:
   LightSampler& sampler_;

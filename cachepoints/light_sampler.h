@@ -1,7 +1,7 @@
-// The baseline light samplers: uniform and power-proportional.  The
+// The baseline light samplers, uniform and power-proportional, and the
+// --light-sampler choice among them and cache points (cache_points.h).  The
 // interface the wavefront calls is core/light_sampler.h (included here so
-// that code naming this header keeps working); cache points, which learn a
-// per-region distribution with visibility, will implement it beside these.
+// that code naming this header keeps working).
 #pragma once
 
 #include "core/light_sampler.h"
@@ -36,7 +36,14 @@ class PowerLightSampler final : public LightSampler {
   Distribution1D distribution_;
 };
 
-// "uniform" or "power"; throws theia::Error for anything else.
-std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights);
+// At least this many emitters (a mesh light's triangles each count) and
+// "auto" builds cache points; below, power-proportional selection.
+inline constexpr size_t kAutoCachePointEmitters = 1024;
+
+bool light_sampler_name_known(const std::string& name);
+// "uniform", "power", "cachepoints" (cachepoints/cache_points.h; power for a
+// scene of one emitter, where there is nothing to choose) or "auto"; throws
+// theia::Error for anything else.
+std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights, const Accel& accel);
 
 }  // namespace theia

@@ -21,6 +21,9 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace theia {
 
@@ -34,6 +37,10 @@ struct SampledLight {
   // The sampler's own name for where it chose (a cache point), handed back
   // with the shadow ray's outcome so that it need not find it again.
   uint32_t region = 0;
+  // The triangle of an emissive mesh, for a sampler that treats each
+  // triangle as a light (pbrt-v4's semantics; chooses_primitives()); -1: the
+  // light's own sampling (sample_li) chooses where on it.
+  int primitive = -1;
 };
 
 class LightSampler {
@@ -43,6 +50,17 @@ class LightSampler {
   // Probability that sample(ctx, .) returns `light`.
   virtual float pmf(const LightSampleContext& ctx, int light) const = 0;
   virtual const char* name() const = 0;
+
+  // True when sample() names triangles of emissive meshes (SampledLight::primitive).
+  // The engine asks once, when it is built; then the MIS weight of an emitter
+  // hit asks pmf_primitive() with the triangle hit, and the light's pdf is
+  // that triangle's alone.
+  virtual bool chooses_primitives() const { return false; }
+  // Probability that sample(ctx, .) returns (light, primitive); primitive is
+  // ignored for a light that is not a triangle mesh.
+  virtual float pmf_primitive(const LightSampleContext& ctx, int light, int /*primitive*/) const {
+    return pmf(ctx, light);
+  }
 
   // True when the sampler learns from shadow-ray outcomes (record_shadow).
   virtual bool wants_feedback() const { return false; }
@@ -55,6 +73,14 @@ class LightSampler {
   // Between iterations, no ray in flight: fold the counts into the
   // distributions.  The samplers that learn nothing do nothing.
   virtual void update() {}
+
+  // What a resumed render needs to sample as this one would (what update()
+  // learned); empty for a sampler that learns nothing.  restore() throws
+  // theia::Error for bytes it cannot read.
+  virtual std::vector<uint8_t> save_state() const { return {}; }
+  virtual void restore(const std::vector<uint8_t>& /*state*/) {}
+  // Its costs and statistics for the log: (name, value) pairs.
+  virtual std::vector<std::pair<std::string, double>> statistics() const { return {}; }
 };
 
 }  // namespace theia

@@ -318,7 +318,7 @@ LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
 }
 
 std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, const LightSampleContext& ctx,
-                                       vec2 u, float u_prim, bool allow_incomplete_pdf) {
+                                       vec2 u, float u_prim, bool allow_incomplete_pdf, int primitive) {
   const Light& light = lights.scene->lights[light_index];
   // Far enough along wi to be outside the scene from any point in it.
   auto far_point = [&](const vec3& wi) {
@@ -326,7 +326,7 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
   };
   switch (light.kind) {
     case LightKind::Area: {
-      auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim);
+      auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim, primitive);
       if (!ss || ss->pdf == 0.0f) return std::nullopt;
       vec3 d = ss->p - ctx.p;
       float dist2 = glm::dot(d, d);
@@ -389,9 +389,9 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
 }
 
 float area_light_pdf(const LightSet& lights, int light_index, const LightSampleContext& ctx, const vec3& wi,
-                     const SurfaceInteraction& hit) {
+                     const SurfaceInteraction& hit, bool given_primitive) {
   const Light& light = lights.scene->lights[light_index];
-  return lights.shapes.pdf(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, wi, hit);
+  return lights.shapes.pdf(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, wi, hit, given_primitive);
 }
 
 float infinite_light_pdf(const LightSet& lights, int light_index, const vec3& wi, bool allow_incomplete_pdf) {

@@ -91,11 +91,15 @@ float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compe
 // `allow_incomplete_pdf`: environment maps sample their compensated
 // distribution, as pbrt-v4's path tracer asks; the engine's MIS weights use
 // the matching infinite_light_pdf(..., true).
+// `primitive` >= 0 (an area light on a triangle mesh): that triangle,
+// chosen by a light sampler that treats each triangle as a light (pbrt-v4's
+// semantics, SampledLight::primitive); the pdf is then that triangle's alone.
 std::optional<LightLiSample> sample_li(const LightSet& lights, int light, const LightSampleContext& ctx, vec2 u,
-                                       float u_prim, bool allow_incomplete_pdf = true);
-// Solid-angle pdf that sample_li() on `light` produces the point `hit` seen along wi (area lights).
+                                       float u_prim, bool allow_incomplete_pdf = true, int primitive = -1);
+// Solid-angle pdf that sample_li() on `light` produces the point `hit` seen
+// along wi (area lights); `given_primitive`: sample_li() was given hit.prim.
 float area_light_pdf(const LightSet& lights, int light, const LightSampleContext& ctx, const vec3& wi,
-                     const SurfaceInteraction& hit);
+                     const SurfaceInteraction& hit, bool given_primitive = false);
 // Solid-angle pdf that sample_li() on infinite `light` produces direction wi.
 float infinite_light_pdf(const LightSet& lights, int light, const vec3& wi, bool allow_incomplete_pdf = true);
 

@@ -590,6 +590,12 @@ float ShapeSampling::area(int shape) const {
   return entries_[size_t(entry_of_shape_[size_t(shape)])].area;
 }
 
+// Uniform on one triangle the caller chose.
+static float given_triangle_pdf(const TriangleMesh& m, size_t t) {
+  double a = triangle_area(m, t);
+  return a > 0.0 ? float(1.0 / a) : 0.0f;
+}
+
 float ShapeSampling::area_pdf(const Entry& e, const vec3& p, int prim) const {
   if (!e.triangle_pdf.empty())
     return prim >= 0 && size_t(prim) < e.triangle_pdf.size() ? e.triangle_pdf[size_t(prim)] : 0.0f;
@@ -606,7 +612,8 @@ float ShapeSampling::area_pdf(const Entry& e, const vec3& p, int prim) const {
   return 1.0f / e.area;
 }
 
-std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim) const {
+std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim,
+                                                 int triangle) const {
   if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
   const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
   if (!(e.area > 0.0f)) return std::nullopt;
@@ -645,19 +652,21 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       return ss;
     }
   }
-  auto ss = sample_area(shape, u, u_prim);
+  auto ss = sample_area(shape, u, u_prim, triangle);
   if (!ss) return std::nullopt;
   return to_solid_angle(*ss, ss->pdf, ref);
 }
 
-std::optional<ShapeSample> ShapeSampling::sample_area(int shape, vec2 u, float u_prim) const {
+std::optional<ShapeSample> ShapeSampling::sample_area(int shape, vec2 u, float u_prim, int triangle) const {
   if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
   const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
   if (!(e.area > 0.0f)) return std::nullopt;
 
   if (e.kind == ShapeKind::TriangleMesh) {
     const TriangleMesh& m = *e.mesh;
-    size_t t = size_t(e.triangles.sample_discrete(u_prim));
+    const bool given = triangle >= 0;
+    if (given && size_t(triangle) >= m.triangle_count()) return std::nullopt;
+    size_t t = given ? size_t(triangle) : size_t(e.triangles.sample_discrete(u_prim));
     vec2 b = sample_uniform_triangle(u);
     float b0 = b.x, b1 = b.y, b2 = 1.0f - b.x - b.y;
     const vec3 &p0 = m.p[m.indices[3 * t]], &p1 = m.p[m.indices[3 * t + 1]], &p2 = m.p[m.indices[3 * t + 2]];
@@ -669,6 +678,7 @@ std::optional<ShapeSample> ShapeSampling::sample_area(int shape, vec2 u, float u
     triangle_uvs(m, t, uv);
     ss.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
     ss.prim = int(t);
+    if (given) return with_pdf(ss, given_triangle_pdf(m, t));
     return with_pdf(ss, area_pdf(e, ss.p, ss.prim));
   }
 
@@ -710,7 +720,7 @@ std::optional<ShapeSample> ShapeSampling::sample_area(int shape, vec2 u, float u
 }
 
 float ShapeSampling::pdf(int shape, const ShapeSampleContext& ref, const vec3& wi,
-                         const SurfaceInteraction& light_hit) const {
+                         const SurfaceInteraction& light_hit, bool given_triangle) const {
   if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return 0.0f;
   const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
   if (!(e.area > 0.0f)) return 0.0f;
@@ -731,7 +741,11 @@ float ShapeSampling::pdf(int shape, const ShapeSampleContext& ref, const vec3& w
   if (d2 == 0.0f || glm::dot(wi, d) <= 0.0f) return 0.0f;
   float cos = std::abs(glm::dot(light_hit.ng, d / std::sqrt(d2)));
   if (cos == 0.0f) return 0.0f;
-  float pdf = area_pdf(e, light_hit.p, light_hit.prim) * d2 / cos;
+  const bool given = given_triangle && e.kind == ShapeKind::TriangleMesh;
+  if (given && (light_hit.prim < 0 || size_t(light_hit.prim) >= e.mesh->triangle_count())) return 0.0f;
+  float area_density = given ? given_triangle_pdf(*e.mesh, size_t(light_hit.prim))
+                             : area_pdf(e, light_hit.p, light_hit.prim);
+  float pdf = area_density * d2 / cos;
   return std::isfinite(pdf) ? pdf : 0.0f;
 }
 

@@ -115,11 +115,17 @@ class ShapeSampling {
   // where that vector is missing or empty.
   explicit ShapeSampling(const Scene& scene, const std::vector<std::vector<float>>& triangle_weight = {});
 
-  std::optional<ShapeSample> sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim) const;
+  // `triangle` >= 0 on a mesh: that triangle, chosen by the caller (a light
+  // sampler that treats each triangle as a light, as pbrt-v4 does); the pdf
+  // is then the triangle's alone (per unit area 1 / its area), u_prim unused.
+  std::optional<ShapeSample> sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim,
+                                    int triangle = -1) const;
   // A point by area (what sample() does where it does not sample a cone), pdf per unit area.
-  std::optional<ShapeSample> sample_area(int shape, vec2 u, float u_prim) const;
-  // Solid-angle density with which sample() returns light_hit's point in direction wi.
-  float pdf(int shape, const ShapeSampleContext& ref, const vec3& wi, const SurfaceInteraction& light_hit) const;
+  std::optional<ShapeSample> sample_area(int shape, vec2 u, float u_prim, int triangle = -1) const;
+  // Solid-angle density with which sample() returns light_hit's point in
+  // direction wi; `given_triangle`: as sample() with light_hit.prim chosen by the caller.
+  float pdf(int shape, const ShapeSampleContext& ref, const vec3& wi, const SurfaceInteraction& light_hit,
+            bool given_triangle = false) const;
   float area(int shape) const;
 
   // One sampleable shape (public only so that the .cpp's helpers can see it).

@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config
   libembree-dev libtbb-dev libopenimageio-dev openimageio-tools libopenexr-dev libpng-dev libstb-dev libglm-dev
-  libgtest-dev libcli11-dev libfmt-dev nlohmann-json3-dev libboost-dev
+  libgtest-dev libcli11-dev libfmt-dev nlohmann-json3-dev libboost-dev libnanoflann-dev
   python3-numpy python3-matplotlib python3-openimageio
   slurm-wlm munge
 )

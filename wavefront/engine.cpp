@@ -67,6 +67,7 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
   uses_footprint = scene_uses_footprint(scene);
   check_media_hooks();
   light_sampler_learns = light_sampler.wants_feedback();
+  light_sampler_primitives = light_sampler.chooses_primitives();
   footprint_scale = footprint_spp_scale(opt.footprint_spp);
 }
 
@@ -321,7 +322,7 @@ RenderableScene::RenderableScene(const Scene& s, const std::string& sampler_name
     : scene(s),
       accel(s),
       lights(s, accel),
-      light_sampler(make_light_sampler(sampler_name, lights)),
+      light_sampler(make_light_sampler(sampler_name, lights, accel)),
       camera(make_camera(s.camera, s.film)),
       filter(make_filter(s.filter)) {}
 

@@ -73,6 +73,7 @@ struct WavefrontEngine::Impl {
   EngineOptions opt;
   EngineHooks hooks;
   PathObserver* observer;             // hooks.observer
+  bool light_sampler_primitives = false;  // light_sampler.chooses_primitives(): emitter hits name their triangle
   bool light_sampler_learns = false;  // light_sampler.wants_feedback(): shadow rays carry its choice
   CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
 
@@ -150,7 +151,7 @@ struct WavefrontEngine::Impl {
   // light pdf only computed when the previous bounce was not specular),
   // splatted and reported.
   template <bool kObserve, class LightPdf>
-  void add_emission(const PathState& ps, int light, const RGB& Le, LightPdf&& light_pdf);
+  void add_emission(const PathState& ps, int light, const RGB& Le, LightPdf&& light_pdf, int primitive = -1);
   // Light that the caustic pass counts (wavefront/caustics.h): from a light
   // it traces, after a receiver and a caster.
   bool left_to_caustic_pass(uint8_t path_flags, int light) const {
@@ -194,6 +195,9 @@ struct WavefrontEngine::Impl {
   bool splats_emission(uint32_t depth) const {
     return opt.throughput_reset_bounce < 0 || int(depth) > opt.throughput_reset_bounce;
   }
+  float light_choice_pmf(const LightSampleContext& ctx, int light, int primitive) const {
+    return primitive < 0 ? light_sampler.pmf(ctx, light) : light_sampler.pmf_primitive(ctx, light, primitive);
+  }
   static LightSampleContext previous_vertex(const PathState& ps) {
     return LightSampleContext{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
   }
@@ -207,10 +211,11 @@ struct WavefrontEngine::Impl {
 };
 
 template <bool kObserve, class LightPdf>
-void WavefrontEngine::Impl::add_emission(const PathState& ps, int light, const RGB& Le, LightPdf&& light_pdf) {
+void WavefrontEngine::Impl::add_emission(const PathState& ps, int light, const RGB& Le, LightPdf&& light_pdf,
+                                         int primitive) {
   float w = 1.0f;
   if (!(ps.flags & kPathPrevSpecular))
-    w = power_heuristic(1, ps.prev_pdf, 1, light_sampler.pmf(previous_vertex(ps), light) * light_pdf());
+    w = power_heuristic(1, ps.prev_pdf, 1, light_choice_pmf(previous_vertex(ps), light, primitive) * light_pdf());
   RGB contribution = ps.filter_weight * ps.beta * w * Le;
   if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution);
   if constexpr (kObserve) observer->emission_added(ps.vertex, ps.pixel, contribution, w);

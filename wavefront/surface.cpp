@@ -79,8 +79,10 @@ bool WavefrontEngine::Impl::add_surface_emission(uint32_t slot, const Ray& ray, 
   RGB Le = area_light_L(lights, light, si, si.wo);
   if (!is_black(Le)) {
     LightSampleContext prev = previous_vertex(ps);
-    add_emission<kObserve>(ps, light, Le,
-                           [&] { return area_light_pdf(lights, light, prev, glm::normalize(ray.d), si); });
+    const int primitive = light_sampler_primitives ? si.prim : -1;
+    add_emission<kObserve>(
+        ps, light, Le,
+        [&] { return area_light_pdf(lights, light, prev, glm::normalize(ray.d), si, primitive >= 0); }, primitive);
   }
   if (!scene.lights[size_t(light)].is_virtual) return false;
   if constexpr (kObserve) {
@@ -135,7 +137,8 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   const LightSampleContext ctx{v.si.p, v.si.p_error, v.si.ng, v.ns};
   auto sl = light_sampler.sample(ctx, sample1(ps, v.dims.light_choice));
   if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light)) return;
-  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), sample1(ps, v.dims.light_prim));
+  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), sample1(ps, v.dims.light_prim), true,
+                      sl->primitive);
   // pdf guard: the product of selection and sampling pdfs can underflow to 0
   // (a light of 1e-3 beside one of 1e9); such a sample is dropped, never divided by.
   const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;

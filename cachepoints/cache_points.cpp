@@ -1,0 +1,634 @@
+#include "cachepoints/cache_points.h"
+
+#include "core/hash.h"
+#include "core/log.h"
+#include "core/sampling.h"
+#include "scene/camera.h"
+#include "scene/shapes.h"
+
+#include <nanoflann.hpp>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+
+namespace theia {
+
+namespace {
+
+// ---------------------------------------------------------------- KD-tree over points
+
+struct Cloud {
+  const std::vector<vec3>* points;
+  size_t kdtree_get_point_count() const { return points->size(); }
+  float kdtree_get_pt(size_t i, size_t d) const { return (*points)[i][int(d)]; }
+  template <class B>
+  bool kdtree_get_bbox(B&) const {
+    return false;
+  }
+};
+using KDTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3, uint32_t>;
+
+// Points and their tree (the tree points into the vector: neither moves).
+struct PointTree {
+  std::vector<vec3> points;
+  Cloud cloud{&points};
+  std::unique_ptr<KDTree> tree;
+  explicit PointTree(std::vector<vec3> p) : points(std::move(p)) {
+    tree = std::make_unique<KDTree>(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  }
+  PointTree(const PointTree&) = delete;
+  PointTree& operator=(const PointTree&) = delete;
+  // The k nearest (itself included for a point of the tree), nearest first.
+  size_t knn(const vec3& p, size_t k, uint32_t* index, float* d2) const {
+    return tree->knnSearch(&p.x, std::min(k, points.size()), index, d2);
+  }
+  uint32_t nearest(const vec3& p) const {
+    uint32_t i = 0;
+    float d2;
+    knn(p, 1, &i, &d2);
+    return i;
+  }
+};
+
+float rnd(uint32_t seed, uint64_t i, uint32_t dim) { return to_unit_float(uint32_t(hash(seed, i, dim))); }
+
+// ---------------------------------------------------------------- candidates
+
+// Uniform in the (slightly padded) bounds of every non-emissive top-level
+// mesh, by volume: where shading can happen away from the camera's paths.
+std::vector<vec3> object_candidates(const Scene& scene, const CachePointParams& prm, float pad) {
+  std::vector<Bounds3> boxes;
+  std::vector<float> volume;
+  for (int index : scene.top_level_shapes) {
+    const Shape& s = scene.shapes[size_t(index)];
+    if (s.area_light >= 0 || s.kind != ShapeKind::TriangleMesh) continue;
+    const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
+    if (m.p.empty()) continue;
+    Bounds3 b(m.p[0]);
+    for (const vec3& p : m.p) b = Bounds3(glm::min(b.min, p), glm::max(b.max, p));
+    b = Bounds3(b.min - vec3(pad), b.max + vec3(pad));
+    const vec3 d = b.diagonal();
+    boxes.push_back(b);
+    volume.push_back(d.x * d.y * d.z);
+  }
+  std::vector<vec3> out;
+  if (boxes.empty()) return out;
+  Distribution1D choose(volume);
+  for (int i = 0; i < prm.object_candidates; ++i) {
+    const Bounds3& b = boxes[size_t(choose.sample_discrete(rnd(prm.seed, uint64_t(i), 0)))];
+    vec3 t(rnd(prm.seed, uint64_t(i), 1), rnd(prm.seed, uint64_t(i), 2), rnd(prm.seed, uint64_t(i), 3));
+    out.push_back(b.min + t * (b.max - b.min));
+  }
+  return out;
+}
+
+// The non-emissive vertices of short diffuse paths from the camera, one per
+// cell of a grid over the film, a stride-selected subset above the cap.
+std::vector<vec3> pilot_candidates(const Scene& scene, const Accel& accel, const CachePointParams& prm) {
+  const Camera camera = make_camera(scene.camera, scene.film);
+  const int cells = prm.pilot_width * prm.pilot_height;
+  std::vector<std::vector<vec3>> per_path(size_t(std::max(cells, 0)));
+  tbb::parallel_for(0, cells, [&](int i) {
+    const uint32_t seed = prm.seed + 1;
+    vec2 film((float(i % prm.pilot_width) + rnd(seed, uint64_t(i), 0)) / float(prm.pilot_width) * float(scene.film.width),
+              (float(i / prm.pilot_width) + rnd(seed, uint64_t(i), 1)) / float(prm.pilot_height) *
+                  float(scene.film.height));
+    Ray ray = generate_camera_ray(camera, film, vec2(rnd(seed, uint64_t(i), 2), rnd(seed, uint64_t(i), 3)));
+    for (int depth = 0; depth < prm.pilot_depth; ++depth) {
+      const Hit hit = accel.intersect1(ray);
+      if (!hit.hit()) break;
+      const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+      if (si.area_light < 0) per_path[size_t(i)].push_back(si.p);
+      const vec3 n = glm::dot(si.ng, si.wo) < 0.0f ? -si.ng : si.ng;
+      const uint32_t dim = 4 + 2 * uint32_t(depth);
+      const vec3 d = Frame::from_z(n).from_local(
+          sample_cosine_hemisphere(vec2(rnd(seed, uint64_t(i), dim), rnd(seed, uint64_t(i), dim + 1))));
+      ray = spawn_ray(si, d);
+    }
+  });
+  std::vector<vec3> all;
+  for (const auto& v : per_path) all.insert(all.end(), v.begin(), v.end());
+  if (all.size() <= size_t(prm.max_pilot_candidates)) return all;
+  std::vector<vec3> out(size_t(prm.max_pilot_candidates));
+  for (size_t k = 0; k < out.size(); ++k) out[k] = all[k * all.size() / out.size()];
+  return out;
+}
+
+// Section 3.1.2: of points within `radius` of each other (among 20
+// neighbours) only the lowest index survives.
+std::vector<vec3> merge_duplicates(std::vector<vec3> candidates, float radius) {
+  if (candidates.empty()) return candidates;
+  PointTree tree(std::move(candidates));
+  const size_t n = tree.points.size();
+  std::vector<uint8_t> drop(n, 0);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    uint32_t index[20];
+    float d2[20];
+    size_t found = tree.knn(tree.points[i], 20, index, d2);
+    for (size_t k = 0; k < found; ++k)
+      if (index[k] < i && d2[k] <= radius * radius) drop[i] = 1;
+  });
+  std::vector<vec3> out;
+  for (size_t i = 0; i < n; ++i)
+    if (!drop[i]) out.push_back(tree.points[i]);
+  return out;
+}
+
+// ---------------------------------------------------------------- distributions
+
+struct FarEntry {
+  uint32_t emitter;
+  SensorValues value;
+};
+
+struct PointLists {
+  std::vector<uint32_t> near;  // sorted by emitter
+  std::vector<FarEntry> far;   // sorted by emitter
+};
+
+// Per bin, the largest values that carry `far_energy` of the bin's total
+// (min_far..max_far of them); the union over the bins, sorted by emitter.
+std::vector<FarEntry> select_far(std::vector<FarEntry> candidates, const CachePointParams& prm) {
+  std::vector<uint8_t> keep(candidates.size(), 0);
+  std::vector<std::pair<float, uint32_t>> order;
+  for (int b = 0; b < kSensorBins; ++b) {
+    order.clear();
+    double total = 0.0;
+    for (size_t i = 0; i < candidates.size(); ++i)
+      if (candidates[i].value[size_t(b)] > 0.0f) {
+        order.emplace_back(candidates[i].value[size_t(b)], uint32_t(i));
+        total += double(candidates[i].value[size_t(b)]);
+      }
+    if (order.empty()) continue;
+    // Largest first, ties by position: deterministic.
+    auto larger = [](const auto& a, const auto& c) { return a.first > c.first || (a.first == c.first && a.second < c.second); };
+    const size_t top = std::min(order.size(), size_t(prm.max_far));
+    std::nth_element(order.begin(), order.begin() + ptrdiff_t(top - 1), order.end(), larger);
+    std::sort(order.begin(), order.begin() + ptrdiff_t(top), larger);
+    double sum = 0.0;
+    for (size_t k = 0; k < top; ++k) {
+      if (k >= size_t(prm.min_far) && sum >= double(prm.far_energy) * total) break;
+      keep[order[k].second] = 1;
+      sum += double(order[k].first);
+    }
+  }
+  std::vector<FarEntry> out;
+  for (size_t i = 0; i < candidates.size(); ++i)
+    if (keep[i]) out.push_back(candidates[i]);
+  std::sort(out.begin(), out.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
+  return out;
+}
+
+// Section 3.1.3 at one point: the closest lights within near_radius are near
+// (at most max_near), every other one is estimated at the point's seven sensors.
+PointLists build_lists(const LightSet& lights, const EmitterSet& set, const vec3& p, float near_radius,
+                       const CachePointParams& prm) {
+  std::vector<std::pair<float, uint32_t>> near;
+  std::vector<FarEntry> far;
+  for (size_t e = 0; e < set.size(); ++e) {
+    const Emitter& em = set.emitters[e];
+    const bool finite = em.kind == EmitterKind::Area || em.kind == EmitterKind::PointLike;
+    const vec3 d = em.center - p;
+    // Behind a one-sided emitter by more than its radius: it sends nothing here.
+    if (em.kind == EmitterKind::Area && !em.two_sided && glm::dot(em.normal, d) > em.radius) continue;
+    const float d2 = glm::dot(d, d);
+    if (finite && d2 <= near_radius * near_radius) {
+      near.emplace_back(d2, uint32_t(e));
+      continue;
+    }
+    SensorValues v = emitter_sensors(lights, em, p);
+    if (v[kFluenceBin] > 0.0f) far.push_back({uint32_t(e), v});
+  }
+  std::sort(near.begin(), near.end());
+  for (size_t k = size_t(prm.max_near); k < near.size(); ++k) {
+    SensorValues v = emitter_sensors(lights, set.emitters[near[k].second], p);
+    if (v[kFluenceBin] > 0.0f) far.push_back({near[k].second, v});
+  }
+  if (near.size() > size_t(prm.max_near)) near.resize(size_t(prm.max_near));
+  PointLists lists;
+  for (const auto& n : near) lists.near.push_back(n.second);
+  std::sort(lists.near.begin(), lists.near.end());
+  std::sort(far.begin(), far.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
+  lists.far = select_far(std::move(far), prm);
+  return lists;
+}
+
+struct Neighbours {
+  std::vector<uint32_t> index;  // the blur neighbours of each point (itself first)
+  std::vector<float> weight;    // normalised, eq. 4
+  std::vector<uint32_t> begin;  // per point, into index/weight; size points + 1
+};
+
+// Eq. 4: weight 1 for the point and its nearest neighbour, falling to 1/16 at
+// the farthest of the 16; normalised to sum to one.
+Neighbours blur_neighbours(const PointTree& tree, int count) {
+  const size_t n = tree.points.size();
+  const size_t k = std::min(size_t(count) + 1, n);
+  std::vector<std::vector<std::pair<uint32_t, float>>> per(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    std::vector<uint32_t> index(k);
+    std::vector<float> d2(k);
+    size_t found = tree.knn(tree.points[i], k, index.data(), d2.data());
+    float far2 = found > 0 ? d2[found - 1] : 0.0f;
+    per[i].emplace_back(uint32_t(i), 1.0f);
+    for (size_t j = 0; j < found; ++j) {
+      if (index[j] == i) continue;
+      float t = far2 > 0.0f ? d2[j] / far2 : 0.0f;
+      per[i].emplace_back(index[j], 1.0f + (1.0f / 16.0f - 1.0f) * t);
+    }
+    float sum = 0.0f;
+    for (const auto& w : per[i]) sum += w.second;
+    for (auto& w : per[i]) w.second /= sum;
+  });
+  Neighbours nb;
+  nb.begin.push_back(0);
+  for (const auto& v : per) {
+    for (const auto& w : v) {
+      nb.index.push_back(w.first);
+      nb.weight.push_back(w.second);
+    }
+    nb.begin.push_back(uint32_t(nb.index.size()));
+  }
+  return nb;
+}
+
+// Section 3.1.5: the far values of a point and its neighbours, weighted;
+// minus the point's near lights; then selected again (4..256 per bin, 97%),
+// so that lists stay bounded.
+std::vector<FarEntry> blurred_far(const std::vector<PointLists>& lists, const Neighbours& nb, size_t i,
+                                  const CachePointParams& prm) {
+  std::vector<FarEntry> all;
+  for (uint32_t k = nb.begin[i]; k < nb.begin[i + 1]; ++k)
+    for (FarEntry f : lists[nb.index[k]].far) {
+      for (float& v : f.value) v *= nb.weight[k];
+      all.push_back(f);
+    }
+  std::stable_sort(all.begin(), all.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
+  std::vector<FarEntry> merged;
+  const std::vector<uint32_t>& near = lists[i].near;
+  for (const FarEntry& f : all) {
+    if (std::binary_search(near.begin(), near.end(), f.emitter)) continue;
+    if (!merged.empty() && merged.back().emitter == f.emitter) {
+      for (int b = 0; b < kSensorBins; ++b) merged.back().value[size_t(b)] += f.value[size_t(b)];
+    } else {
+      merged.push_back(f);
+    }
+  }
+  return select_far(std::move(merged), prm);
+}
+
+// Bins weighted by a unit normal's similarity to their directions; the
+// fluence bin alone where there is no normal.  The geometric normal's side is
+// the mesh's winding, not the side the path arrived from (which the MIS pmf
+// at an emitter hit cannot know), so both bins of an axis count: the
+// receiver is two-sided, as emitter_importance's.
+SensorValues bin_weights(const vec3& n) {
+  SensorValues w{};
+  const float sum = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
+  if (!(sum > 0.0f)) {
+    w[kFluenceBin] = 1.0f;
+    return w;
+  }
+  for (int axis = 0; axis < 3; ++axis) w[size_t(2 * axis)] = w[size_t(2 * axis + 1)] = std::abs(n[axis]) / sum;
+  return w;
+}
+
+float far_weight(const SensorValues& v, const SensorValues& w) {
+  float s = 0.0f;
+  for (int b = 0; b < kSensorBins; ++b)
+    if (w[size_t(b)] > 0.0f) s += w[size_t(b)] * v[size_t(b)];
+  return s;
+}
+
+// Eq. 5 and 6.
+float visibility_weight(uint32_t attempts, uint32_t successes, float r_min) {
+  const float r = float(successes + 1) / float(attempts + 1);
+  return r <= r_min ? sqr(r / r_min) : 1.0f;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- the sampler
+
+struct CachePointSampler::Impl {
+  const LightSet& lights;
+  const EmitterSet& set;
+  CachePointParams prm;
+  std::unique_ptr<PointTree> tree;  // null: the locally optimal fallback
+  // Per point its entries: near ones [begin, mid), far ones [mid, begin of the next).
+  std::vector<uint32_t> begin, mid;
+  std::vector<uint32_t> entry_emitter;
+  std::vector<SensorValues> entry_value;  // far entries (zero for near ones)
+  std::vector<float> entry_visibility;    // blurred W, 1 until learned
+  std::unique_ptr<std::atomic<uint32_t>[]> attempts, successes;
+  Neighbours neighbours;
+  // Costs and statistics for the log.
+  double build_seconds = 0.0;
+  size_t object_count = 0, pilot_count = 0, merged_points = 0;
+
+  Impl(const LightSet& l, const EmitterSet& s, const CachePointParams& p) : lights(l), set(s), prm(p) {}
+
+  size_t points() const { return tree ? tree->points.size() : 0; }
+  size_t entries() const { return entry_emitter.size(); }
+
+  void build(const Accel& accel);
+  void store(std::vector<PointLists>&& lists);
+  // The entry of `emitter` at point c, or -1.
+  int find_entry(uint32_t c, uint32_t emitter) const {
+    auto search = [&](uint32_t a, uint32_t b) -> int {
+      auto first = entry_emitter.begin() + a, last = entry_emitter.begin() + b;
+      auto it = std::lower_bound(first, last, emitter);
+      return it != last && *it == emitter ? int(it - entry_emitter.begin()) : -1;
+    };
+    int e = search(begin[c], mid[c]);
+    return e >= 0 ? e : search(mid[c], begin[c + 1]);
+  }
+  // The sampling weight of entry k at the vertex (its near estimate, or its bins).
+  float entry_weight(uint32_t c, uint32_t k, const LightSampleContext& ctx, const SensorValues& bins) const {
+    float w = k < mid[c] ? emitter_importance(lights, set.emitters[entry_emitter[k]], ctx.p, ctx.ng)
+                         : far_weight(entry_value[k], bins);
+    return w * entry_visibility[k];
+  }
+  float total_weight(uint32_t c, const LightSampleContext& ctx, const SensorValues& bins) const {
+    float total = 0.0f;
+    for (uint32_t k = begin[c]; k < begin[c + 1]; ++k) total += entry_weight(c, k, ctx, bins);
+    return total;
+  }
+  float share(float total) const { return total > 0.0f && std::isfinite(total) ? prm.uniform_share : 1.0f; }
+  // The probability of emitter e given the point and its total.
+  float probability(uint32_t c, const LightSampleContext& ctx, const SensorValues& bins, float total, int e) const {
+    const float s = share(total);
+    float p = s / float(set.size());
+    if (s < 1.0f) {
+      int k = find_entry(c, uint32_t(e));
+      if (k >= 0) p += (1.0f - s) * entry_weight(c, uint32_t(k), ctx, bins) / total;
+    }
+    return p;
+  }
+  // Locally optimal (few points): every emitter estimated at the vertex.
+  float exact_total(const LightSampleContext& ctx) const {
+    float total = 0.0f;
+    for (const Emitter& e : set.emitters) total += emitter_importance(lights, e, ctx.p, ctx.ng);
+    return total;
+  }
+  void fold_visibility();
+};
+
+CachePointSampler::CachePointSampler(const LightSet& lights, const Accel& accel, const CachePointParams& params)
+    : emitters_(build_emitters(lights)), impl_(std::make_unique<Impl>(lights, emitters_, params)) {
+  impl_->build(accel);
+}
+
+CachePointSampler::~CachePointSampler() = default;
+
+void CachePointSampler::Impl::build(const Accel& accel) {
+  const auto start = std::chrono::steady_clock::now();
+  const Scene& scene = *lights.scene;
+  std::vector<vec3> candidates = object_candidates(scene, prm, 1e-3f * lights.scene_radius);
+  object_count = candidates.size();
+  std::vector<vec3> pilot = pilot_candidates(scene, accel, prm);
+  pilot_count = pilot.size();
+  candidates.insert(candidates.end(), pilot.begin(), pilot.end());
+  std::vector<vec3> points = merge_duplicates(std::move(candidates), prm.merge_radius * lights.scene_radius);
+  merged_points = points.size();
+  if (points.size() < size_t(prm.min_points)) {
+    build_seconds = seconds_since(start);
+    return;
+  }
+  tree = std::make_unique<PointTree>(std::move(points));
+  const size_t n = tree->points.size();
+  // A point's radius: the distance to its radius_neighbours-th neighbour.
+  std::vector<PointLists> lists(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    const size_t k = size_t(prm.radius_neighbours) + 1;
+    std::vector<uint32_t> index(k);
+    std::vector<float> d2(k);
+    size_t found = tree->knn(tree->points[i], k, index.data(), d2.data());
+    float radius = found > 0 ? std::sqrt(d2[found - 1]) : 0.0f;
+    lists[i] = build_lists(lights, set, tree->points[i], prm.near_factor * radius, prm);
+  });
+  neighbours = blur_neighbours(*tree, prm.blur_neighbours);
+  std::vector<std::vector<FarEntry>> blurred(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { blurred[i] = blurred_far(lists, neighbours, i, prm); });
+  for (size_t i = 0; i < n; ++i) lists[i].far = std::move(blurred[i]);
+  store(std::move(lists));
+  build_seconds = seconds_since(start);
+}
+
+void CachePointSampler::Impl::store(std::vector<PointLists>&& lists) {
+  for (const PointLists& l : lists) {
+    begin.push_back(uint32_t(entry_emitter.size()));
+    for (uint32_t e : l.near) {
+      entry_emitter.push_back(e);
+      entry_value.push_back(SensorValues{});
+    }
+    mid.push_back(uint32_t(entry_emitter.size()));
+    for (const FarEntry& f : l.far) {
+      entry_emitter.push_back(f.emitter);
+      entry_value.push_back(f.value);
+    }
+  }
+  begin.push_back(uint32_t(entry_emitter.size()));
+  entry_visibility.assign(entries(), 1.0f);
+  attempts.reset(new std::atomic<uint32_t>[entries()]());
+  successes.reset(new std::atomic<uint32_t>[entries()]());
+}
+
+// u falls in the uniform share (an emitter by u alone) or walks the `count`
+// weights that at(i) gives as (weight, emitter): the chosen emitter, -1 if none.
+template <class At>
+static int choose_emitter(float u, float share, float total, size_t emitters, size_t count, At&& at) {
+  if (u < share) return std::min(int(u / share * float(emitters)), int(emitters) - 1);
+  float target = (u - share) / (1.0f - share) * total;
+  int chosen = -1;
+  for (size_t i = 0; i < count; ++i) {
+    const auto [w, e] = at(i);
+    if (w > 0.0f) chosen = e;
+    if (target < w) break;
+    target -= w;
+  }
+  return chosen;
+}
+
+std::optional<SampledLight> CachePointSampler::sample(const LightSampleContext& ctx, float u) const {
+  const Impl& m = *impl_;
+  const size_t n = emitters_.size();
+  if (n == 0) return std::nullopt;
+  auto result = [&](int e, float pmf, uint32_t region) -> std::optional<SampledLight> {
+    if (e < 0 || !(pmf > 0.0f)) return std::nullopt;
+    const Emitter& em = emitters_.emitters[size_t(e)];
+    return SampledLight{em.light, pmf, region, em.primitive};
+  };
+  if (!m.tree) {
+    const float total = m.exact_total(ctx);
+    const int e = choose_emitter(u, m.share(total), total, n, n, [&](size_t i) {
+      return std::make_pair(emitter_importance(m.lights, emitters_.emitters[i], ctx.p, ctx.ng), int(i));
+    });
+    if (e < 0) return std::nullopt;
+    return result(e, pmf_primitive(ctx, emitters_.emitters[size_t(e)].light, emitters_.emitters[size_t(e)].primitive), 0);
+  }
+  const uint32_t c = m.tree->nearest(ctx.p);
+  const SensorValues bins = bin_weights(ctx.ng);
+  const float total = m.total_weight(c, ctx, bins);
+  const int e = choose_emitter(u, m.share(total), total, n, m.begin[c + 1] - m.begin[c], [&](size_t i) {
+    const uint32_t k = m.begin[c] + uint32_t(i);
+    return std::make_pair(m.entry_weight(c, k, ctx, bins), int(m.entry_emitter[k]));
+  });
+  if (e < 0) return std::nullopt;
+  return result(e, m.probability(c, ctx, bins, total, e), c);
+}
+
+float CachePointSampler::pmf_primitive(const LightSampleContext& ctx, int light, int primitive) const {
+  const Impl& m = *impl_;
+  const int e = emitters_.find(light, primitive);
+  if (e < 0) return 0.0f;
+  const float n = float(emitters_.size());
+  if (!m.tree) {
+    const float total = m.exact_total(ctx);
+    const float s = m.share(total);
+    float p = s / n;
+    if (s < 1.0f) p += (1.0f - s) * emitter_importance(m.lights, emitters_.emitters[size_t(e)], ctx.p, ctx.ng) / total;
+    return p;
+  }
+  const uint32_t c = m.tree->nearest(ctx.p);
+  const SensorValues bins = bin_weights(ctx.ng);
+  return m.probability(c, ctx, bins, m.total_weight(c, ctx, bins), e);
+}
+
+void CachePointSampler::record_shadow(const SampledLight& chosen, bool unoccluded) const {
+  const Impl& m = *impl_;
+  if (!m.tree || chosen.region >= m.points()) return;
+  const int e = emitters_.find(chosen.light, chosen.primitive);
+  if (e < 0) return;
+  const int k = m.find_entry(chosen.region, uint32_t(e));
+  if (k < 0) return;
+  m.attempts[size_t(k)].fetch_add(1, std::memory_order_relaxed);
+  if (unoccluded) m.successes[size_t(k)].fetch_add(1, std::memory_order_relaxed);
+}
+
+// Section 3.2.2: each entry's W blurred with the neighbours that list the
+// same emitter (normalised over those, so an unlisted neighbour does not
+// count as an occluder).  A pure function of the counts.  Only entries whose
+// emitter has W < 1 at the point or a neighbour can differ from 1 (a sum of
+// weights times 1 over the same sum is exactly 1), so only those are blurred.
+void CachePointSampler::Impl::fold_visibility() {
+  std::vector<float> w(entries());
+  std::vector<std::vector<uint32_t>> lowered(points());
+  tbb::parallel_for(size_t(0), points(), [&](size_t c) {
+    for (uint32_t k = begin[c]; k < begin[c + 1]; ++k) {
+      w[k] = visibility_weight(attempts[k].load(std::memory_order_relaxed),
+                               successes[k].load(std::memory_order_relaxed), prm.r_min);
+      if (w[k] < 1.0f) lowered[c].push_back(k);
+    }
+  });
+  auto blurred = [&](uint32_t c, uint32_t k) {
+    float sum = 0.0f, norm = 0.0f;
+    for (uint32_t j = neighbours.begin[c]; j < neighbours.begin[c + 1]; ++j) {
+      const uint32_t q = neighbours.index[j];
+      const int kq = q == c ? int(k) : find_entry(q, entry_emitter[k]);
+      if (kq < 0) continue;
+      sum += neighbours.weight[j] * w[size_t(kq)];
+      norm += neighbours.weight[j];
+    }
+    return norm > 0.0f ? sum / norm : 1.0f;
+  };
+  tbb::parallel_for(size_t(0), points(), [&](size_t c) {
+    std::fill(entry_visibility.begin() + begin[c], entry_visibility.begin() + begin[c + 1], 1.0f);
+    for (uint32_t j = neighbours.begin[c]; j < neighbours.begin[c + 1]; ++j) {
+      const uint32_t q = neighbours.index[j];
+      for (uint32_t kq : lowered[q]) {
+        const int k = q == c ? int(kq) : find_entry(uint32_t(c), entry_emitter[kq]);
+        if (k >= 0) entry_visibility[size_t(k)] = blurred(uint32_t(c), uint32_t(k));
+      }
+    }
+  });
+}
+
+void CachePointSampler::update() {
+  if (impl_->tree) impl_->fold_visibility();
+}
+
+// The counts and the visibility in effect (everything else is rebuilt from
+// the scene): a checkpoint can fall inside an iteration, whose rest must
+// sample with the weights of its start.  Layout: the entry count, then
+// attempts and successes (uint32) and the weights (float), little-endian.
+std::vector<uint8_t> CachePointSampler::save_state() const {
+  const Impl& m = *impl_;
+  const uint64_t n = m.entries();
+  std::vector<uint8_t> bytes(sizeof(n) + 3 * n * sizeof(uint32_t));
+  std::memcpy(bytes.data(), &n, sizeof(n));
+  uint8_t* out = bytes.data() + sizeof(n);
+  for (size_t k = 0; k < n; ++k) {
+    const uint32_t a = m.attempts[k].load(), s = m.successes[k].load();
+    std::memcpy(out + k * sizeof(uint32_t), &a, sizeof(a));
+    std::memcpy(out + (n + k) * sizeof(uint32_t), &s, sizeof(s));
+  }
+  std::memcpy(out + 2 * n * sizeof(uint32_t), m.entry_visibility.data(), n * sizeof(float));
+  return bytes;
+}
+
+void CachePointSampler::restore(const std::vector<uint8_t>& state) {
+  Impl& m = *impl_;
+  uint64_t n = 0;
+  if (state.size() >= sizeof(n)) std::memcpy(&n, state.data(), sizeof(n));
+  if (state.size() < sizeof(n) || n != m.entries() || state.size() != sizeof(n) + 3 * n * sizeof(uint32_t))
+    throw_error("checkpoint section 'light-sampler': {} bytes do not hold the {} visibility entries of these cache points",
+                state.size(), m.entries());
+  const uint8_t* in = state.data() + sizeof(n);
+  for (size_t k = 0; k < n; ++k) {
+    uint32_t a, s;
+    std::memcpy(&a, in + k * sizeof(uint32_t), sizeof(a));
+    std::memcpy(&s, in + (n + k) * sizeof(uint32_t), sizeof(s));
+    m.attempts[k].store(a);
+    m.successes[k].store(s);
+  }
+  std::memcpy(m.entry_visibility.data(), in + 2 * n * sizeof(uint32_t), n * sizeof(float));
+}
+
+std::vector<std::pair<std::string, double>> CachePointSampler::statistics() const {
+  const Impl& m = *impl_;
+  const double points = double(m.points());
+  double near = 0.0, tries = 0.0, hits = 0.0, lowered = 0.0;
+  for (size_t c = 0; c < m.points(); ++c) near += double(m.mid[c] - m.begin[c]);
+  for (size_t k = 0; k < m.entries(); ++k) {
+    tries += double(m.attempts[k].load());
+    hits += double(m.successes[k].load());
+    lowered += m.entry_visibility[k] < 1.0f ? 1.0 : 0.0;
+  }
+  const double bytes = double(m.entries() * (sizeof(uint32_t) * 3 + sizeof(SensorValues) + sizeof(float)) +
+                              m.points() * (sizeof(vec3) + 2 * sizeof(uint32_t)) +
+                              m.neighbours.index.size() * (sizeof(uint32_t) + sizeof(float)) +
+                              emitters_.size() * sizeof(Emitter));
+  return {{"build_seconds", m.build_seconds},
+          {"emitters", double(emitters_.size())},
+          {"candidates_in_objects", double(m.object_count)},
+          {"candidates_on_pilot_paths", double(m.pilot_count)},
+          {"points_after_merge", double(m.merged_points)},
+          {"points", points},
+          {"locally_optimal", m.tree ? 0.0 : 1.0},
+          {"mean_near_lights", points > 0 ? near / points : 0.0},
+          {"mean_far_lights", points > 0 ? (double(m.entries()) - near) / points : 0.0},
+          {"memory_bytes", bytes},
+          {"shadow_attempts", tries},
+          {"shadow_successes", hits},
+          {"entries_down_weighted", lowered}};
+}
+
+size_t CachePointSampler::point_count() const { return impl_->points(); }
+
+float CachePointSampler::visibility(const vec3& p, int emitter) const {
+  const Impl& m = *impl_;
+  if (!m.tree || emitter < 0) return 1.0f;
+  const int k = m.find_entry(m.tree->nearest(p), uint32_t(emitter));
+  return k >= 0 ? m.entry_visibility[size_t(k)] : 1.0f;
+}
+
+}  // namespace theia

@@ -1,0 +1,90 @@
+// Cache points (seeds/002 section 3): light selection from a sparse set of
+// points, each holding the lights that matter around it, learned visibility
+// included.
+//
+// Build (between scene load and the first iteration; deterministic, parallel):
+// candidates in the bounds of the objects and on the vertices of short pilot
+// paths from the camera; near-duplicates merged (KD-tree, nanoflann); per
+// point a near list (lights within D = 4 point radii, evaluated exactly at
+// each vertex) and far values in 7 sensor bins (6 cardinal planes and the
+// fluence), each bin keeping 4..256 lights that carry 97% of its estimated
+// energy; far values blurred over the 16 nearest points.
+//
+// Selection at a vertex: the nearest point; near lights weighted by their
+// estimate at the vertex, far lights by the bins weighted with the geometric
+// normal (the fluence bin where there is none); every weight times the
+// learned visibility; a small uniform share over all emitters keeps every
+// light possible (the lists carry 97%, and occlusion is learned, not known).
+// pmf() recomputes exactly what sample() chose with, for MIS.
+//
+// Visibility (section 3.2): every traced shadow ray counts an attempt and, if
+// it reached the light, a success, per (point, listed light).  update()
+// turns the counts into W = ((s+1)/(a+1) / R_min)^2 below R_min = 0.04, else
+// 1, blurred over the same 16 neighbours.  Counts are integers added
+// atomically: their sums, and so what is learned, do not depend on the order
+// or the thread count.
+#pragma once
+
+#include "cachepoints/emitters.h"
+#include "core/light_sampler.h"
+#include "scene/accel.h"
+
+#include <atomic>
+#include <memory>
+
+namespace theia {
+
+struct CachePointParams {
+  // Candidates.  The paper's caps (100k in object bounds, 1M on pilot
+  // vertices) are for production scenes; the build costs points x lights, so
+  // these are sized for scenes of 10^4..10^5 emitters.
+  int object_candidates = 2048;
+  int pilot_width = 48, pilot_height = 27;  // pilot paths: one per cell of this grid over the film
+  int pilot_depth = 3;
+  int max_pilot_candidates = 4096;
+  float merge_radius = 1e-5f;   // relative to the scene radius
+  int radius_neighbours = 8;    // a point's radius: the distance to this many-th neighbour
+  float near_factor = 4.0f;     // D: near when within D point radii
+  int max_near = 32;            // the closest ones; the rest count as far
+  int min_far = 4, max_far = 256;
+  float far_energy = 0.97f;
+  int blur_neighbours = 16;
+  float uniform_share = 0.03f;
+  float r_min = 0.04f;
+  int min_points = 10;          // fewer: every emitter evaluated at every vertex (locally optimal)
+  uint32_t seed = 0x63616368;
+};
+
+class CachePointSampler final : public LightSampler {
+ public:
+  CachePointSampler(const LightSet& lights, const Accel& accel, const CachePointParams& params = {});
+  ~CachePointSampler() override;
+
+  std::optional<SampledLight> sample(const LightSampleContext& ctx, float u) const override;
+  float pmf(const LightSampleContext& ctx, int light) const override { return pmf_primitive(ctx, light, -1); }
+  float pmf_primitive(const LightSampleContext& ctx, int light, int primitive) const override;
+  const char* name() const override { return "cachepoints"; }
+  bool chooses_primitives() const override { return true; }
+  bool wants_feedback() const override { return true; }
+  void record_shadow(const SampledLight& chosen, bool unoccluded) const override;
+  void update() override;
+  std::vector<uint8_t> save_state() const override;
+  void restore(const std::vector<uint8_t>& state) override;
+  std::vector<std::pair<std::string, double>> statistics() const override;
+
+  // For tests: the number of cache points (0 in the locally optimal fallback),
+  // the emitters, and the nearest point's (emitter, probability) over its lists
+  // and the uniform share, summed per emitter.
+  size_t point_count() const;
+  const EmitterSet& emitters() const { return emitters_; }
+  // The visibility weight the sampler applies to `emitter` at the point nearest p (1 if unlisted).
+  float visibility(const vec3& p, int emitter) const;
+
+  struct Impl;
+
+ private:
+  EmitterSet emitters_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace theia

@@ -1,0 +1,209 @@
+// Cache points (cachepoints/cache_points.h): the pmf is a distribution over
+// every emitter (a mesh light's triangles each one), sample() draws from it
+// (chi-square over emitters), learned visibility lowers occluded lights and is
+// a pure function of the counts (thread count, checkpoint round trip), and
+// degenerate light sets build and sample.
+#include "cachepoints/cache_points.h"
+#include "cachepoints/light_sampler.h"
+#include "chi2.h"
+#include "core/hash.h"
+#include "core/log.h"
+#include "scene/parser.h"
+#include "tests/street_scene.h"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <string>
+
+using namespace theia;
+using theia::test::street_scene;
+
+namespace {
+
+float varied(int k) { return 0.3f * std::pow(10.0f, float(hash(uint64_t(k)) % 1000) / 333.0f); }
+float dark(int k) { return k % 3 == 0 ? 0.0f : 1.0f; }
+
+struct Fixture {
+  Scene scene;
+  Accel accel;
+  LightSet lights;
+  explicit Fixture(const std::string& text)
+      : scene(parse_scene_string(text, "<cache-points-test>", ".")), accel(scene), lights(scene, accel) {}
+};
+
+// Shading points on the floor on both sides of the wall, on the wall, and one in the air (no normal).
+std::vector<LightSampleContext> vertices() {
+  return {LightSampleContext{vec3(-3, 0, 1), vec3(0), vec3(0, 1, 0), vec3(0, 1, 0)},
+          LightSampleContext{vec3(2, 0, -4), vec3(0), vec3(0, 1, 0), vec3(0, 1, 0)},
+          LightSampleContext{vec3(0, 2, 3), vec3(0), vec3(-1, 0, 0), vec3(-1, 0, 0)},
+          LightSampleContext{vec3(4, 3, 5), vec3(0), vec3(0), vec3(0)}};
+}
+
+double pmf_sum(const CachePointSampler& s, const LightSampleContext& ctx) {
+  double sum = 0.0;
+  for (const Emitter& e : s.emitters().emitters) sum += double(s.pmf_primitive(ctx, e.light, e.primitive));
+  return sum;
+}
+
+}  // namespace
+
+TEST(CachePoints, BuildsPointsAndEmittersPerTriangle) {
+  Fixture f(street_scene(8, varied, true));
+  CachePointSampler s(f.lights, f.accel);
+  EXPECT_EQ(s.emitters().size(), 2u * 64u * 2u + 1u);  // two triangles per quad, and the sky
+  EXPECT_GE(s.point_count(), 10u);
+  EXPECT_TRUE(s.chooses_primitives());
+  EXPECT_TRUE(s.wants_feedback());
+}
+
+TEST(CachePoints, PmfSumsToOne) {
+  Fixture f(street_scene(8, varied, true));
+  CachePointSampler s(f.lights, f.accel);
+  for (const LightSampleContext& ctx : vertices()) EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
+}
+
+TEST(CachePoints, SampledPmfIsThePmfAndFrequenciesMatch) {
+  Fixture f(street_scene(8, varied, true));
+  CachePointSampler s(f.lights, f.accel);
+  const size_t n = s.emitters().size();
+  for (const LightSampleContext& ctx : vertices()) {
+    std::vector<double> observed(n, 0.0), expected(n, 0.0);
+    constexpr int kSamples = 200000;
+    for (int i = 0; i < kSamples; ++i) {
+      auto sl = s.sample(ctx, to_unit_float(uint32_t(hash(uint64_t(i), 77u))));
+      ASSERT_TRUE(sl);
+      const int e = s.emitters().find(sl->light, sl->primitive);
+      ASSERT_GE(e, 0);
+      ASSERT_EQ(sl->pmf, s.pmf_primitive(ctx, sl->light, sl->primitive));
+      observed[size_t(e)] += 1.0;
+    }
+    for (size_t e = 0; e < n; ++e)
+      expected[e] = kSamples * double(s.pmf_primitive(ctx, s.emitters().emitters[e].light,
+                                                      s.emitters().emitters[e].primitive));
+    // Pool emitters expecting fewer than 5 samples into one cell.
+    double stat = 0.0, pooled_o = 0.0, pooled_e = 0.0;
+    int dof = -1;
+    for (size_t e = 0; e < n; ++e) {
+      if (expected[e] < 5.0) {
+        pooled_o += observed[e];
+        pooled_e += expected[e];
+        continue;
+      }
+      stat += sqr(observed[e] - expected[e]) / expected[e];
+      ++dof;
+    }
+    if (pooled_e >= 5.0) {
+      stat += sqr(pooled_o - pooled_e) / pooled_e;
+      ++dof;
+    }
+    EXPECT_GT(chi2_p_value(stat, dof), 1e-3) << "statistic " << stat << " dof " << dof;
+  }
+}
+
+TEST(CachePoints, PrefersTheLightsOnItsSideOfTheWall) {
+  Fixture f(street_scene(8, [](int) { return 1.0f; }, false));
+  CachePointSampler s(f.lights, f.accel);
+  // On the floor left of the wall (x < 0) the lights facing -x carry almost all probability.
+  const LightSampleContext ctx{vec3(-3, 0, 1), vec3(0), vec3(0, 1, 0), vec3(0, 1, 0)};
+  double left = 0.0;
+  for (const Emitter& e : s.emitters().emitters)
+    if (e.normal.x < 0.0f) left += double(s.pmf_primitive(ctx, e.light, e.primitive));
+  EXPECT_GT(left, 0.95);
+}
+
+TEST(CachePoints, LearnedVisibilityLowersOccludedLightsAndIsDeterministic) {
+  const std::string text = street_scene(8, varied, true);
+  Fixture f(text);
+  const LightSampleContext ctx = vertices()[0];
+  // The same shadow-ray outcomes reported on 1 and on 4 threads.
+  // Few points, so that each sees enough shadow rays to learn from (24
+  // misses in a row bring R to R_min).
+  CachePointParams few;
+  few.object_candidates = 64;
+  few.pilot_width = 8;
+  few.pilot_height = 6;
+  auto learn = [&](int threads) {
+    auto s = std::make_unique<CachePointSampler>(f.lights, f.accel, few);
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    // From vertices all over the floor left of the wall, so that the points
+    // whose visibility is blurred into ctx's learn too.
+    std::vector<SampledLight> chosen;
+    for (int i = 0; i < 200000; ++i) {
+      const float x = -9.0f + 8.5f * to_unit_float(uint32_t(hash(uint64_t(i), 6u)));
+      const float z = -9.0f + 18.0f * to_unit_float(uint32_t(hash(uint64_t(i), 7u)));
+      const LightSampleContext v{vec3(x, 0, z), vec3(0), vec3(0, 1, 0), vec3(0, 1, 0)};
+      if (auto sl = s->sample(v, to_unit_float(uint32_t(hash(uint64_t(i), 5u))))) chosen.push_back(*sl);
+    }
+    tbb::parallel_for(size_t(0), chosen.size(), [&](size_t i) {
+      // Every light on the -z half is occluded.
+      const Emitter& e = s->emitters().emitters[size_t(s->emitters().find(chosen[i].light, chosen[i].primitive))];
+      s->record_shadow(chosen[i], e.center.z > 0.0f);
+    });
+    s->update();
+    return s;
+  };
+  auto one = learn(1), four = learn(4);
+  EXPECT_EQ(one->save_state(), four->save_state());
+  EXPECT_NEAR(pmf_sum(*one, ctx), 1.0, 1e-4);
+  // The occluded half lost probability to the visible half.
+  Fixture fresh(text);
+  CachePointSampler before(fresh.lights, fresh.accel, few);
+  double occluded_before = 0.0, occluded_after = 0.0;
+  int lowered = 0;
+  for (size_t e = 0; e < one->emitters().size(); ++e) {
+    const Emitter& em = one->emitters().emitters[e];
+    if (em.kind != EmitterKind::Area || em.center.z > 0.0f) continue;
+    occluded_before += double(before.pmf_primitive(ctx, em.light, em.primitive));
+    occluded_after += double(one->pmf_primitive(ctx, em.light, em.primitive));
+    if (one->visibility(ctx.p, int(e)) < 1.0f) ++lowered;
+  }
+  EXPECT_GT(lowered, 0);
+  EXPECT_LT(occluded_after, 0.6 * occluded_before);
+  // A checkpoint round trip: the restored sampler samples as the learned one.
+  CachePointSampler restored(f.lights, f.accel, few);
+  restored.restore(one->save_state());
+  for (const LightSampleContext& c : vertices())
+    for (const Emitter& e : one->emitters().emitters)
+      ASSERT_EQ(restored.pmf_primitive(c, e.light, e.primitive), one->pmf_primitive(c, e.light, e.primitive));
+  EXPECT_THROW(restored.restore(std::vector<uint8_t>(5, 0)), Error);
+}
+
+TEST(CachePoints, DegenerateLightSets) {
+  // Every light at the same place inside the wall; a third of them black.
+  for (const std::string& text : {street_scene(6, varied, false, true), street_scene(6, dark, true)}) {
+    Fixture f(text);
+    CachePointSampler s(f.lights, f.accel);
+    for (const LightSampleContext& ctx : vertices()) {
+      EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
+      for (int i = 0; i < 64; ++i)
+        if (auto sl = s.sample(ctx, (float(i) + 0.5f) / 64.0f)) {
+          EXPECT_TRUE(std::isfinite(sl->pmf));
+          EXPECT_GT(sl->pmf, 0.0f);
+        }
+    }
+  }
+  // One light: nothing to choose, nothing built.
+  Fixture one(street_scene(0, varied, true));
+  EXPECT_STREQ(make_light_sampler("cachepoints", one.lights, one.accel)->name(), "power");
+  EXPECT_STREQ(make_light_sampler("auto", one.lights, one.accel)->name(), "power");
+  EXPECT_THROW(make_light_sampler("bvh2", one.lights, one.accel), Error);
+}
+
+TEST(CachePoints, FewPointsFallBackToLocallyOptimal) {
+  Fixture f(street_scene(4, varied, true));
+  CachePointParams p;
+  p.object_candidates = 0;
+  p.pilot_width = p.pilot_height = 2;
+  p.pilot_depth = 1;
+  CachePointSampler s(f.lights, f.accel, p);
+  EXPECT_EQ(s.point_count(), 0u);
+  for (const LightSampleContext& ctx : vertices()) {
+    EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
+    auto sl = s.sample(ctx, 0.7f);
+    ASSERT_TRUE(sl);
+    EXPECT_EQ(sl->pmf, s.pmf_primitive(ctx, sl->light, sl->primitive));
+  }
+}

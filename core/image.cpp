@@ -143,6 +143,11 @@ ImageBuffer read_exr(const std::string& path, ImageFileInfo* info) {
   }
   sort_exr_channels(chans);
 
+  std::error_code ec;
+  const uintmax_t file_bytes = fs::file_size(path, ec);
+  if (ec || !image_size_fits(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes)))
+    throw_error("{}: the header's {}x{}x{} values cannot come from a file of {} bytes (truncated or corrupt)", path,
+                width, height, chans.size(), file_bytes);
   ImageBuffer img;
   img.width = width;
   img.height = height;

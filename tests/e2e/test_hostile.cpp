@@ -67,14 +67,17 @@ TEST(Hostile, HugeSizesAreClearErrorsNotBadAlloc) {
   const std::string out = " -q -o " + (d / "o.exr").string();
   RunResult r = run("render " + scene + " --spp 1 --max-paths 4294967295" + out);
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_EQ(r.output, "error: --max-paths must be 0 (auto) or below 2^32, got 4294967295\n");
+  EXPECT_NE(r.output.find("path pool of 4294967295 paths 2199023 MB), over the memory limit of"), std::string::npos)
+      << r.output;
   r = run("render " + scene + " --spp 1 --max-paths 4000000000" + out);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("path pool of 4000000000 paths 2048000 MB), over the memory limit of"), std::string::npos)
       << r.output;
   EXPECT_EQ(r.output.find("bad_alloc"), std::string::npos);
   // 60000 x 60000 fits 32-bit pixel indices, not memory.
-  const std::string big = tmp.write("big.pbrt", std::string(kLitScene).replace(29, 37, "[60000] \"integer yresolution\" [60000]"));
+  std::string big_text = kLitScene;
+  big_text.replace(0, big_text.find('\n'), "Film \"rgb\" \"integer xresolution\" [60000] \"integer yresolution\" [60000]");
+  const std::string big = tmp.write("big.pbrt", big_text);
   r = run("render " + big + " --spp 1" + out);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("film 60000x60000 648000 MB"), std::string::npos) << r.output;
@@ -129,6 +132,8 @@ TEST(Hostile, SigtermWhileTheSceneLoadsCheckpointsAndExits75) {
   // A scene that takes a while to read (a mesh of 2e5 triangles in text).
   std::string text = std::string(kLitScene) + "Shape \"trianglemesh\" \"point3 P\" [";
   for (int i = 0; i < 200000; ++i) text += "0 0 " + std::to_string(i) + " 1 0 0 0 1 0 ";
+  text += "] \"integer indices\" [";
+  for (int i = 0; i < 600000; ++i) text += std::to_string(i) + " ";
   text += "]\n";
   const std::string scene = tmp.write("s.pbrt", text);
   const std::string ck = (tmp.path / "ck").string(), out = (tmp.path / "o.exr").string();
@@ -195,9 +200,9 @@ TEST(Hostile, PathsAbandonedAfterASignalResumeToTheUninterruptedImage) {
   EXPECT_FALSE(fs::exists(f.out("ck/checkpoint-000002.bin")));
   r = f.render("out.exr", ck);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_EQ(theia::test::max_relative_difference(theia::read_image_file(f.out("out.exr")),
+  EXPECT_LT(theia::test::max_relative_difference(theia::read_image_file(f.out("out.exr")),
                                                  theia::read_image_file(f.out("ref.exr"))),
-            0.0);
+            1e-5);  // summation order (test_resume.cpp)
 }
 
 TEST(Hostile, AFailedCheckpointWriteKeepsRenderingWhenAnOlderGenerationExists) {
@@ -210,9 +215,9 @@ TEST(Hostile, AFailedCheckpointWriteKeepsRenderingWhenAnOlderGenerationExists) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("; rendering on: a stop now resumes from generation 1 and loses the"), std::string::npos)
       << r.output;
-  EXPECT_EQ(theia::test::max_relative_difference(theia::read_image_file(f.out("out.exr")),
+  EXPECT_LT(theia::test::max_relative_difference(theia::read_image_file(f.out("out.exr")),
                                                  theia::read_image_file(f.out("ref.exr"))),
-            0.0);
+            1e-5);  // summation order (test_resume.cpp)
   // Stopped while the writes fail: the resume starts from generation 1 and still gives the image.
   fs::remove_all(f.out("ck2"));
   fs::create_directories(f.out("ck2/checkpoint-000002.exr"));
@@ -220,9 +225,9 @@ TEST(Hostile, AFailedCheckpointWriteKeepsRenderingWhenAnOlderGenerationExists) {
   ASSERT_EQ(f.render("out2.exr", ck2 + " --test-sigterm-at 2:0.5").exit_code, 75);
   fs::remove_all(f.out("ck2/checkpoint-000002.exr"));
   ASSERT_EQ(f.render("out2.exr", ck2).exit_code, 0);
-  EXPECT_EQ(theia::test::max_relative_difference(theia::read_image_file(f.out("out2.exr")),
+  EXPECT_LT(theia::test::max_relative_difference(theia::read_image_file(f.out("out2.exr")),
                                                  theia::read_image_file(f.out("ref.exr"))),
-            0.0);
+            1e-5);  // summation order (test_resume.cpp)
   // Without an older generation the first write's failure is the error it was.
   fs::create_directories(f.out("ck3/checkpoint-000001.exr"));
   r = f.render("out3.exr", " --checkpoint-dir " + f.out("ck3") + " --checkpoint-every-iteration");

@@ -6,6 +6,7 @@ packages=(
   libembree-dev libtbb-dev libopenimageio-dev openimageio-tools libopenexr-dev libpng-dev libglm-dev
   libgtest-dev libcli11-dev libfmt-dev nlohmann-json3-dev libboost-dev
   python3-numpy python3-matplotlib python3-openimageio
+  clang  # fuzz/: libFuzzer ships with it (THEIA_FUZZ builds)
 )
 missing=()
 for p in "${packages[@]}"; do

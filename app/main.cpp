@@ -8,16 +8,28 @@
 
 #include <atomic>
 #include <csignal>
+#include <new>
+#include <stdexcept>
 #include <cstdio>
 #include <unistd.h>
 
 namespace {
 theia::StopRequest g_stop;
 extern "C" void on_stop_signal(int) { g_stop.raise(theia::StopReason::Signal); }
+// Back to the default action; a signal that came already is delivered now.
+void default_stop_signals() {
+  std::signal(SIGTERM, SIG_DFL);
+  std::signal(SIGINT, SIG_DFL);
+  if (g_stop.raised()) std::raise(SIGTERM);
+}
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace theia;
+  // First thing: a farm may send SIGTERM while the command line or the scene
+  // is read; the render then stops at once, checkpoints and exits 75.
+  std::signal(SIGTERM, on_stop_signal);
+  std::signal(SIGINT, on_stop_signal);
   CLI::App app{"theia: a sorted-deferred (wavefront) path tracer for pbrt-v4 scenes"};
   app.require_subcommand(1);
 
@@ -37,6 +49,8 @@ int main(int argc, char** argv) {
   // Tests only: raise SIGTERM in iteration I once a fraction F of its camera rays were generated.
   std::string test_sigterm;
   render->add_option("--test-sigterm-at", test_sigterm, "")->group("");
+  // Tests only: abandon paths in flight this many seconds after a stop signal (default 2).
+  render->add_option("--test-abandon-after", rc.abandon_after_seconds, "")->group("");
 
   std::string diff_a, diff_b, diff_image;
   CLI::App* diff = app.add_subcommand("diff", "Compare two images: relMSE, RMSE and more");
@@ -51,9 +65,6 @@ int main(int argc, char** argv) {
     if (render->parsed()) {
       if (quiet) set_verbosity(Verbosity::Quiet);
       rc.progress = !quiet && isatty(fileno(stderr));
-      // A farm stops a job with SIGTERM: finish what is in flight, checkpoint, exit 75.
-      std::signal(SIGTERM, on_stop_signal);
-      std::signal(SIGINT, on_stop_signal);
       rc.stop = &g_stop;
       if (!test_sigterm.empty()) {
         int it = std::stoi(test_sigterm.substr(0, test_sigterm.find(':')));
@@ -64,10 +75,25 @@ int main(int argc, char** argv) {
       }
       return run_render(rc);
     }
-    if (diff->parsed()) return run_diff(diff_a, diff_b, diff_image);
-    if (farm.parsed()) return farm.run();
+    if (diff->parsed()) {
+      // Nothing to keep: a stop signal ends a diff as it ends any program.
+      default_stop_signals();
+      return run_diff(diff_a, diff_b, diff_image);
+    }
+    if (farm.parsed()) {
+      default_stop_signals();  // submit, status and collect keep nothing to checkpoint
+      return farm.run();
+    }
   } catch (const Error& e) {
     std::fprintf(stderr, "%s\n", error_line(e.what()).c_str());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    // The last resort: sizes are checked against --memory-limit before the
+    // film and the pool are allocated, so this is memory the check missed.
+    std::fprintf(stderr, "error: out of memory (the scene, its images or the render did not fit; see --memory-limit)\n");
+    return 1;
+  } catch (const std::length_error& e) {
+    std::fprintf(stderr, "error: out of memory: a size beyond what can be allocated (%s)\n", e.what());
     return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", error_line(e.what()).c_str());

@@ -23,6 +23,8 @@
 #include <filesystem>
 #include <memory>
 
+#include <unistd.h>
+
 namespace theia {
 
 namespace fs = std::filesystem;
@@ -37,6 +39,9 @@ void check(const RenderOptions& c) {
   if (c.batch_size >= kMaxEngineSize)
     throw_error("--batch-size must be 0 (auto) or below 2^32, got {}", c.batch_size);
   if (c.max_paths >= kMaxEngineSize) throw_error("--max-paths must be 0 (auto) or below 2^32, got {}", c.max_paths);
+  if (!(c.memory_limit >= 0.0 && std::isfinite(c.memory_limit)))
+    throw_error("--memory-limit must be zero (the machine's memory) or a positive number of MB, got {}",
+                c.memory_limit);
   if (c.throughput_reset_bounce < -1)
     throw_error("--throughput-reset-bounce must be zero or positive, got {}", c.throughput_reset_bounce);
 }
@@ -159,6 +164,7 @@ static EngineOptions engine_options(const RenderConfig& c, const StopRequest* st
   o.sort = c.sort;
   o.throughput_reset_bounce = c.throughput_reset_bounce;
   o.stop = stop;
+  o.abandon_after_seconds = c.abandon_after_seconds;
   o.footprint_spp = c.spp;
   return o;
 }
@@ -294,11 +300,42 @@ static RenderResult make_result(IterationResult iterations, Features& features, 
   return result;
 }
 
+// --memory-limit in bytes; 0 means the machine's physical memory.
+static double memory_limit_bytes(const RenderConfig& c) {
+  if (c.memory_limit > 0.0) return c.memory_limit * 1e6;
+  return double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE));
+}
+
+// A path's share of the engine at its peak: its 64-byte state, a
+// continuation and a shadow ray with their hits, sort keys and queue slots
+// (memory.wavefront / paths.pool in a log is below this).
+static constexpr double kBytesPerPath = 512.0;
+
+// The film (iteration film, running sum and the resolved image) and the path
+// pool, checked before anything is allocated: a huge resolution or
+// --max-paths is a clear error, not a std::bad_alloc.
+static void check_memory(const RenderConfig& c, const Scene& scene) {
+  const double limit = memory_limit_bytes(c);
+  const double mb = 1e-6;
+  const double scene_bytes = double(peak_rss_bytes());
+  const double pixels = double(scene.film.width) * double(scene.film.height);
+  const double film_bytes = pixels * (2.0 * Film::kPlaneCount + 11.0) * sizeof(float);
+  const int threads = c.threads > 0 ? c.threads : tbb::info::default_concurrency();
+  const EngineSizes sizes = engine_sizes(engine_options(c, nullptr), uint64_t(pixels), threads);
+  const double pool_bytes = double(sizes.max_paths) * kBytesPerPath;
+  if (scene_bytes + film_bytes + pool_bytes <= limit) return;
+  throw_error("{}: the render needs about {:.0f} MB (scene {:.0f} MB as loaded, film {}x{} {:.0f} MB, path pool of {} "
+              "paths {:.0f} MB), over the memory limit of {:.0f} MB (--memory-limit, 0: the machine's memory)",
+              scene.path, (scene_bytes + film_bytes + pool_bytes) * mb, scene_bytes * mb, scene.film.width,
+              scene.film.height, film_bytes * mb, sizes.max_paths, pool_bytes * mb, limit * mb);
+}
+
 // Builds every feature, hands their hooks, tasks and checkpoint sections to
 // the engine and the scheduler, renders the iterations, collects the log.
 RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   check_config(config);
   const RenderConfig c = resolve(config, scene);
+  check_memory(c, scene);
   const auto threads = limit_threads(c.threads);
   const auto wall_start = c.wall_start.value_or(std::chrono::steady_clock::now());
   const ImageBuffer reference = read_reference(c.reference_path, scene);
@@ -340,6 +377,17 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   return result;
 }
 
+// An output that cannot be written fails now, not after the render: a
+// directory, a missing or read-only directory.
+static void check_output_path(const std::string& flag, const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw_error("{} {}: is a directory, expected a file name", flag, path);
+  fs::path dir = fs::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  if (!fs::is_directory(dir, ec)) throw_error("{} {}: the directory {} does not exist", flag, path, dir.string());
+  if (::access(dir.c_str(), W_OK) != 0) throw_error("{} {}: the directory {} is not writable", flag, path, dir.string());
+}
+
 int run_render(const RenderConfig& in) {
   RenderConfig config = in;
   check_config(config);
@@ -353,10 +401,15 @@ int run_render(const RenderConfig& in) {
   double load_seconds = seconds_since(t0);
   log_info("loaded {} in {:.2f} s: {} shapes, {} lights, {}x{}", config.scene_path, load_seconds, scene.shapes.size(),
            scene.lights.size(), scene.film.width, scene.film.height);
+  if (scene.lights.empty())
+    log_warning("{}: the scene has no light source (LightSource, or AreaLightSource before a Shape); the image "
+                "will be black", config.scene_path);
 
   if (config.output.empty()) config.output = fs::path(scene.film.filename).replace_extension(".exr").string();
   if (fs::path(config.output).extension() != ".exr") throw_error("-o {}: the output must be an .exr file", config.output);
   if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
+  check_output_path("-o", config.output);
+  check_output_path("--log", config.log_path);
 
   RenderResult result = render_scene(scene, config);
   if (result.interrupted) {
@@ -393,7 +446,7 @@ int run_render(const RenderConfig& in) {
     log_warning("--time-limit {} s was spent before the first sample: the image is black",
                 limit["seconds"].get<double>());
   if (log["dropped_samples"].get<uint64_t>() > 0)
-    log_warning("{} non-finite samples were dropped", log["dropped_samples"].get<uint64_t>());
+    log_warning("{} non-finite or overflowing (beyond 1e30) samples were dropped", log["dropped_samples"].get<uint64_t>());
   return 0;
 }
 

@@ -30,6 +30,7 @@ struct RenderOptions {
   // 10.5M triangles included (README, Performance).
   bool sort = false;
   int throughput_reset_bounce = -1;  // >= 0: the beauty is the "throughput reset at bounce N" image
+  double memory_limit = 0.0;         // MB the scene, film and path pool may take; 0: the machine's memory
 };
 
 template <class V>
@@ -43,6 +44,8 @@ void declare_options(V& v, RenderOptions& o) {
   v.order("sort", o.sort, "Sort rays and hits (--sort on|off, --no-sort)");
   v.image("throughput_reset_bounce", o.throughput_reset_bounce,
           "Render the 'throughput reset at bounce N' image as the beauty (-1: off)");
+  v.output("memory_limit", o.memory_limit,
+           "MB the scene, film and path pool may take, checked before they are allocated (0: the machine's memory)");
 }
 void check(const RenderOptions& o);
 
@@ -62,6 +65,9 @@ struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions {
   // render_scene was called.
   std::optional<std::chrono::steady_clock::time_point> wall_start;
   bool progress = false;            // progress bar (the command line turns it on for a terminal)
+  // After a stop signal, paths still in flight this long are abandoned
+  // (EngineOptions::abandon_after_seconds); tests shorten it.
+  double abandon_after_seconds = 2.0;
   // Raised to stop early: the command line's SIGTERM/SIGINT handler, and the
   // time limit (--time-limit; render_scene makes a request of its own when
   // this is null).

@@ -62,8 +62,11 @@ std::vector<uint64_t> generations(const std::string& dir) {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     std::string name = e.path().filename().string();
-    if (name.size() == 21 && name.starts_with("checkpoint-") && name.ends_with(".bin"))
-      g.push_back(std::stoull(name.substr(11, 6)));
+    if (name.size() != 21 || !name.starts_with("checkpoint-") || !name.ends_with(".bin")) continue;
+    // Only six digits name a generation: a stray checkpoint-abcdef.bin is not one.
+    const std::string digits = name.substr(11, 6);
+    if (std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      g.push_back(std::stoull(digits));
   }
   std::sort(g.rbegin(), g.rend());
   return g;

@@ -144,6 +144,11 @@ ImageBuffer read_exr(const std::string& path, ImageFileInfo* info) {
   }
   sort_exr_channels(chans);
 
+  std::error_code ec;
+  const uintmax_t file_bytes = fs::file_size(path, ec);
+  if (ec || !image_size_fits(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes)))
+    throw_error("{}: cannot read image ({})", path,
+                image_size_error(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes)));
   ImageBuffer img;
   img.width = width;
   img.height = height;

@@ -47,6 +47,24 @@ struct ImageFileInfo {
   bool float_pixels = false;  // half/float/double samples in the file
 };
 
+// A header promising more pixel values than kMaxImageExpansion per byte of
+// the file is refused before anything is allocated (a 16000x16000 header over
+// a 100-byte body asked for 3 GB).  Deflate expands at most 1032:1, so PNG
+// and ZIP-compressed EXR stay far below; so do RLE, B44 and a flat JPEG.
+// Every reader asks this (core/image_readers.cpp, the OpenImageIO module).
+inline constexpr uint64_t kMaxImageExpansion = 4096;
+inline bool image_size_fits(uint64_t width, uint64_t height, uint64_t channels, uint64_t file_bytes) {
+  if (width == 0 || height == 0 || channels == 0) return true;
+  const uint64_t budget =
+      file_bytes > UINT64_MAX / kMaxImageExpansion ? UINT64_MAX : file_bytes * kMaxImageExpansion;
+  return width <= budget / height && width * height <= budget / channels;
+}
+// Why such a file is refused, in every reader's words.
+inline std::string image_size_error(uint64_t width, uint64_t height, uint64_t channels, uint64_t file_bytes) {
+  return "the header's " + std::to_string(width) + "x" + std::to_string(height) + "x" + std::to_string(channels) +
+         " values cannot come from a file of " + std::to_string(file_bytes) + " bytes (truncated or corrupt)";
+}
+
 // Any format OpenImageIO reads (EXR, PFM, PNG, TGA, JPEG, HDR, ...), first subimage,
 // all channels, values as stored (no colour conversion, alpha not premultiplied).
 // EXR (told by its magic number, not the name) comes back as OpenImageIO

@@ -74,11 +74,6 @@ PfmHeader read_pfm_header(std::istream& in, const std::string& path) {
 
 // ---------------------------------------------------------------- stb_image
 
-// At most this many decoded values per byte of a compressed file: deflate
-// expands at most 1032:1 and JPEG's smallest 8x8 block takes a few bits, so
-// a header that claims more describes an image the file cannot hold.
-constexpr uint64_t kMaxValuesPerFileByte = 2048;
-
 struct StbFree {
   void operator()(void* p) const { stbi_image_free(p); }
 };
@@ -119,8 +114,8 @@ ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info) {
   const uint64_t values = uint64_t(h.width) * uint64_t(h.height) * uint64_t(h.channels);
   const uint64_t size = file_size(path);
   if (h.data_offset > size || (size - h.data_offset) / sizeof(float) < values)
-    throw_error("{}: not a valid PFM file (its header says {}x{}, but it holds {} bytes)", path, h.width, h.height,
-                size);
+    throw_error("{}: cannot read image ({})", path,
+                image_size_error(uint64_t(h.width), uint64_t(h.height), uint64_t(h.channels), size));
 
   ImageBuffer img(int(h.width), int(h.height), channel_names(h.channels));
   const size_t row = size_t(h.width) * size_t(h.channels);
@@ -138,11 +133,12 @@ ImageBuffer read_with_stb_image(const std::string& path, ImageFileInfo* info) {
   int w = 0, h = 0, n = 0;
   if (!format || !stbi_info(path.c_str(), &w, &h, &n))
     throw_error("{}: cannot read image ({})", path, stbi_failure_reason() ? stbi_failure_reason() : "unknown format");
-  const uint64_t values = uint64_t(w) * uint64_t(h) * uint64_t(n);
-  if (w <= 0 || h <= 0 || n <= 0 || values > file_size(path) * kMaxValuesPerFileByte)
-    throw_error("{}: cannot read image (its header says {}x{} with {} channels, more than its {} bytes can hold)",
-                path, w, h, n, file_size(path));
+  if (w <= 0 || h <= 0 || n <= 0 || !image_size_fits(uint64_t(w), uint64_t(h), uint64_t(n), file_size(path)))
+    throw_error("{}: cannot read image ({})", path,
+                image_size_error(uint64_t(std::max(w, 0)), uint64_t(std::max(h, 0)), uint64_t(std::max(n, 0)),
+                                 file_size(path)));
 
+  const size_t values = size_t(w) * size_t(h) * size_t(n);
   ImageBuffer img(w, h, channel_names(n));
   bool float_pixels = false;
   auto failed = [&]() -> ImageBuffer {

@@ -5,6 +5,8 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <filesystem>
+
 namespace {
 
 bool fail(std::string& error, std::string why, const char* otherwise) {
@@ -31,6 +33,14 @@ extern "C" __attribute__((visibility("default"))) bool theia_oiio_read_image(con
                     std::to_string(spec.depth) + " with " + std::to_string(spec.nchannels) + " channels",
                 "");
 
+  std::error_code ec;
+  const uintmax_t file_bytes = std::filesystem::file_size(path, ec);
+  if (ec || !theia::image_size_fits(uint64_t(spec.width), uint64_t(spec.height), uint64_t(spec.nchannels),
+                                    uint64_t(file_bytes)))
+    return fail(error,
+                theia::image_size_error(uint64_t(spec.width), uint64_t(spec.height), uint64_t(spec.nchannels),
+                                        uint64_t(file_bytes)),
+                "");
   img.width = spec.width;
   img.height = spec.height;
   img.channels.clear();

@@ -7,6 +7,13 @@
 // the render's normal end and writes the image.  The first reason raised
 // wins, so a signal during a time-limited render's last paths still finishes
 // the image, and a time limit after a signal still checkpoints.
+//
+// A signal must end the render within seconds however long the paths are
+// (a farm kills the job soon after): the engine drops paths still in flight
+// a grace time after it (EngineOptions::abandon_after_seconds), and the
+// scheduler then writes nothing for that iteration, so the resume continues
+// from the newest checkpoint and gives the uninterrupted image.  A time
+// limit keeps every sample instead, so it always waits for them.
 #pragma once
 
 #include <atomic>

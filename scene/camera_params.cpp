@@ -61,6 +61,9 @@ void read_film(const std::string& type, const ParamList& params, const SourceLoc
   film.filename = params.get_string("filename", film.filename);
   if (film.width <= 0 || film.height <= 0)
     throw_at(loc, "film resolution {}x{}, expected positive sizes", film.width, film.height);
+  // Pixels are addressed with 32 bits (the film, sample indices, checkpoints).
+  if (uint64_t(film.width) * uint64_t(film.height) >= (uint64_t(1) << 32))
+    throw_at(loc, "film resolution {}x{}, expected fewer than 2^32 pixels", film.width, film.height);
 }
 
 void read_pixel_filter(const std::string& type, const ParamList& params, const SourceLoc& loc, FilterParams& f) {

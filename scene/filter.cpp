@@ -80,8 +80,10 @@ Filter make_filter(const FilterParams& params) {
   f.b = params.b;
   f.c = params.c;
   f.tau = params.tau;
-  if (!(f.radius.x > 0.0f && f.radius.y > 0.0f && std::isfinite(f.radius.x) && std::isfinite(f.radius.y)))
-    throw_error("filter: \"radius\" must be positive and finite, got ({}, {})", f.radius.x, f.radius.y);
+  // The sampling table holds (32 radius)^2 cells: a radius of 1e30 would ask for all memory.
+  if (!(f.radius.x > 0.0f && f.radius.y > 0.0f && f.radius.x <= kMaxFilterRadius && f.radius.y <= kMaxFilterRadius))
+    throw_error("filter: \"radius\" must be positive and at most {} pixels, got ({}, {})", kMaxFilterRadius,
+                f.radius.x, f.radius.y);
   switch (f.kind) {
     case FilterKind::Box: f.integral = 4.0f * f.radius.x * f.radius.y; return f;
     case FilterKind::Triangle: f.integral = sqr(f.radius.x) * sqr(f.radius.y); return f;

@@ -29,8 +29,10 @@ struct Filter {
   ivec2 table_size{0};
 };
 
-// Throws Error for a non-positive or non-finite radius, sigma or tau, or a
-// non-finite B or C.
+inline constexpr float kMaxFilterRadius = 32.0f;  // pixels
+
+// Throws Error for a radius that is not in (0, kMaxFilterRadius], a
+// non-positive or non-finite sigma or tau, or a non-finite B or C.
 Filter make_filter(const FilterParams& params);
 
 // Box: uniform, weight 1.  Triangle: separable tent, weight 1.  Both are exact

@@ -1,8 +1,10 @@
 #include "scene/parser.h"
 
 #include "core/log.h"
+#include "scene/camera.h"
 #include "scene/camera_params.h"
 #include "scene/curve_params.h"
+#include "scene/filter.h"
 #include "scene/light_params.h"
 #include "scene/loop_subdiv.h"
 #include "scene/material_params.h"
@@ -16,8 +18,10 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <tuple>
 #include <unordered_map>
 
@@ -139,6 +143,10 @@ class SceneParser {
   std::map<std::tuple<std::string, std::string, bool>, int> images_;
   int default_material_ = -1;
   bool warned_curve_light_ = false;
+  // Where the camera and the filter were declared: their checks need the
+  // whole options block (the film's size), so they run at the end.
+  std::optional<SourceLoc> camera_loc_, filter_loc_;
+  void check_camera_and_filter(const SourceLoc& end) const;
 };
 
 // ---------------------------------------------------------------- transforms
@@ -515,6 +523,23 @@ void SceneParser::finish(const SourceLoc& end) {
     throw_at(stack_.back().loc, "{} without its end, expected it closed before the end of the scene",
              pushed_name(stack_.back().kind));
   if (!in_world_) throw_at(end, "end of the scene before WorldBegin, expected WorldBegin");
+  check_camera_and_filter(end);
+}
+
+// The camera and the filter are built as the engine will build them, so an
+// unusable one (fov 0, a negative lens radius, a zero filter radius) names
+// the directive that made it.
+void SceneParser::check_camera_and_filter(const SourceLoc& end) const {
+  try {
+    make_camera(scene_.camera, scene_.film);
+  } catch (const Error& e) {
+    throw_at(camera_loc_.value_or(end), "{}", e.what());
+  }
+  try {
+    make_filter(scene_.filter);
+  } catch (const Error& e) {
+    throw_at(filter_loc_.value_or(end), "{}", e.what());
+  }
 }
 
 // ---------------------------------------------------------------- options
@@ -523,6 +548,7 @@ void SceneParser::camera(const std::string& type, ParamList& params, const Sourc
   if (!is_usable(gs_.ctm))
     throw_at(loc, "the camera transform is not invertible or not finite (a zero scale, a zero Transform, a huge "
                   "value?), expected an invertible transform");
+  camera_loc_ = loc;
   named_coords_["camera"] = gs_.ctm.inverse();
   scene_.camera.render_from_camera = gs_.ctm.inverse();
   scene_.camera_medium = gs_.medium_outside;  // pbrt-v4's CameraTransform-time outside medium
@@ -534,6 +560,7 @@ void SceneParser::film(const std::string& type, ParamList& params, const SourceL
 }
 
 void SceneParser::pixel_filter(const std::string& type, ParamList& params, const SourceLoc& loc) {
+  filter_loc_ = loc;
   read_pixel_filter(type, params, loc, scene_.filter);
 }
 
@@ -580,6 +607,7 @@ int SceneParser::image(const std::string& path, const std::string& encoding, boo
   img.filename = abs;
   img.encoding = encoding;
   img.is_color = is_color;
+  img.loc = loc;
   scene_.images.push_back(std::move(img));
   return images_[key] = int(scene_.images.size()) - 1;
 }
@@ -635,6 +663,14 @@ int SceneParser::default_material() {
 
 // ---------------------------------------------------------------- lights
 
+// Emission beyond kMaxEmission (3e38 in a scene) would overflow on its way to the film.
+static void check_emission(const RGB& L, const SourceLoc& loc) {
+  float m = std::max({std::abs(L.x), std::abs(L.y), std::abs(L.z)});
+  if (!(m <= kMaxEmission))
+    throw_at(loc, "emission {:g} (after \"scale\" and \"power\"), expected at most {:g}", double(m),
+             double(kMaxEmission));
+}
+
 void SceneParser::area_light_source(const std::string& type, ParamList& params, const SourceLoc& loc,
                                     const std::string& base_dir) {
   gs_.area_light = false;
@@ -655,6 +691,7 @@ void SceneParser::area_light_source(const std::string& type, ParamList& params, 
   }
   float power = params.get_float("power", -1.0f);
   a.power = power > 0.0f ? power : -1.0f;
+  check_emission(a.L, loc);
   a.two_sided = params.get_bool("twosided", false);
   a.is_virtual = params.get_bool("virtual", false);
   gs_.area_light = true;
@@ -747,6 +784,7 @@ void SceneParser::light_source(const std::string& type, ParamList& params, const
     params.mark_all_used();
     return;
   }
+  check_emission(l.L, loc);
   scene_.lights.push_back(l);
 }
 

@@ -49,6 +49,7 @@ struct Image {
   // MIP levels 1, 2, ... (each about half the previous, the last 1x1), built
   // by build_mipmaps (scene/mipmap.h) for images a trilinear or EWA texture reads.
   std::vector<Image> mip;
+  SourceLoc loc;              // the parameter that named the file (a load error names it)
 };
 
 // One texture node.  Float textures use only the first component of the RGB
@@ -209,6 +210,12 @@ enum class LightKind { Area, Point, Infinite, Spot, Distant, Goniometric, Projec
 // SpectrumToPhotometric).  The exceptions need the pixels: an environment
 // image's "illuminance" and an image's k_e for "power" (area, goniometric,
 // projection); scene/lights.cpp applies them when the LightSet is built.
+// The largest radiance or intensity a light may have (after "scale" and
+// "power"), and the largest texel an image keeps: beyond, a few bounces and
+// the film's sums would overflow float (a larger light is a located error, a
+// larger texel is clamped to 0 with a warning).
+inline constexpr float kMaxEmission = 1e20f;
+
 struct Light {
   LightKind kind = LightKind::Area;
   // Radiance (area, infinite, distant) or intensity (point, spot, goniometric).

@@ -4,6 +4,7 @@
 #include "core/image.h"
 #include "core/log.h"
 #include "scene/mipmap.h"
+#include "scene/tokenizer.h"
 
 #include <tbb/parallel_for.h>
 
@@ -110,16 +111,19 @@ void load_image(Image& image, const std::string& base_dir) {
       }
       image.pixels[i * size_t(nc) + size_t(c)] = v;
     }
-  // A texel that is NaN or infinite would put the same into every path that
-  // reads it: documented clamp to 0, with one warning per image.  Negative
-  // float texels stay (float images are linear data, tests/unit/test_texture.cpp).
+  // A texel that is NaN, infinite or beyond kMaxEmission would put the same
+  // (or an overflow) into every path that reads it: documented clamp to 0,
+  // with one warning per image.  Negative float texels stay (float images are
+  // linear data, tests/unit/test_texture.cpp).
   size_t non_finite = 0;
   for (float& v : image.pixels)
-    if (!std::isfinite(v)) {
+    if (!(std::abs(v) <= kMaxEmission)) {
       ++non_finite;
       v = 0.0f;
     }
-  if (non_finite > 0) log_warning("{}: {} non-finite texel values clamped to 0", path, non_finite);
+  if (non_finite > 0)
+    log_warning("{}: {} non-finite or huge (beyond {:g}) texel values clamped to 0", path, non_finite,
+                double(kMaxEmission));
   // (Clamped first: the conversion would spread one NaN channel over three.)
   // Colour images join the working colour space once, here, so lookups stay plain.
   if (image.is_color && nc >= 3)
@@ -143,12 +147,14 @@ void load_images(Scene& scene) {
     try {
       load_image(scene.images[i], base_dir);
     } catch (const std::exception& e) {
-      const std::string& name = scene.images[i].filename;
+      const Image& image = scene.images[i];
       errors[i] = e.what();
-      if (name.empty())
+      if (image.filename.empty())
         errors[i] = fmt::format("image #{}: {}", i, e.what());
-      else if (errors[i].find(name) == std::string::npos)
-        errors[i] = fmt::format("{}: {}", name, e.what());
+      else if (errors[i].find(image.filename) == std::string::npos)
+        errors[i] = fmt::format("{}: {}", image.filename, e.what());
+      // The scene line that asked for the image, in the one located format.
+      if (!image.loc.file.empty()) errors[i] = fmt::format("{}: error: {}", format_loc(image.loc), errors[i]);
     }
   });
   size_t failed = 0;

@@ -279,10 +279,28 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
 
   double checkpoint_seconds = 0.0;
   int checkpoints_written = 0;
+  int failed_checkpoint_writes = 0;
+  // The newest generation on disk and the iteration it resumes at: what a
+  // failed write falls back on.
+  std::optional<std::pair<uint64_t, int>> kept;
+  if (resumed) kept = {pos.generation, pos.iteration};
   auto write = [&] {
     ScopedTimer timer(checkpoint_seconds);
     ++pos.generation;
-    write_checkpoint(cfg.checkpoint.dir, make_checkpoint(cfg, sizes, pos, acc, film));
+    try {
+      write_checkpoint(cfg.checkpoint.dir, make_checkpoint(cfg, sizes, pos, acc, film));
+    } catch (const std::exception& e) {
+      // A full disk must not end a render that still has a checkpoint to
+      // resume from; without one, the checkpoint the user asked for is missing.
+      if (!kept) throw;
+      --pos.generation;
+      auto spp_done = [&](int iteration) { return iteration > 0 ? cumulative[size_t(iteration) - 1] : 0; };
+      log_warning("{}; rendering on: a stop now resumes from generation {} and loses the {} spp rendered since",
+                  e.what(), kept->first, spp_done(pos.iteration) - spp_done(kept->second));
+      ++failed_checkpoint_writes;
+      return;
+    }
+    kept = {pos.generation, pos.iteration};
     ++checkpoints_written;
   };
   auto stop_reason = [&] { return cfg.stop ? cfg.stop->reason() : StopReason::None; };
@@ -329,6 +347,17 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     } else {
       camera_total = uint64_t(film.pixel_count()) * uint64_t(sizes[size_t(i)]);
       done = engine.render(info.spp_begin, info.spp_end, progress, pos.camera_done);
+    }
+    if (engine.abandoned()) {
+      // Paths still in flight seconds after the signal were dropped: this
+      // iteration is incomplete and is not written; the newest checkpoint
+      // stays what a resume continues from (an uninterrupted image still).
+      log_warning("paths still in flight after the signal's grace time were abandoned: iteration {} is lost{}", i,
+                  checkpoints ? "; the resume continues from the newest checkpoint" : "");
+      iterations.push_back({{"spp", {info.spp_begin, info.spp_end}}, {"seconds", seconds_since(ti)},
+                            {"abandoned_after_camera_samples", done}});
+      interrupted = true;
+      break;
     }
     if (done < camera_total && time_up()) {
       // The time limit ends the render inside the iteration: its samples are
@@ -414,6 +443,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
                  {{"dir", cfg.checkpoint.dir},
                   {"skipping", !cfg.checkpoint.every_iteration},
                   {"written", checkpoints_written},
+                  {"failed_writes", failed_checkpoint_writes},
                   {"seconds", checkpoint_seconds},
                   {"wall_seconds", wall},
                   {"share_of_wall", wall > 0 ? checkpoint_seconds / wall : 0.0}}}};

@@ -7,6 +7,7 @@ packages=(
   libgtest-dev libcli11-dev libfmt-dev nlohmann-json3-dev libboost-dev libnanoflann-dev
   python3-numpy python3-matplotlib python3-openimageio
   slurm-wlm munge
+  clang  # fuzz/: libFuzzer ships with it (THEIA_FUZZ builds)
 )
 missing=()
 for p in "${packages[@]}"; do

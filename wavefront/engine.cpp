@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 
 namespace theia {
@@ -94,8 +95,22 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
   };
   auto can_generate = [&] { return next_camera < camera_end && !pool.free_slots.empty() && !stopped(); };
   const size_t refill_below = size_t(opt.occupancy_threshold * float(pool.capacity()));
+  // A signal bounds the time left to the paths in flight; each turn of the
+  // loop is one batch (one bounce of at most batch_size rays), so this is
+  // checked every few milliseconds however long the paths are.
+  std::optional<std::chrono::steady_clock::time_point> signal_seen;
+  auto out_of_time = [&] {
+    if (!opt.stop || opt.stop->reason() != StopReason::Signal) return false;
+    if (!signal_seen) signal_seen = std::chrono::steady_clock::now();
+    return seconds_since(*signal_seen) >= opt.abandon_after_seconds;
+  };
+  abandoned = false;
 
   while (true) {
+    if (out_of_time()) {
+      abandon_paths_in_flight();
+      break;
+    }
     if (pool.live() <= refill_below && can_generate()) {
       generate_camera_rays(pool.capacity() - pool.live());
       report();
@@ -132,7 +147,7 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
   }
   // The iteration's camera samples are all in: the caustic pass adds its
   // estimate for the same samples (an interrupted iteration runs it when resumed).
-  if (next_camera == camera_end) trace_caustics();
+  if (next_camera == camera_end && !abandoned) trace_caustics();
   report();
   stats.render_seconds += seconds_since(t0);
   return next_camera;
@@ -160,6 +175,19 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
 }
 
 // ---------------------------------------------------------------- batches
+
+// Drops every path and queued ray: the engine is as before its first
+// render() (the film keeps what was splatted, which the caller discards).
+void WavefrontEngine::Impl::abandon_paths_in_flight() {
+  abandoned = true;
+  for (Batch& b : filling) queue_clear(b);
+  for (Batch& b : full) spare.push_back(std::move(b));
+  full.clear();
+  queue_clear(shadows);
+  queued_rays = 0;
+  pool.free_slots.resize(pool.capacity());
+  for (size_t i = 0; i < pool.capacity(); ++i) pool.free_slots[i] = uint32_t(pool.capacity() - 1 - i);
+}
 
 Batch WavefrontEngine::Impl::take_spare() {
   if (spare.empty()) return Batch{};
@@ -360,6 +388,8 @@ void WavefrontEngine::Impl::check_media_hooks() const {
 }
 
 const EngineHooks& WavefrontEngine::hooks() const { return impl_->hooks; }
+
+bool WavefrontEngine::abandoned() const { return impl_->abandoned; }
 
 void WavefrontEngine::finish_stopped_iteration() {
   auto t0 = std::chrono::steady_clock::now();

@@ -49,6 +49,11 @@ struct EngineOptions {
   // When raised (a SIGTERM handler, a time limit), render() generates no
   // more camera rays, finishes the paths in flight and returns early.
   const StopRequest* stop = nullptr;
+  // A signal is a farm taking the machine back within seconds: paths still
+  // in flight this long after it was seen are abandoned (abandoned() is then
+  // true and the iteration's film is incomplete: the scheduler keeps the last
+  // checkpoint, which the resume continues from).  A time limit waits for them.
+  double abandon_after_seconds = 2.0;
   // Consistent alpha: only samples with index below alpha_spp count for alpha
   // (and the first-hit AOVs), so alpha has the same samples in every render
   // pass whatever adaptive sampling does with colour.  0: every sample counts.
@@ -163,6 +168,10 @@ class WavefrontEngine {
   // is per pixel, scaled by the pixel's own weight, so a pixel the iteration
   // did not reach gets none and one it reached is complete.
   void finish_stopped_iteration();
+  // The last render() abandoned paths in flight after a signal (see
+  // EngineOptions::abandon_after_seconds): its film and its samples are not
+  // a consistent state to keep.
+  bool abandoned() const;
   // Between render() calls only: the hooks the next iterations call (a
   // feature that turns itself off, as guiding that does not pay, drops its
   // own, and the engine then shades without them).

@@ -104,6 +104,8 @@ struct WavefrontEngine::Impl {
   bool uses_footprint = false;
   float footprint_scale = 1.0f;
 
+  bool abandoned = false;  // the last render() dropped paths in flight (EngineOptions::abandon_after_seconds)
+  void abandon_paths_in_flight();
   uint64_t next_camera = 0, camera_end = 0;
   uint32_t sample_begin = 0, sample_count = 0;
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)

@@ -40,7 +40,7 @@ void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
 void Film::add_alpha_weight(uint32_t pixel, float w) { atomic_add(alpha_weight[pixel], w); }
 
 void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L) {
-  if (!is_finite(L)) {
+  if (!is_storable(L)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
     return;
   }

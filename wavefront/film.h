@@ -2,7 +2,9 @@
 //
 // Every sample contributes weight * value to its own pixel (filter importance
 // sampling: no sample touches a neighbour), so a pixel is sum(w L) / sum(w).
-// A value that is NaN or infinite is dropped and counted, never stored.
+// A value that is NaN, infinite or beyond kMaxSampleValue is dropped and
+// counted, never stored: below that bound 1e8 samples of one pixel still sum
+// to a finite float, so no Inf can reach a buffer through its sums either.
 // Weights are negative in the negative lobes of Mitchell and Lanczos filters
 // and are summed as they are, as pbrt-v4's RGBFilm does: nothing clamps them.
 #pragma once
@@ -26,6 +28,13 @@ struct FilmLayer {
   std::vector<float> rgb;
 };
 
+inline constexpr float kMaxSampleValue = 1e30f;
+
+// False for NaN, infinities and components beyond +-kMaxSampleValue.
+inline bool is_storable(const RGB& v) {
+  return std::abs(v.x) <= kMaxSampleValue && std::abs(v.y) <= kMaxSampleValue && std::abs(v.z) <= kMaxSampleValue;
+}
+
 struct Film {
   int width = 0, height = 0;
   // Planar float sums, one entry per pixel each.
@@ -40,7 +49,7 @@ struct Film {
   // two independent half estimates of each pixel, whose difference estimates
   // its variance (adaptive sampling, inverse-variance combination).
   std::vector<float> r_odd, g_odd, b_odd, weight_odd;
-  std::atomic<uint64_t> dropped{0};  // non-finite contributions discarded
+  std::atomic<uint64_t> dropped{0};  // non-finite or too large contributions discarded
   std::vector<FilmLayer> layers;     // extra layers, after the AOVs
 
   Film(int w, int h);

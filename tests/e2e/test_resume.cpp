@@ -389,8 +389,8 @@ TEST_F(ResumeOptionsCheckpoint, SummationOrderAndCheckpointOptionsResume) {
   EXPECT_EQ(flags.order_flags, (std::vector<std::string>{"--batch-size", "--max-paths", "--sort", "--threads"}));
   std::sort(flags.output_flags.begin(), flags.output_flags.end());
   EXPECT_EQ(flags.output_flags,
-            (std::vector<std::string>{"--checkpoint-dir", "--checkpoint-every-iteration", "--checkpoint-first", "--resume",
-                                      "--time-limit"}));
+            (std::vector<std::string>{"--checkpoint-dir", "--checkpoint-every-iteration", "--checkpoint-first",
+                                      "--memory-limit", "--resume", "--time-limit"}));
 
   RenderConfig plain = parse(kBase);
   const ImageBuffer uninterrupted = render_scene(scene, plain).image;

@@ -60,7 +60,7 @@ TEST(Parser, LexesCommentsStringsAndCNumbers) {
   Scene s = parse(R"(# a comment "with a string"
 Film "rgb" "integer xresolution" [ +64 ] "integer yresolution" 32 # trailing
   "string filename" "out\"put\\.exr"
-Camera "perspective" "float fov" [ 3e1 ] "float lensradius" .25 "float focaldistance" -.5
+Camera "perspective" "float fov" [ 3e1 ] "float lensradius" .25 "float focaldistance" 5e-1
 WorldBegin
 Translate -.5 1e-3 +3
 Shape "sphere" "float radius" 2.)");
@@ -69,7 +69,7 @@ Shape "sphere" "float radius" 2.)");
   EXPECT_EQ(s.film.filename, "out\"put\\.exr");
   EXPECT_FLOAT_EQ(s.camera.fov, 30.0f);
   EXPECT_FLOAT_EQ(s.camera.lens_radius, 0.25f);
-  EXPECT_FLOAT_EQ(s.camera.focal_distance, -0.5f);
+  EXPECT_FLOAT_EQ(s.camera.focal_distance, 0.5f);  // a negative one is an error (ParserHostile)
   ASSERT_EQ(s.shapes.size(), 1u);
   EXPECT_EQ(s.shapes[0].kind, ShapeKind::Sphere);
   EXPECT_FLOAT_EQ(s.shapes[0].sphere.radius, 2.0f);

@@ -1,0 +1,23 @@
+#!/bin/sh
+# Runs the libFuzzer targets of a THEIA_FUZZ build for SECONDS each, from a
+# scratch copy of the seed corpus (new inputs land in BUILD/corpus-TARGET,
+# crashes in BUILD/crashes-TARGET).
+#   fuzz/run.sh BUILD_DIR/fuzz SECONDS [scene|ply|image ...]
+set -eu
+bin=$1
+seconds=$2
+shift 2
+here=$(cd "$(dirname "$0")" && pwd)
+targets=${*:-scene ply image}
+status=0
+for t in $targets; do
+  corpus=$bin/corpus-$t
+  crashes=$bin/crashes-$t
+  mkdir -p "$corpus" "$crashes"
+  cp -n "$here"/corpus/$t/* "$corpus"/ 2>/dev/null || true
+  # 2 GB RSS and 10 s per input: an allocation the header checks missed, or a hang, is a finding.
+  LSAN_OPTIONS=suppressions="$here"/lsan.supp "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 \
+    -artifact_prefix="$crashes"/ -print_final_stats=1 2>"$bin"/fuzz-$t.log || status=1
+  grep -E "stat::number_of_executed_units|SUMMARY|ERROR" "$bin"/fuzz-$t.log | sed "s/^/$t: /"
+done
+exit $status

@@ -16,7 +16,8 @@ for t in $targets; do
   mkdir -p "$corpus" "$crashes"
   cp -n "$here"/corpus/$t/* "$corpus"/ 2>/dev/null || true
   # 2 GB RSS and 10 s per input: an allocation the header checks missed, or a hang, is a finding.
-  LSAN_OPTIONS=suppressions="$here"/lsan.supp "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 \
+  # Full stacks at allocations, so the suppression sees the library that leaked.
+  ASAN_OPTIONS=fast_unwind_on_malloc=0 LSAN_OPTIONS=suppressions="$here"/lsan.supp "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 \
     -artifact_prefix="$crashes"/ -print_final_stats=1 2>"$bin"/fuzz-$t.log || status=1
   grep -E "stat::number_of_executed_units|SUMMARY|ERROR" "$bin"/fuzz-$t.log | sed "s/^/$t: /"
 done

@@ -1,8 +1,8 @@
 // Image buffers and image files.  Everything in memory is linear float,
 // interleaved, row 0 at the top (OpenImageIO's and pbrt-v4's raster order).
 // EXR is read and written with OpenEXR, the PNG preview written with libpng;
-// PFM, PNG, JPEG, TGA, BMP and HDR are read by core/image_readers.h, every
-// other format through OpenImageIO, loaded only when such a file is read
+// PFM, TGA, BMP and HDR are read by core/image_readers.h, every other
+// format (PNG and JPEG included) through OpenImageIO, loaded only when such a file is read
 // (core/oiio_module.h says why).  The libraries' headers stay in
 // image.cpp so that this header is cheap to include.
 #pragma once

@@ -84,8 +84,6 @@ std::unique_ptr<T, StbFree> stb_pixels(T* p) {
 }
 
 const char* stb_format_name(const std::string& bytes, const std::string& path) {
-  if (starts_with(bytes, "\x89PNG")) return "png";
-  if (starts_with(bytes, "\xff\xd8\xff")) return "jpeg";
   if (starts_with(bytes, "BM")) return "bmp";
   if (starts_with(bytes, "#?RADIANCE") || starts_with(bytes, "#?RGBE")) return "hdr";
   return lowercase_extension(path) == ".tga" ? "targa" : nullptr;
@@ -151,11 +149,6 @@ ImageBuffer read_with_stb_image(const std::string& path, ImageFileInfo* info) {
     if (!px || !same_shape()) return failed();
     std::copy_n(px.get(), values, img.data.begin());
     float_pixels = true;
-  } else if (stbi_is_16_bit(path.c_str())) {
-    auto px = stb_pixels(stbi_load_16(path.c_str(), &w, &h, &n, 0));
-    if (!px || !same_shape()) return failed();
-    std::transform(px.get(), px.get() + values, img.data.begin(),
-                   [](uint16_t v) { return float(v) * (1.0f / 65535.0f); });
   } else {
     auto px = stb_pixels(stbi_load(path.c_str(), &w, &h, &n, 0));
     if (!px || !same_shape()) return failed();

@@ -1,14 +1,14 @@
-// Readers for the formats textures usually come in, without OpenImageIO:
-// PFM by hand (a header and raw floats, as pbrt-v4 reads it too) and the
-// 8/16-bit formats (PNG, JPEG, TGA, BMP) and Radiance HDR through Debian's
-// stb_image.  Loading OpenImageIO's dependency tree costs a process about
-// 125 MB of resident memory (core/oiio_module.h), more than most scenes'
-// geometry; it stays the reader of every other format.
+// Readers for the formats textures often come in, without OpenImageIO: PFM
+// by hand (a header and raw floats, as pbrt-v4 reads it too), TGA, BMP and
+// Radiance HDR through Debian's stb_image.  Loading OpenImageIO's dependency
+// tree costs a process about 120 MB of resident memory (core/oiio_module.h),
+// more than most scenes' geometry.  PNG and JPEG stay with OpenImageIO, whose
+// libpng and libjpeg are hardened against hostile files where stb_image's
+// decoders of those formats have had crashes reported.
 //
 // Each reader returns what OpenImageIO's would (tested against it): the
-// stored values as float (8-bit x (1 / 255), 16-bit x (1 / 65535), its
-// rounding), row 0 at the top, channels named R G B A, or Y (and A) for
-// grey, straight alpha.
+// stored values as float (8-bit x (1 / 255), its rounding), row 0 at the
+// top, channels named R G B A, or Y (and A) for grey, straight alpha.
 #pragma once
 
 #include "core/image.h"

@@ -2,8 +2,8 @@
 // theia reaches OpenImageIO.  Debian's OpenImageIO links about 250 shared
 // libraries (OpenCV, GDAL, ffmpeg, ...), and relocating them costs every
 // process that loads them a third of a CPU-second and 120 MB, so only a read
-// of a format neither OpenEXR nor core/image_readers.h handles (TIFF, PNM,
-// ...) loads the module, with dlopen, on first use (core/image.cpp).
+// of a format neither OpenEXR nor core/image_readers.h handles (PNG, JPEG,
+// TIFF, ...) loads the module, with dlopen, on first use (core/image.cpp).
 #pragma once
 
 #include "core/image.h"

@@ -135,12 +135,11 @@ TEST_F(ImageFiles, PngPreviewIsSrgbEncodedAndClamped) {
   }
 }
 
-// EXR (read with OpenEXR itself) and PNG, JPEG, TGA, BMP, HDR and PFM (read
-// by core/image_readers.h) must come back as OpenImageIO reads them: the
-// same shape, channel names and order (for EXR colour first within a layer,
-// not OpenEXR's alphabetical B G R), values and format name.  JPEG decoders
-// may round their inverse DCT differently: within `tolerance`.
-void expect_read_as_openimageio_reads(const std::string& path, float tolerance = 0.0f) {
+// EXR (read with OpenEXR itself) and TGA, BMP, HDR and PFM (read by
+// core/image_readers.h) must come back as OpenImageIO reads them: the same
+// shape, channel names and order (for EXR colour first within a layer, not
+// OpenEXR's alphabetical B G R), values and format name.
+void expect_read_as_openimageio_reads(const std::string& path) {
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   auto in = OIIO::ImageInput::open(path, &config);
@@ -157,11 +156,7 @@ void expect_read_as_openimageio_reads(const std::string& path, float tolerance =
   ASSERT_EQ(img.height, spec.height);
   EXPECT_EQ(img.channels, spec.channelnames);
   ASSERT_EQ(img.data.size(), expected.size());
-  if (tolerance == 0.0f) {
-    EXPECT_EQ(img.data, expected);
-  } else {
-    for (size_t i = 0; i < expected.size(); ++i) ASSERT_NEAR(img.data[i], expected[i], tolerance) << i;
-  }
+  EXPECT_EQ(img.data, expected);
 }
 
 TEST_F(ImageFiles, ExrChannelOrderAndValuesMatchOpenImageIO) {
@@ -274,7 +269,7 @@ TEST_F(ImageFiles, ReadsEightBitPngAndTgaAsStoredCodeValues) {
   }
 }
 
-// A test image with gradients and edges (so JPEG has something to round), as `type`.
+// A test image with gradients and edges, as `type`.
 void write_with_openimageio(const std::string& path, int nc, OIIO::TypeDesc type,
                             const std::string& compression = "") {
   const int w = 37, h = 21;
@@ -289,40 +284,28 @@ void write_with_openimageio(const std::string& path, int nc, OIIO::TypeDesc type
   OIIO::ImageSpec spec(w, h, nc, type);
   spec.attribute("oiio:UnassociatedAlpha", 1);
   if (!compression.empty()) spec.attribute("compression", compression);
-  if (path.ends_with(".jpg")) spec.attribute("CompressionQuality", 100);
   ASSERT_TRUE(out->open(path, spec)) << out->geterror();
   ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, px.data())) << out->geterror();
   ASSERT_TRUE(out->close());
 }
 
 TEST_F(ImageFiles, TextureFormatsReadWithoutOpenImageIOAsOpenImageIOReadsThem) {
-  for (int nc : {1, 2, 3, 4}) {
-    SCOPED_TRACE(nc);
-    write_with_openimageio(file("u8.png"), nc, OIIO::TypeDesc::UINT8);
-    expect_read_as_openimageio_reads(file("u8.png"), 0.0f);
-    write_with_openimageio(file("u16.png"), nc, OIIO::TypeDesc::UINT16);
-    expect_read_as_openimageio_reads(file("u16.png"), 0.0f);
-  }
   for (int nc : {3, 4}) {
     SCOPED_TRACE(nc);
     write_with_openimageio(file("raw.tga"), nc, OIIO::TypeDesc::UINT8);
-    expect_read_as_openimageio_reads(file("raw.tga"), 0.0f);
+    expect_read_as_openimageio_reads(file("raw.tga"));
     write_with_openimageio(file("rle.tga"), nc, OIIO::TypeDesc::UINT8, "rle");
-    expect_read_as_openimageio_reads(file("rle.tga"), 0.0f);
+    expect_read_as_openimageio_reads(file("rle.tga"));
   }
   write_with_openimageio(file("img.bmp"), 3, OIIO::TypeDesc::UINT8);
-  expect_read_as_openimageio_reads(file("img.bmp"), 0.0f);
+  expect_read_as_openimageio_reads(file("img.bmp"));
   write_with_openimageio(file("img.hdr"), 3, OIIO::TypeDesc::FLOAT);
-  expect_read_as_openimageio_reads(file("img.hdr"), 0.0f);
-  for (int nc : {1, 3}) {
-    write_with_openimageio(file("img.jpg"), nc, OIIO::TypeDesc::UINT8);
-    expect_read_as_openimageio_reads(file("img.jpg"), 2.5f / 255.0f);
-  }
+  expect_read_as_openimageio_reads(file("img.hdr"));
   // PFM, written by hand: RGB little-endian, grey big-endian.
   std::vector<float> rgb(4 * 3 * 3);
   for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = 0.5f * float(i) - 3.0f;
   write_pfm(file("rgb.pfm"), 4, 3, rgb);
-  expect_read_as_openimageio_reads(file("rgb.pfm"), 0.0f);
+  expect_read_as_openimageio_reads(file("rgb.pfm"));
   {
     std::ofstream f(file("grey.pfm"), std::ios::binary);
     f << "Pf\n2 3\n1.0\n";
@@ -331,16 +314,21 @@ TEST_F(ImageFiles, TextureFormatsReadWithoutOpenImageIOAsOpenImageIOReadsThem) {
       f.write(reinterpret_cast<const char*>(&be), 4);
     }
   }
-  expect_read_as_openimageio_reads(file("grey.pfm"), 0.0f);
+  expect_read_as_openimageio_reads(file("grey.pfm"));
 }
 
 // A header that claims more pixels than its file can hold is refused before
 // anything that size is allocated.
 TEST_F(ImageFiles, HeadersClaimingMoreThanTheFileHoldsAreRefused) {
   std::ofstream(file("huge.pfm"), std::ios::binary) << "PF\n16000 16000\n-1.0\n" << std::string(100, 'x');
-  std::string png("\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\x3e\x80\0\0\x3e\x80\x08\x02\0\0\0", 33);
+  // 16000 x 16000 RGB: PNG (read by OpenImageIO; IHDR and an empty IDAT with their CRCs) and TGA
+  // (core/image_readers.h).
+  std::string png("\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\x3e\x80\0\0\x3e\x80\x08\x02\0\0\0\xce\x1c\x48\x89"
+                  "\0\0\0\0IDAT\x35\xaf\x06\x1e", 45);
   std::ofstream(file("huge.png"), std::ios::binary) << png << std::string(100, '\0');
-  for (const char* name : {"huge.pfm", "huge.png"}) {
+  std::string tga("\0\0\x02\0\0\0\0\0\0\0\0\0\x80\x3e\x80\x3e\x18\0", 18);
+  std::ofstream(file("huge.tga"), std::ios::binary) << tga << std::string(100, '\0');
+  for (const char* name : {"huge.pfm", "huge.png", "huge.tga"}) {
     try {
       read_image_file(file(name));
       FAIL() << name << ": expected theia::Error";

@@ -140,6 +140,8 @@ void check(const GuidingOptions& o) {
     throw_error("--guiding-pdf-floor must be zero or positive, got {}", o.pdf_floor);
   if (!(o.spatial_threshold > 0.0 && std::isfinite(o.spatial_threshold)))
     throw_error("--guiding-spatial-threshold must be positive, got {}", o.spatial_threshold);
+  if (o.training_spp < 0)
+    throw_error("--guiding-training-spp must be zero (learn from every sample) or positive, got {}", o.training_spp);
 }
 
 namespace {
@@ -153,9 +155,12 @@ namespace {
 // vertex, so the field's spatial jitter is a function of the path.
 class SDTreeTrainer final : public TrainingSampleSink {
  public:
-  explicit SDTreeTrainer(SDTree& tree) : tree_(tree) {}
+  // `training`: false once the field is frozen (a recorder kept for its
+  // debug layers still hands samples over).
+  SDTreeTrainer(SDTree& tree, const bool& training) : tree_(tree), training_(training) {}
   bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
+    if (!training_) return;
     tree_.add_samples(samples.size(), [&](size_t i) {
       const TrainingSample& s = samples[i];
       return SDTreeSample{s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags)};
@@ -164,6 +169,7 @@ class SDTreeTrainer final : public TrainingSampleSink {
 
  private:
   SDTree& tree_;
+  const bool& training_;
 };
 
 }  // namespace
@@ -176,11 +182,11 @@ int guiding_holdout_iteration(const std::vector<int>& schedule) {
 }
 
 GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
-                               const std::vector<int>& schedule)
-    : options_(options) {
+                               const std::vector<int>& schedule, bool keep_recorder)
+    : options_(options), keep_recorder_(keep_recorder) {
   if (!options.enabled) return;
   tree_ = std::make_unique<SDTree>(scene_bounds, options);
-  trainer_ = std::make_unique<SDTreeTrainer>(*tree_);
+  trainer_ = std::make_unique<SDTreeTrainer>(*tree_, training_);
   if (options.auto_off) verdict_.unguided_iteration = guiding_holdout_iteration(schedule);
 }
 
@@ -200,12 +206,18 @@ void GuidingFeature::attach(WavefrontEngine& engine) {
   guided_hooks_ = engine.hooks();
 }
 
-// Unguided, the render pays for neither the guide nor the recorder (which
-// exists for guiding alone under --guiding-auto: check_config).
-void GuidingFeature::guide(bool on) {
+// Without the guide the render pays for neither it nor the recorder, which
+// exists for guiding alone unless it also feeds debug layers.
+void GuidingFeature::set_hooks(bool guide, bool record) {
+  training_ = guide && record;
   EngineHooks h = guided_hooks_;
-  if (!on) h.guide = nullptr, h.observer = nullptr;
+  if (!guide) h.guide = nullptr;
+  if (!training_ && !keep_recorder_) h.observer = nullptr;
   engine_->set_hooks(h);
+}
+
+bool GuidingFeature::trains(const IterationInfo& it) const {
+  return options_.training_spp == 0 || it.spp_begin < uint32_t(options_.training_spp);
 }
 
 void GuidingFeature::judge(const IterationInfo& it) {
@@ -225,24 +237,32 @@ void GuidingFeature::judge(const IterationInfo& it) {
            verdict_.state == GuidingVerdict::On ? "guiding stays on" : "guiding off for the rest of the render");
 }
 
-// The field learns from each iteration's samples (handed over by the
-// recorder at the iteration's end); the next iteration samples it.  With
-// --guiding-auto the held-out iteration and the one after it are judged.
+// The field learns from each training iteration's samples (handed over by
+// the recorder at the iteration's end); the next iteration samples it.  With
+// --guiding-auto the held-out iteration (no guide, no recorder) is judged
+// against the one after it, guided as the render after training will be:
+// by the field without recording, unless training never ends.
 void GuidingFeature::add_tasks(IterationTasks& tasks) {
   if (!tree_) return;
-  if (options_.auto_off && verdict_.unguided_iteration >= 0) {
-    tasks.measure_variance();
-    tasks.on_begin([this](const IterationInfo& it) {
-      guide(verdict_.state != GuidingVerdict::Off &&
-            !(verdict_.state == GuidingVerdict::Undecided && it.index == verdict_.unguided_iteration));
-    });
+  const bool judging = options_.auto_off && verdict_.unguided_iteration >= 0;
+  if (judging) tasks.measure_variance();
+  tasks.on_begin([this, judging](const IterationInfo& it) {
+    const bool undecided = judging && verdict_.state == GuidingVerdict::Undecided;
+    const bool held_out = undecided && it.index == verdict_.unguided_iteration;
+    const bool judged = undecided && it.index == verdict_.unguided_iteration + 1;
+    const bool guide = verdict_.state != GuidingVerdict::Off && !held_out;
+    set_hooks(guide, trains(it) && !held_out && !(judged && options_.training_spp != 0));
+  });
+  if (judging) {
     tasks.on_end([this](const IterationInfo& it) {
       if (verdict_.state == GuidingVerdict::Undecided &&
           (it.index == verdict_.unguided_iteration || it.index == verdict_.unguided_iteration + 1))
         judge(it);
     });
   }
-  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) { tree_->update(); });
+  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) {
+    if (training_) tree_->update();
+  });
 }
 
 // A resumed render continues the field (and guiding-auto's verdict) where the
@@ -276,7 +296,10 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
   SDTreeStats gs = tree_->stats();
   log["guiding"] = {{"spatial_leaves", gs.spatial_leaves},
                     {"quadtree_nodes", gs.quadtree_nodes},
-                    {"bytes", tree_->memory_bytes()}};
+                    {"bytes", tree_->memory_bytes()},
+                    // The iterations that trained it (one update each) and the budget that ended training.
+                    {"updates", gs.updates},
+                    {"training_spp", options_.training_spp}};
   if (options_.auto_off) {
     static const char* kStates[] = {"undecided", "on", "off"};
     log["guiding"]["auto"] = {{"unguided_iteration", verdict_.unguided_iteration},

@@ -99,6 +99,10 @@ struct GuidingOptions : SDTreeOptions {
   float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
   float defensive = 0.5f;
   bool roulette_correction = true;
+  // The field learns from samples [0, training_spp) of every pixel, then is
+  // frozen and the recorder detached, so the rest of the render pays for
+  // guided sampling alone (0: it learns from every sample).
+  int training_spp = 256;
 };
 
 template <class V>
@@ -114,6 +118,9 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
   v.image("roulette_correction", o.roulette_correction,
           "Guided paths: Russian roulette on the throughput BSDF sampling would have given");
+  v.image("training_spp", o.training_spp,
+          "The field learns from the first this many samples per pixel, then is frozen and the recorder stops "
+          "(0: it learns from every sample)");
   declare_options(v, static_cast<SDTreeOptions&>(o));
 }
 void check(const GuidingOptions& o);
@@ -137,7 +144,10 @@ int guiding_holdout_iteration(const std::vector<int>& schedule);
 // every iteration.
 class GuidingFeature final : public Feature {
  public:
-  GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds, const std::vector<int>& schedule);
+  // `keep_recorder`: the recorder also feeds debug layers, so it stays
+  // attached once training ends.
+  GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds, const std::vector<int>& schedule,
+                 bool keep_recorder);
   ~GuidingFeature() override;
   // Where the recorder hands its training samples; null when off.
   TrainingSampleSink* trainer() const { return trainer_.get(); }
@@ -148,8 +158,10 @@ class GuidingFeature final : public Feature {
   void write_log(nlohmann::json& log) const override;
 
  private:
-  void guide(bool on);  // the engine's hooks with or without guide and recorder
+  // The engine's hooks with or without the guide and the recorder.
+  void set_hooks(bool guide, bool record);
   void judge(const IterationInfo& it);
+  bool trains(const IterationInfo& it) const;
 
   GuidingOptions options_;
   std::unique_ptr<SDTree> tree_;
@@ -157,6 +169,8 @@ class GuidingFeature final : public Feature {
   WavefrontEngine* engine_ = nullptr;
   EngineHooks guided_hooks_;
   GuidingVerdict verdict_;
+  bool keep_recorder_ = false;
+  bool training_ = true;  // this iteration's samples train the field
 };
 
 // --- Caustics traced from the lights (group "caustics") ---------------------

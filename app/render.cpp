@@ -147,7 +147,7 @@ struct Features {
 
   Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule)
       : light_sampler(*rs.light_sampler),
-        guiding(c.guiding, rs.accel.bounds(), schedule),
+        guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder)),
         recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, guiding.trainer()),
         caustics(c.caustics, caustics_conflict(c, rs.scene), c.seed, rs),
         adaptive(c.adaptive, rs.scene.film.width, rs.scene.film.height, schedule, c.spp) {}

@@ -398,6 +398,11 @@ float SDTree::pdf(uint32_t region, const vec3& wi) const {
   return float(density * (1.0 / (4.0 * 3.14159265358979323846)));
 }
 
+// The density is accumulated on the way down (the factors pdf() multiplies
+// for the same quads), which spares a second descent and the atan2 of the
+// map back.  Rounding in sd_square_to_direction can put the direction within
+// an ulp of a neighbouring quad, where pdf(wi) would read that quad instead: a
+// set of measure zero in the continuous domain, so both are the density.
 GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   if (region >= leaves_.size() || !leaves_[region].has_energy) return {};
   const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
@@ -405,7 +410,7 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   // 1997), in double so that a depth-20 descent keeps bits for the leaf.
   constexpr double kBelowOne = 0x1.fffffffffffffp-1;
   double ux = std::min(double(u.x), kBelowOne), uy = std::min(double(u.y), kBelowOne);
-  double ox = 0.0, oy = 0.0, size = 1.0;
+  double ox = 0.0, oy = 0.0, size = 1.0, density = 1.0;
   uint32_t n = 0;
   for (;;) {
     const SamplingQuadNode& node = nodes[n];
@@ -435,17 +440,18 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
     }
     ux = std::min(ux, kBelowOne);
     uy = std::min(uy, kBelowOne);
+    density *= 4.0 * double(node.flux[i]) / total;
     size *= 0.5;
     if (i & 1) ox += size;
     if (i & 2) oy += size;
-    if (node.child[i] == 0) break;
+    if (node.child[i] == 0 || density == 0.0) break;
     n = node.child[i];
   }
   vec2 c(float(ox + ux * size), float(oy + uy * size));
   c = glm::min(c, vec2(kOneMinusEpsilon));
   GuideSample s;
   s.wi = sd_square_to_direction(c);
-  s.pdf = pdf(region, s.wi);
+  s.pdf = float(density * (1.0 / (4.0 * 3.14159265358979323846)));
   return s;
 }
 

@@ -135,10 +135,9 @@ class SDTree final : public DirectionalGuide {
   void update();
 
   uint32_t region(const vec3& p) const override;
-  // The returned pdf is pdf(region, wi) evaluated on the returned direction,
-  // so the two agree exactly.  Rounding in the map back from the direction
-  // can move it into a neighbouring quad; should that quad have no flux the
-  // pdf is 0 and the caller must treat the sample as failed.
+  // The returned pdf is the density of the quad the direction was drawn in:
+  // pdf(region, wi) but for directions within rounding of a quad's edge.  A
+  // pdf of 0 (flux that underflowed) means the sample failed.
   GuideSample sample(uint32_t region, vec2 u) const override;
   float pdf(uint32_t region, const vec3& wi) const override;
   float selection_probability(uint32_t region) const override;

@@ -434,10 +434,13 @@ def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, re
         _, scene, ref = scenes[name]
         scene = os.path.join(ROOT, scene)
         reference = read_rgb(equal_time_reference(theia, name, scene, ref, reference_spp, out_dir))
-        for label, args in configurations:
-            for budget in budgets:
-                images, group = [], []
-                for seed in range(n_seeds):
+        # Configurations interleaved within each seed: the machine's load drifts,
+        # and each configuration's renders should see the same share of it.
+        for budget in budgets:
+            images = {label: [] for label, _ in configurations}
+            groups = {label: [] for label, _ in configurations}
+            for seed in range(n_seeds):
+                for label, args in configurations:
                     out = os.path.join(out_dir, f"{name}-{label}-{budget:g}s-seed{seed}.exr")
                     cmd = [theia, "render", scene, "-o", out, "--spp", str(spp_cap), "--time-limit", f"{budget:g}",
                            "--seed", str(seed), "-q"] + args
@@ -446,13 +449,14 @@ def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, re
                     with open(os.path.splitext(out)[0] + ".json") as f:
                         log = json.load(f)
                     image = read_rgb(out)
-                    images.append(image)
-                    group.append({"scene": name, "configuration": label, "budget": budget, "seed": seed,
-                                  **error_metrics(image, reference), **log_statistics(log)})
-                v = seed_variance(images)
-                for r in group:
+                    images[label].append(image)
+                    groups[label].append({"scene": name, "configuration": label, "budget": budget, "seed": seed,
+                                          **error_metrics(image, reference), **log_statistics(log)})
+            for label, _ in configurations:
+                v = seed_variance(images[label])
+                for r in groups[label]:
                     r["seed_variance"] = v
-                rows += group
+                rows += groups[label]
     groups = aggregate(rows)
     lines = [f"# Equal time: median of {n_seeds} seeds", "",
              "Each render: `theia render SCENE --spp " + str(spp_cap) + " --time-limit BUDGET --seed S` plus the "

@@ -51,6 +51,31 @@ TEST(Guiding, ImageIndependentOfThreadCount) {
   EXPECT_LT(max_relative_difference(a.image, b.image), 1e-4);
 }
 
+// The field learns from the first --guiding-training-spp samples, then is
+// frozen and the recorder detached: one update per training iteration, the
+// recorder's paths are those of the training iterations alone, and the
+// frozen field still guides (the image differs from an unguided one).
+TEST(Guiding, FieldFrozenAfterTrainingSamples) {
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 32;
+  RenderConfig c = guided_config(24);
+  c.guiding.training_spp = 10;  // guiding schedule 1 x8, 2 | 4 8 2
+  RenderResult r = render_scene(scene, c);
+  EXPECT_EQ(r.log["guiding"]["updates"].get<int>(), 9);
+  EXPECT_EQ(r.log["recorder"]["paths"].get<uint64_t>(), 10u * 32 * 32);
+  EXPECT_GT(r.log["guiding"]["spatial_leaves"].get<uint64_t>(), 1u);
+  RenderConfig every = c;
+  every.guiding.training_spp = 0;
+  RenderResult all = render_scene(scene, every);
+  EXPECT_EQ(all.log["guiding"]["updates"].get<int>(), 12);
+  EXPECT_EQ(all.log["recorder"]["paths"].get<uint64_t>(), 24u * 32 * 32);
+  RenderConfig unguided = quick_config(24);
+  unguided.schedule = "guiding";
+  RenderResult plain = render_scene(scene, unguided);
+  EXPECT_GT(max_relative_difference(r.image, plain.image), 1e-3);
+  EXPECT_GT(max_relative_difference(r.image, all.image), 1e-3);
+}
+
 // --guiding-auto holds one iteration out (no guide, no recorder), judges the
 // next against it and logs its verdict; whichever way it goes (it is a
 // measurement of time), the image stays unbiased.

@@ -211,11 +211,12 @@ TEST(Resume, SigtermFromAnotherProcess) {
 // rate and what an interrupted iteration had recorded, so that a resumed
 // render trains, guides and renders exactly as an uninterrupted one.
 TEST(Resume, PathGuidingResumesExactly) {
-  Fixture f("pathguiding", " --guiding --spp 24");
+  Fixture f("pathguiding", " --guiding --guiding-training-spp 10 --spp 24");
   ASSERT_EQ(f.render("ref.exr").exit_code, 0);
   ImageBuffer ref = read_image_file(f.out("ref.exr"));
-  // Guiding schedule for 24 spp: 1 x8, 2 4 8 2.  Stop at a boundary after
-  // training began, and inside the 4-spp iteration (index 9) twice over.
+  // Guiding schedule for 24 spp: 1 x8, 2 4 8 2; the field trains on the
+  // first 10 spp.  Stop at a boundary after training began, and inside the
+  // 4-spp iteration (index 9, the first with the frozen field) twice over.
   const std::vector<std::vector<std::string>> stops = {{"3:0"}, {"9:0.5"}, {"8:0.4", "9:0.7"}};
   for (size_t k = 0; k < stops.size(); ++k) {
     std::string ck = f.out("ck" + std::to_string(k));
@@ -292,6 +293,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-roulette-correction", {"off"}},
     {"--guiding-split-decay", {"0.5"}},
     {"--guiding-pdf-floor", {"0"}},
+    {"--guiding-training-spp", {"8"}},
     {"--caustics", {"off"}},
     {"--caustics-caster-roughness", {"0.2"}},
     {"--adaptive", {}},

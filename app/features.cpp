@@ -199,6 +199,7 @@ void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const 
   engine.guiding.min_roughness = options_.min_roughness;
   engine.guiding.defensive = options_.defensive;
   engine.guiding.roulette_correction = options_.roulette_correction;
+  engine.guiding.adjoint_roulette = options_.adjoint_roulette;
 }
 
 void GuidingFeature::attach(WavefrontEngine& engine) {

@@ -99,6 +99,7 @@ struct GuidingOptions : SDTreeOptions {
   float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
   float defensive = 0.5f;
   bool roulette_correction = true;
+  bool adjoint_roulette = false;
   // The field learns from samples [0, training_spp) of every pixel, then is
   // frozen and the recorder detached, so the rest of the render pays for
   // guided sampling alone (0: it learns from every sample).
@@ -118,6 +119,9 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
   v.image("roulette_correction", o.roulette_correction,
           "Guided paths: Russian roulette on the throughput BSDF sampling would have given");
+  v.image("adjoint_roulette", o.adjoint_roulette,
+          "Guided paths: adjoint-driven Russian roulette (survival from the field's estimate of the continuation's "
+          "contribution against the path's pixel estimate)");
   v.image("training_spp", o.training_spp,
           "The field learns from the first this many samples per pixel, then is frozen and the recorder stops "
           "(0: it learns from every sample)");

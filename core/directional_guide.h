@@ -37,6 +37,11 @@ struct GuidedSampling {
   // Russian roulette on the throughput as BSDF sampling would have made it
   // (section 4.1.1): guiding's high pdfs towards light do not cut paths short.
   bool roulette_correction = true;
+  // Adjoint-driven roulette (section 4.2): a guided continuation survives
+  // with its expected contribution (throughput x the field's radiance from
+  // its direction) against the path's pixel estimate (its first vertex's
+  // outgoing radiance from the field), not with its throughput.
+  bool adjoint_roulette = false;
 };
 
 struct GuideSample {
@@ -56,6 +61,10 @@ class DirectionalGuide {
   virtual float pdf(uint32_t region, const vec3& wi) const = 0;
   // Probability of drawing from the guide rather than the BSDF in this region.
   virtual float selection_probability(uint32_t region) const = 0;
+  // The region's incident radiance integrated over the sphere (luminance);
+  // pdf(region, w) times this estimates the radiance arriving from w, which
+  // is what adjoint-driven roulette weighs a path's continuation by.
+  virtual float radiance_integral(uint32_t region) const = 0;
 };
 
 }  // namespace theia

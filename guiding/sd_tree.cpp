@@ -322,6 +322,11 @@ void SDTree::update() {
     sum_flux_bottom_up(leaf.building);
     double total = node_total(leaf.building[0]);
     leaf.has_energy = total > 0.0 && std::isfinite(total);
+    // Each deposit estimates the radiance over its quad's solid angle, so
+    // their sum over the samples (zero-valued ones counted) estimates the
+    // integral over the sphere.
+    leaf.radiance_integral =
+        leaf.has_energy && leaf.sample_count > 0.0 ? float(std::min(total / leaf.sample_count, 1e30)) : 0.0f;
     leaf.sampling.resize(leaf.building.size());
     for (size_t n = 0; n < leaf.building.size(); ++n)
       for (int i = 0; i < 4; ++i) {
@@ -377,6 +382,10 @@ uint32_t SDTree::region(const vec3& p) const {
 }
 
 float SDTree::selection_probability(uint32_t) const { return options_.selection_probability; }
+
+float SDTree::radiance_integral(uint32_t region) const {
+  return region < leaves_.size() ? leaves_[region].radiance_integral : 0.0f;
+}
 
 // Algorithm 2 of seeds/001: each level scales the density by
 // 4 * flux(quad) / flux(node).  A node whose flux underflowed to 0 counts as

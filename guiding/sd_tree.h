@@ -106,6 +106,7 @@ struct SpatialLeaf {
   std::vector<BuildingQuadNode> building;
   double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux
+  float radiance_integral = 0.0f;  // sampling's: deposits / samples at the last update
 };
 
 // One training sample as add_sample takes it.
@@ -141,6 +142,7 @@ class SDTree final : public DirectionalGuide {
   GuideSample sample(uint32_t region, vec2 u) const override;
   float pdf(uint32_t region, const vec3& wi) const override;
   float selection_probability(uint32_t region) const override;
+  float radiance_integral(uint32_t region) const override;
 
   std::vector<uint8_t> serialize() const;
   // Throws theia::Error naming what is wrong (truncation, checksum, version, structure).

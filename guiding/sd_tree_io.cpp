@@ -21,7 +21,7 @@ namespace theia {
 namespace {
 
 constexpr char kMagic[8] = {'T', 'H', 'E', 'I', 'A', 'S', 'D', 'T'};
-constexpr uint32_t kVersion = 2;  // 2: statistics accumulated over iterations (split decay, pdf floor)
+constexpr uint32_t kVersion = 3;  // 2: statistics accumulated over iterations; 3: radiance integral per leaf
 
 struct Writer {
   std::vector<uint8_t> out;
@@ -132,6 +132,7 @@ struct SDTreeSerializer {
     for (const SpatialLeaf& leaf : t.leaves_) {
       w.put(leaf.sample_count);
       w.put(uint8_t(leaf.has_energy));
+      w.put(leaf.radiance_integral);
       put_quadtree(w, leaf.sampling);
       put_quadtree(w, leaf.building);
     }
@@ -210,6 +211,9 @@ struct SDTreeSerializer {
       if (!(leaf.sample_count >= 0.0) || !std::isfinite(leaf.sample_count))
         throw_error("SD-tree data corrupt: leaf {} sample count {}", l, leaf.sample_count);
       leaf.has_energy = r.get<uint8_t>("leaf energy flag") != 0;
+      leaf.radiance_integral = r.get<float>("leaf radiance integral");
+      if (!(leaf.radiance_integral >= 0.0f) || !std::isfinite(leaf.radiance_integral))
+        throw_error("SD-tree data corrupt: leaf {} radiance integral {}", l, leaf.radiance_integral);
       leaf.sampling = get_quadtree<float>(r, "sampling", l);
       leaf.building = get_quadtree<double>(r, "building", l);
     }

@@ -81,6 +81,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
       ps.alpha_only = s.alpha_only ? 1 : 0;
       if (!pool.curve_skip.empty()) pool.curve_skip[slots[i]] = PrimRef{};
       if (!pool.roulette_correction.empty()) pool.roulette_correction[slots[i]] = 1.0;
+      if (!pool.pixel_estimate.empty()) pool.pixel_estimate[slots[i]] = 0.0f;
       if (!pool.medium.empty()) pool.medium[slots[i]] = scene.camera_medium, pool.flight_depth[slots[i]] = 0;
       batch_of(i).rays[i % batch] = ray;
     }

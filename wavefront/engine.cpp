@@ -59,6 +59,7 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
                          int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)))),
       pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty(),
                                          .guiding = h.guide != nullptr && o.guiding.roulette_correction,
+                                         .adjoint_roulette = h.guide != nullptr && o.guiding.adjoint_roulette,
                                          .media = rs.scene.has_media()}) {
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {

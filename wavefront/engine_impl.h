@@ -143,7 +143,8 @@ struct WavefrontEngine::Impl {
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
   std::optional<Continuation> sample_continuation(const ShadingPoint& v) const;
   bool survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local, float eta_scale,
-                         double correction, float& survival) const;
+                         double correction, float adjoint, float& survival) const;
+  float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
   void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;

@@ -47,6 +47,7 @@ std::optional<Continuation> sample_guided_ris(const BSDF& bsdf, const vec3& wo, 
   c.bs.pdf = pick.t / (kRISCandidateShare * sum);  // t / mean(weights) over the two
   c.mis_pdf = guided_mis_pdf(bsdf_pdf, pick.g, kRISCandidateShare);
   c.roulette = double(c.bs.pdf) / double(bsdf_pdf);
+  c.guide_pdf = pick.g;
   return c;
 }
 
@@ -74,7 +75,7 @@ std::optional<Continuation> sample_guided_mis(const BSDF& bsdf, const vec3& wo, 
   if (!bs) return std::nullopt;
   const float bsdf_pdf = bs->pdf;
   bs->pdf = guided_mis_pdf(bsdf_pdf, guide_pdf, selection);
-  return Continuation{*bs, bs->pdf, bsdf_pdf > 0.0f ? double(bs->pdf) / double(bsdf_pdf) : 1.0};
+  return Continuation{*bs, bs->pdf, bsdf_pdf > 0.0f ? double(bs->pdf) / double(bsdf_pdf) : 1.0, guide_pdf};
 }
 
 }  // namespace theia

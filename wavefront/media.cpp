@@ -117,7 +117,7 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
   const vec3 wi = sample_henyey_greenstein(si.wo, g, sample2(ps, dims.bsdf_dir), &pdf);
   RGB beta = ff.beta, local(1.0f);
   float survival = 1.0f;
-  if (!(pdf > 0.0f) || !survives_roulette(ps, dims.roulette, beta, local, ps.eta_scale, 1.0, survival) ||
+  if (!(pdf > 0.0f) || !survives_roulette(ps, dims.roulette, beta, local, ps.eta_scale, 1.0, -1.0f, survival) ||
       !is_finite(beta) || is_black(beta))
     return finish_path<false>(slot, out);
   ps.beta = beta;

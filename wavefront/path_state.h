@@ -50,6 +50,7 @@ static_assert(sizeof(PathState) == 64, "a path's state should stay within one ca
 #define THEIA_PATH_COLD_FIELDS(F)                                                                               \
   F(PrimRef, curve_skip, curves, "the curve segment the path's queued ray left (scene/accel.h: skips beside rays)") \
   F(double, roulette_correction, guiding, "product of guided pdf / BSDF pdf (seeds/000 ch. 1 eq. 18), in double") \
+  F(float, pixel_estimate, adjoint_roulette, "the field's estimate of the path's pixel value (0: none yet)") \
   F(int32_t, medium, media, "the medium the path's queued ray travels in (Scene::media index, -1 vacuum)") \
   F(uint16_t, flight_depth, media, "depth + 1 of the last free flight that drew the stratified medium_flight")
 
@@ -57,6 +58,7 @@ static_assert(sizeof(PathState) == 64, "a path's state should stay within one ca
 struct PathFeatures {
   bool curves = false;
   bool guiding = false;  // with the roulette correction
+  bool adjoint_roulette = false;
   bool media = false;    // Scene::has_media
 };
 

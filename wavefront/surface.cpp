@@ -51,8 +51,10 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   const float eta_scale = bs.is_transmission() ? ps.eta_scale * sqr(bs.eta) : ps.eta_scale;
   double correction = 1.0;
   if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
+  const float adjoint = pool.pixel_estimate.empty() ? -1.0f : adjoint_survival(v, *c, beta);
   float survival = 1.0f;
-  if (!survives_roulette(ps, v.dims.roulette, beta, local, eta_scale, correction, survival) || !is_finite(beta) ||
+  if (!survives_roulette(ps, v.dims.roulette, beta, local, eta_scale, correction, adjoint, survival) ||
+      !is_finite(beta) ||
       is_black(beta))
     return finish_path<kObserve>(slot, out);
   if constexpr (kObserve) report_vertex(v, bs, local, survival);
@@ -187,9 +189,10 @@ std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const Sha
 // have made it (`correction`, seeds/000 ch. 1 eq. 19).  `survival`: the
 // probability the path had of surviving.
 bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local,
-                                              float eta_scale, double correction, float& survival) const {
+                                              float eta_scale, double correction, float adjoint,
+                                              float& survival) const {
   if (int(ps.depth) + 1 <= opt.rr_min_depth) return true;
-  const float rr = float(double(max_component(beta * eta_scale)) * correction);
+  const float rr = adjoint >= 0.0f ? adjoint : float(double(max_component(beta * eta_scale)) * correction);
   if (rr >= 1.0f) return true;
   const float q = std::max(0.0f, 1.0f - rr);
   if (sample1(ps, roulette_dim) < q) return false;
@@ -197,6 +200,29 @@ bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, uint32_t roul
   beta /= survival;
   local /= survival;
   return true;
+}
+
+// Adjoint-driven roulette (seeds/000 ch. 1 section 4.2, Vorba and Krivanek
+// 2016): the continuation's expected contribution, its throughput times the
+// radiance the field expects from its direction, against the path's pixel
+// estimate, the field's outgoing radiance at its first guided vertex times
+// the throughput there (a diffuse guess: albedo x integral / 2 pi).  A path
+// survives surely above a third of the estimate (the lower edge of Vorba's
+// weight window, s = 5), in proportion below, and at least one time in ten
+// (the estimates are coarse; the floor bounds a survivor's weight).  -1 (the
+// throughput rule) where the vertex is not guided or nothing is known.
+float WavefrontEngine::Impl::adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta) {
+  if (!v.guided()) return -1.0f;
+  const float integral = hooks.guide->radiance_integral(v.guide_region);
+  float& estimate = pool.pixel_estimate[v.slot];
+  if (estimate == 0.0f) {
+    estimate = luminance(v.ps.filter_weight * v.beta * bsdf_albedo(v.bsdf)) * integral * kInv2Pi;
+    if (!(estimate > 0.0f) || !std::isfinite(estimate)) estimate = 0.0f;
+  }
+  if (estimate == 0.0f) return -1.0f;
+  const float expected = luminance(v.ps.filter_weight * beta) * c.guide_pdf * integral;
+  if (!std::isfinite(expected)) return -1.0f;
+  return std::clamp(3.0f * expected / estimate, 0.1f, 1.0f);
 }
 
 // The scattering vertex, to the observer: the path's handle moves to it.

@@ -19,8 +19,12 @@ namespace {
 // points with x above `valid_above_x` and nowhere else.
 class VMFGuide final : public DirectionalGuide {
  public:
-  VMFGuide(vec3 mean, float kappa, float fraction, float valid_above_x = -kInfinity)
-      : mean_(glm::normalize(mean)), kappa_(kappa), fraction_(fraction), valid_above_x_(valid_above_x) {}
+  VMFGuide(vec3 mean, float kappa, float fraction, float valid_above_x = -kInfinity, float integral = 1.0f)
+      : mean_(glm::normalize(mean)),
+        kappa_(kappa),
+        fraction_(fraction),
+        valid_above_x_(valid_above_x),
+        integral_(integral) {}
   uint32_t region(const vec3& p) const override { return p.x > valid_above_x_ ? 0u : kNoGuideRegion; }
   GuideSample sample(uint32_t, vec2 u) const override {
     float w = 1.0f + std::log(u.x + (1.0f - u.x) * std::exp(-2.0f * kappa_)) / kappa_;
@@ -35,10 +39,11 @@ class VMFGuide final : public DirectionalGuide {
            std::exp(kappa_ * (glm::dot(mean_, wi) - 1.0f));
   }
   float selection_probability(uint32_t) const override { return fraction_; }
+  float radiance_integral(uint32_t) const override { return integral_; }
 
  private:
   vec3 mean_;
-  float kappa_, fraction_, valid_above_x_;
+  float kappa_, fraction_, valid_above_x_, integral_;
 };
 
 const GuideMixing kMixings[] = {GuideMixing::Resampled, GuideMixing::OneSampleMIS};
@@ -50,11 +55,12 @@ struct Rendered {
 };
 
 Rendered render_with(const Scene& scene, const DirectionalGuide* guide, int spp, int max_depth = 50,
-                     GuideMixing mixing = GuideMixing::Resampled) {
+                     GuideMixing mixing = GuideMixing::Resampled, bool adjoint_roulette = false) {
   RenderableScene rs(scene);
   EngineOptions opt;
   opt.max_depth = max_depth;
   opt.guiding.mixing = mixing;
+  opt.guiding.adjoint_roulette = adjoint_roulette;
   Film film(scene.film.width, scene.film.height);
   WavefrontEngine engine(rs, film, opt, EngineHooks{.guide = guide});
   engine.render(0, uint32_t(spp));
@@ -106,6 +112,26 @@ TEST(GuidedSampling, WhiteFurnaceStaysOneUnderAnyGuide) {
   }
 }
 
+// Adjoint-driven roulette follows the field, not the throughput: where the
+// field is one sharp lobe, continuations outside it are expected to bring
+// little and mostly end (shorter paths than the throughput rule); where it
+// is uniform, every continuation is expected to bring about what the pixel
+// gets and survives (longer paths).  The Cornell block test checks the mean.
+TEST(GuidedSampling, AdjointRouletteSurvivalFollowsTheField) {
+  Scene scene = load_test_scene_file(std::string(THEIA_SCENES) + "/cornell-box/scene.pbrt");
+  scene.film.width = scene.film.height = 32;
+  VMFGuide sharp(vec3(0.0f, 1.0f, 0.0f), 200.0f, 0.5f), flat(vec3(0.0f, 1.0f, 0.0f), 0.01f, 0.5f);
+  auto length = [&](const VMFGuide& g, bool adjoint) {
+    return render_with(scene, &g, 32, 16, GuideMixing::Resampled, adjoint).path_length;
+  };
+  const double sharp_plain = length(sharp, false), sharp_adjoint = length(sharp, true);
+  const double flat_plain = length(flat, false), flat_adjoint = length(flat, true);
+  std::printf("path length, throughput / adjoint roulette: sharp lobe %.3f / %.3f, uniform %.3f / %.3f\n",
+              sharp_plain, sharp_adjoint, flat_plain, flat_adjoint);
+  EXPECT_LT(sharp_adjoint, 0.9 * sharp_plain);
+  EXPECT_GT(flat_adjoint, 1.1 * flat_plain);
+}
+
 // A guide whose every direction lies below the Cornell box's floor, active
 // only on the floor: RIS never picks such a direction (its target is zero
 // there), so paths are as long as unguided ones; one-sample MIS loses its
@@ -119,6 +145,7 @@ TEST(GuidedSampling, GuideBelowTheSurfaceEndsNoPathUnderRIS) {
     GuideSample sample(uint32_t, vec2 u) const override { return lobe_.sample(0, u); }
     float pdf(uint32_t, const vec3& wi) const override { return lobe_.pdf(0, wi); }
     float selection_probability(uint32_t) const override { return 0.5f; }
+    float radiance_integral(uint32_t) const override { return 1.0f; }
 
    private:
     VMFGuide lobe_{vec3(0.0f, -1.0f, 0.0f), 200.0f, 0.5f};
@@ -142,10 +169,20 @@ TEST(GuidedSampling, CornellBoxAgreesWithUnguidedBlockByBlock) {
   ImageBuffer plain = render_with(scene, nullptr, spp, 8).image;
   VMFGuide up(vec3(0.0f, 1.0f, 0.0f), 8.0f, 0.5f), away(vec3(0.2f, -1.0f, 0.4f), 30.0f, 0.5f),
       half(vec3(-1.0f, 0.3f, 0.0f), 4.0f, 0.9f, 0.0f);
+  struct Case {
+    GuideMixing mixing;
+    const VMFGuide* guide;
+    bool adjoint_roulette;
+  };
+  std::vector<Case> cases;
   for (GuideMixing mixing : kMixings)
-  for (const VMFGuide* g : {&up, &away, &half}) {
-    SCOPED_TRACE(mixing_name(mixing));
-    ImageBuffer guided = render_with(scene, g, spp, 8, mixing).image;
+    for (const VMFGuide* g : {&up, &away, &half}) cases.push_back({mixing, g, false});
+  // Adjoint-driven roulette with a field that is wrong about the light (the
+  // lobe points away from it): only survival changes, never the mean.
+  cases.push_back({GuideMixing::Resampled, &away, true});
+  for (const Case& k : cases) {
+    SCOPED_TRACE(std::string(mixing_name(k.mixing)) + (k.adjoint_roulette ? " adjoint roulette" : ""));
+    ImageBuffer guided = render_with(scene, k.guide, spp, 8, k.mixing, k.adjoint_roulette).image;
     int worse = 0, blocks = 0;
     double chi2 = 0.0;
     for (int by = 0; by < 48; by += 8)

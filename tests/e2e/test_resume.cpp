@@ -294,6 +294,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-split-decay", {"0.5"}},
     {"--guiding-pdf-floor", {"0"}},
     {"--guiding-training-spp", {"8"}},
+    {"--guiding-adjoint-roulette", {}},
     {"--caustics", {"off"}},
     {"--caustics-caster-roughness", {"0.2"}},
     {"--adaptive", {}},

@@ -141,6 +141,26 @@ TEST(SDTreeChi2, SampleMatchesPdfOnLearnedFields) {
   }
 }
 
+// The radiance integral a leaf reports (what adjoint-driven roulette weighs
+// by) is the mean of radiance / pdf over its samples: the integral of the
+// field over the sphere, with the unbiased weight (no pdf floor).
+TEST(SDTreeRadianceIntegral, EstimatesTheFieldsIntegralOverTheSphere) {
+  const std::vector<std::pair<std::string, Field>> fields = {
+      {"lobe+constant", field_lobe}, {"two lobes", field_two_lobes}, {"lower hemisphere", field_lower}};
+  for (const auto& [name, L] : fields) {
+    SDTreeOptions o = one_leaf();
+    o.pdf_floor = 0.0f;
+    SDTree t(kUnitBox, o);
+    train(t, L, 200'000, 2, 11);
+    const double expect = integrate_sphere([&](const vec3& w) { return double(L(w)); });
+    EXPECT_NEAR(t.radiance_integral(t.region(kCentre)), expect, 0.05 * expect) << name;
+    std::printf("%s: radiance integral %.4f, field %.4f\n", name.c_str(), t.radiance_integral(t.region(kCentre)), expect);
+  }
+  SDTree untrained(kUnitBox, one_leaf());
+  EXPECT_EQ(untrained.radiance_integral(0), 0.0f);
+  EXPECT_EQ(untrained.radiance_integral(kNoGuideRegion), 0.0f);
+}
+
 // Without the directional filter nothing is learned above the horizon; with
 // it, a sample just below the horizon puts part of itself into the quad
 // above, which may be a large one (quads without flux collapse), so a little

@@ -139,13 +139,13 @@ function addWireframe() {
   const triangles = new THREE.BufferGeometry();
   triangles.setAttribute('position', new THREE.BufferAttribute(new Float32Array(bytes(F.wireframe)), 3));
   const edges = new THREE.EdgesGeometry(triangles, 25);
-  world.add(new THREE.LineSegments(edges, new THREE.LineBasicMaterial({ color: 0x8a8f98 })));
+  world.add(new THREE.LineSegments(edges, new THREE.LineBasicMaterial({ color: 0x6c7480 })));
 }
 
 // --- leaves ---------------------------------------------------------------------
 
 const ui = (id) => document.getElementById(id);
-let snapshot = null, leafMesh = null, shown = [], selection = null, sphere = null;
+let snapshot = null, leafMesh = null, leafEdges = null, shown = [], selection = null, sphere = null;
 
 function column(name) { return snapshot.columns.indexOf(name); }
 function value(leaf, c) { return snapshot.table[leaf * snapshot.columns.length + c]; }
@@ -186,15 +186,15 @@ function leafColours(c) {
 const kBoxCorners = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]];
 const kBoxTriangles = [0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 3, 6, 2, 3, 7, 6, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5];
 
-function buildLeaves() {
-  if (leafMesh) world.remove(leafMesh), leafMesh.geometry.dispose();
-  shown = snapshot.leaves.map((_, i) => i).filter(visible);
-  const colours = leafColours(Number(ui('stat').value));
-  const position = new Float32Array(shown.length * 108), rgb = new Float32Array(shown.length * 108);
+const kBoxEdges = [0, 1, 1, 2, 2, 3, 3, 0, 4, 5, 5, 6, 6, 7, 7, 4, 0, 4, 1, 5, 2, 6, 3, 7];
+
+// Per shown leaf, the box's corners by `indices` (triangles or edges) and its colour, as flat arrays.
+function boxArrays(colours, indices) {
+  const n = indices.length * 3, position = new Float32Array(shown.length * n), rgb = new Float32Array(shown.length * n);
   shown.forEach((leaf, k) => {
     const b = drawnBox(leaf), c = colours[leaf];
-    kBoxTriangles.forEach((corner, j) => {
-      const o = (k * 36 + j) * 3;
+    indices.forEach((corner, j) => {
+      const o = k * n + j * 3;
       for (let a = 0; a < 3; ++a) {
         position[o + a] = kBoxCorners[corner][a] ? b[a + 3] : b[a];
         rgb[o + a] = c[a] / 255;
@@ -204,10 +204,20 @@ function buildLeaves() {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(position, 3));
   g.setAttribute('color', new THREE.BufferAttribute(rgb, 3));
-  leafMesh = new THREE.Mesh(g, new THREE.MeshBasicMaterial({
-    vertexColors: THREE.VertexColors, transparent: true, opacity: 0.55, depthWrite: false, side: THREE.DoubleSide }));
-  world.add(leafMesh);
-  viewer.drawnLeaves = position.length / 108;
+  return g;
+}
+
+// Faces faint (a camera inside the field would see nothing else) and edges in the leaf's colour.
+function buildLeaves() {
+  for (const old of [leafMesh, leafEdges]) if (old) world.remove(old), old.geometry.dispose();
+  shown = snapshot.leaves.map((_, i) => i).filter(visible);
+  const colours = leafColours(Number(ui('stat').value));
+  leafMesh = new THREE.Mesh(boxArrays(colours, kBoxTriangles), new THREE.MeshBasicMaterial({
+    vertexColors: THREE.VertexColors, transparent: true, opacity: 0.12, depthWrite: false, side: THREE.DoubleSide }));
+  leafEdges = new THREE.LineSegments(boxArrays(colours, kBoxEdges),
+                                     new THREE.LineBasicMaterial({ vertexColors: THREE.VertexColors }));
+  world.add(leafMesh, leafEdges);
+  viewer.drawnLeaves = leafMesh.geometry.attributes.position.count / 36;
 }
 
 // --- one leaf -------------------------------------------------------------------
@@ -283,9 +293,13 @@ function pick(event) {
   const ndc = new THREE.Vector2((event.clientX - r.left) / r.width * 2 - 1, -((event.clientY - r.top) / r.height) * 2 + 1);
   const ray = new THREE.Raycaster();
   ray.setFromCamera(ndc, camera);
-  const hits = leafMesh ? ray.intersectObject(leafMesh) : [];
-  // The nearest box the ray enters (faces are drawn from both sides).
-  if (hits.length > 0) selectLeaf(shown[Math.floor(hits[0].faceIndex / 12)]);
+  // The nearest box the ray enters: not one the eye is inside (faces are drawn from both sides).
+  const eye = ray.ray.origin.clone().applyMatrix4(new THREE.Matrix4().getInverse(world.matrixWorld));
+  for (const hit of leafMesh ? ray.intersectObject(leafMesh) : []) {
+    const leaf = shown[Math.floor(hit.faceIndex / 12)], b = drawnBox(leaf);
+    const inside = [0, 1, 2].every((a) => eye.getComponent(a) >= b[a] && eye.getComponent(a) <= b[a + 3]);
+    if (!inside) return selectLeaf(leaf);
+  }
 }
 
 function start() {

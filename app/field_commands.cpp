@@ -39,6 +39,11 @@ nlohmann::json stats_json(const FieldFile& f, const FieldSnapshot& s) {
     const ColumnSummary cs = summarise(s, int(c));
     j["columns"][s.columns[c]] = {{"min", cs.min}, {"max", cs.max}, {"mean", cs.mean}, {"sum", cs.sum}};
   }
+  auto box = [](const Bounds3& b) { return nlohmann::json{b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z}; };
+  j["root_bounds"] = box(f.root_bounds);
+  j["scene_bounds"] = box(f.scene_bounds);
+  nlohmann::json& boxes = j["boxes"] = nlohmann::json::array();
+  for (const FieldLeaf& leaf : s.leaves) boxes.push_back(box(leaf.box));
   nlohmann::json& rows = j["per_leaf"] = nlohmann::json::object();
   for (size_t c = 0; c < s.columns.size(); ++c) {
     nlohmann::json column = nlohmann::json::array();

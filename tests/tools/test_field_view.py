@@ -168,6 +168,35 @@ def main():
     print(f"PASS in {time.time() - start:.1f} s")
 
 
+def set_input(browser, element, value):
+    browser.eval(f"(() => {{ const e = document.getElementById('{element}'); e.value = {value}; "
+                 "e.dispatchEvent(new Event('input')); })()")
+
+
+def check_timeline_and_slicing(browser, args, field, stats):
+    """The first snapshot on the timeline draws its own leaves; a slicing plane keeps the leaves below it."""
+    first = browser.eval("THEIA_FIELD.snapshots[0].iteration")
+    first_stats = json.loads(run([args.theia, "field", "stats", "--json", "--iteration", str(first), field]))
+    set_input(browser, "timeline", 0)
+    drawn, count = browser.eval("theiaViewer.drawnLeaves"), browser.eval("theiaViewer.leafCount")
+    print(f"timeline at iteration {first}: field {first_stats['leaves']}, page {count}, drawn {drawn}")
+    if not (drawn == count == first_stats["leaves"]):
+        fail(f"iteration {first}: drawn {drawn}, page's count {count}, field's {first_stats['leaves']}")
+    set_input(browser, "timeline", browser.eval("THEIA_FIELD.snapshots.length - 1"))
+    root = stats["root_bounds"]
+    for axis in range(3):
+        plane = root[axis] + 0.5 * (root[axis + 3] - root[axis])
+        expected = sum(1 for b in stats["boxes"] if b[axis] <= plane)
+        set_input(browser, f"slice{axis}", 500)
+        drawn = browser.eval("theiaViewer.drawnLeaves")
+        set_input(browser, f"slice{axis}", 1000)
+        print(f"slice {'xyz'[axis]} at the middle: drawn {drawn}, leaves starting below it {expected}")
+        if drawn != expected or expected == stats["leaves"]:
+            fail(f"slicing {'xyz'[axis]}: drawn {drawn}, expected {expected} of {stats['leaves']}")
+    if browser.eval("theiaViewer.drawnLeaves") != stats["leaves"]:
+        fail("the slices back at the top do not draw every leaf")
+
+
 def check_page(browser, args, tmp, field, stats):
     for domain in ("Runtime", "Log", "Page"):
         browser.call(f"{domain}.enable")
@@ -183,6 +212,7 @@ def check_page(browser, args, tmp, field, stats):
         fail(f"drawn leaves {drawn}, page's count {count}, field's {stats['leaves']}")
     if args.docs:
         pathlib.Path(args.docs, "field-view.png").write_bytes(browser.screenshot())
+    check_timeline_and_slicing(browser, args, field, stats)
 
     # Click the busiest leaves' centres until one is picked: a leaf in front may be the one hit.
     samples = stats["per_leaf"]["samples"]

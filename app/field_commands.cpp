@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace theia {
@@ -68,6 +69,8 @@ void print_stats(const std::string& path, const FieldFile& f, const FieldSnapsho
 int run_field_image(const std::string& path, int iteration, const vec3& p, int width, const std::string& out) {
   if (width < 2 || width > 8192 || width % 2 != 0)
     throw_error("--width {}: expected an even number of pixels in [2, 8192]", width);
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+    throw_error("--point {} {} {}: expected three finite coordinates", p.x, p.y, p.z);
   const FieldFile f = load_field(path);
   const FieldSnapshot& s = field_snapshot(f, iteration, path);
   const size_t leaf = s.leaf_at(p);

@@ -110,16 +110,20 @@ FieldCamera field_camera(const Scene& scene) {
   return c;
 }
 
-// Records the iteration's samples (in the order the recorder sorted them), then trains.
+// Trains, then records the iteration's samples (in the order the recorder sorted them) if the tree took them.
 class FieldFeature::Sink final : public TrainingSampleSink {
  public:
   Sink(FieldFeature& f) : f_(f) {}
   bool wants_nee_samples() const override { return f_.trainer_->wants_nee_samples(); }
   void consume(std::span<const TrainingSample> samples) override {
+    const SDTreeStats before = f_.tree_->stats();
+    f_.trainer_->consume(samples);
+    const SDTreeStats after = f_.tree_->stats();
+    // What the tree did not take (a field no longer training) is not the field's data.
+    if (after.pending_recorded + after.pending_dropped == before.pending_recorded + before.pending_dropped) return;
     std::vector<SDTreeSample> converted(samples.size());
     for (size_t i = 0; i < samples.size(); ++i) converted[i] = sd_tree_sample(samples[i]);
     f_.recorder_.add(*f_.tree_, converted);
-    f_.trainer_->consume(samples);
   }
 
  private:

@@ -414,6 +414,7 @@ int run_render(const RenderConfig& in) {
   if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
   check_output_path("-o", config.output);
   check_output_path("--log", config.log_path);
+  if (!config.save_field.empty()) check_output_path("--save-field", config.save_field);
 
   RenderResult result = render_scene(scene, config);
   if (result.interrupted) {

@@ -92,6 +92,12 @@ TEST(FieldCommands, StatsAndImageReadTheFileAndNameABadOne) {
   r = run_theia("field stats " + tmp.file("bad.field"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("bad.field: field file corrupt: checksum"), std::string::npos) << r.output;
+  r = run_theia("render " + kCornell + " --guiding --spp 1 -o " + tmp.file("x.exr") + " --save-field " +
+                tmp.file("missing/f.field"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("--save-field " + tmp.file("missing/f.field") + ": the directory"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp.file("x.exr"))) << "refused before rendering";
   r = run_theia("field image " + c.save_field + " --point 0 0 0 --iteration 99 -o " + tmp.file("x.png"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("no snapshot of iteration 99"), std::string::npos) << r.output;

@@ -8,7 +8,7 @@ writes for the same leaf.
 
 usage: test_field_view.py THEIA SCENES_DIR [--docs DIR]
 --docs DIR writes the README's screenshots there.  Exit 77 (CTest: skipped), saying why,
-when Chromium or python3-websocket is missing or Chromium cannot start.
+only when Chromium is missing or cannot start.
 """
 import argparse
 import base64
@@ -52,7 +52,7 @@ class Browser:
         try:
             import websocket  # python3-websocket
         except ImportError:
-            skip("no python3-websocket (Debian: apt-get install python3-websocket)")
+            fail("no python3-websocket (tools/install-deps.sh installs it)")
         self.proc = subprocess.Popen(
             [chromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
              "--enable-unsafe-swiftshader", "--force-device-scale-factor=1", "--window-size=1500,820",

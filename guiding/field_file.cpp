@@ -78,7 +78,7 @@ FieldSnapshot get_snapshot(ByteReader& r) {
   for (uint64_t i = 0; i < columns; ++i) s.columns.push_back(r.get_string());
   s.table = r.get_vector<double>();
   const uint64_t leaves = get_count(r, "leaf", 2 * sizeof(vec3) + 2 * sizeof(uint64_t));
-  if (s.table.size() != leaves * columns)
+  if (columns == 0 ? !s.table.empty() : s.table.size() % columns != 0 || s.table.size() / columns != leaves)
     throw_error("{}: field file corrupt: {} statistics for {} leaves of {} columns", r.what, s.table.size(), leaves,
                 columns);
   for (uint64_t l = 0; l < leaves; ++l) {

@@ -161,10 +161,7 @@ class SDTreeTrainer final : public TrainingSampleSink {
   bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
     if (!training_) return;
-    tree_.add_samples(samples.size(), [&](size_t i) {
-      const TrainingSample& s = samples[i];
-      return SDTreeSample{s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags)};
-    });
+    tree_.add_samples(samples.size(), [&](size_t i) { return sd_tree_sample(samples[i]); });
   }
 
  private:
@@ -173,6 +170,10 @@ class SDTreeTrainer final : public TrainingSampleSink {
 };
 
 }  // namespace
+
+SDTreeSample sd_tree_sample(const TrainingSample& s) {
+  return {s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags)};
+}
 
 int guiding_holdout_iteration(const std::vector<int>& schedule) {
   int begin = 0;

@@ -144,6 +144,9 @@ struct GuidingVerdict {
 // field has learned from the first iterations by then.  -1 if none.
 int guiding_holdout_iteration(const std::vector<int>& schedule);
 
+// A recorder sample as the SD-tree trains on it: luminance, and a key naming the vertex.
+SDTreeSample sd_tree_sample(const TrainingSample& s);
+
 // The SD-tree the engine samples, trained from the recorder's samples after
 // every iteration.
 class GuidingFeature final : public Feature {
@@ -155,6 +158,7 @@ class GuidingFeature final : public Feature {
   ~GuidingFeature() override;
   // Where the recorder hands its training samples; null when off.
   TrainingSampleSink* trainer() const { return trainer_.get(); }
+  const SDTree* tree() const { return tree_.get(); }
   void configure(EngineOptions& engine, EngineHooks& hooks) const override;
   void attach(WavefrontEngine& engine) override;
   void add_tasks(IterationTasks& tasks) override;

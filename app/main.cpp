@@ -1,6 +1,7 @@
 // The `theia` command line.
 #include "app/diff.h"
 #include "app/farm_commands.h"
+#include "app/field_commands.h"
 #include "app/render.h"
 #include "core/log.h"
 
@@ -59,6 +60,7 @@ int main(int argc, char** argv) {
   diff->add_option("--error-image", diff_image, "Write a false-colour relative-error PNG");
 
   FarmCommands farm(app);
+  FieldCommands field(app);
 
   CLI11_PARSE(app, argc, argv);
   try {
@@ -79,6 +81,10 @@ int main(int argc, char** argv) {
       // Nothing to keep: a stop signal ends a diff as it ends any program.
       default_stop_signals();
       return run_diff(diff_a, diff_b, diff_image);
+    }
+    if (field.parsed()) {
+      default_stop_signals();
+      return field.run();
     }
     if (farm.parsed()) {
       default_stop_signals();  // submit, status and collect keep nothing to checkpoint

@@ -69,6 +69,7 @@ void check_config(const RenderConfig& c) {
   check(static_cast<const SchedulingOptions&>(c));
   check(c.recorder);
   check(c.guiding);
+  check(static_cast<const FieldOptions&>(c), c.guiding.enabled || c.guiding.auto_off);
   check(c.caustics);
   check(c.checkpoint);
   if (RecorderFeature::debug_layers(c.recorder) && !c.checkpoint.dir.empty())
@@ -141,6 +142,7 @@ static std::string caustics_conflict(const RenderConfig& c, const Scene& scene) 
 struct Features {
   LightSamplerFeature light_sampler;
   GuidingFeature guiding;
+  FieldFeature field;
   RecorderFeature recorder;
   CausticsFeature caustics;
   AdaptiveFeature adaptive;
@@ -148,10 +150,12 @@ struct Features {
   Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule)
       : light_sampler(*rs.light_sampler),
         guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder)),
-        recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, guiding.trainer()),
+        field(c, rs.scene, guiding),
+        recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, field.sink()),
         caustics(c.caustics, caustics_conflict(c, rs.scene), c.seed, rs),
         adaptive(c.adaptive, rs.scene.film.width, rs.scene.film.height, schedule, c.spp) {}
-  std::array<Feature*, 5> all() { return {&light_sampler, &guiding, &recorder, &caustics, &adaptive}; }
+  // Guiding before field: the field is saved after guiding's update.
+  std::array<Feature*, 6> all() { return {&light_sampler, &guiding, &field, &recorder, &caustics, &adaptive}; }
 };
 
 // Batch size and pool size 0 (auto): the engine sizes them from the frame (engine_sizes).
@@ -410,6 +414,7 @@ int run_render(const RenderConfig& in) {
   if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
   check_output_path("-o", config.output);
   check_output_path("--log", config.log_path);
+  if (!config.save_field.empty()) check_output_path("--save-field", config.save_field);
 
   RenderResult result = render_scene(scene, config);
   if (result.interrupted) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "app/features.h"
+#include "app/field_feature.h"
 #include "core/image.h"
 #include "core/stop.h"
 #include "scene/scene.h"
@@ -49,7 +50,7 @@ void declare_options(V& v, RenderOptions& o) {
 }
 void check(const RenderOptions& o);
 
-struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions {
+struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions, FieldOptions {
   // What to render and where to write it: not options of the image.
   std::string scene_path;
   std::string output;               // .exr path; empty: the scene's Film filename
@@ -92,6 +93,7 @@ void declare_render_options(V& v, RenderConfig& c) {
   declare_options(v, static_cast<RenderOptions&>(c));
   declare_options(v, static_cast<LightSamplerOptions&>(c));
   declare_options(v, static_cast<SchedulingOptions&>(c));
+  declare_options(v, static_cast<FieldOptions&>(c));
   v.group = "recorder";
   declare_options(v, c.recorder);
   v.group = "guiding";

@@ -111,10 +111,6 @@ Checkpoint read_generation(const std::string& dir, uint64_t gen) {
 
 }  // namespace
 
-void ByteReader::need(size_t n) const {
-  if (n > size - pos) throw_error("{}: truncated (wanted {} bytes at offset {} of {})", what, n, pos, size);
-}
-
 const CheckpointSection* Checkpoint::find(const std::string& name) const {
   for (const auto& s : sections)
     if (s.name == name) return &s;

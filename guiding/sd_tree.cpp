@@ -204,6 +204,26 @@ Bounds3 SDTree::leaf_bounds(const vec3& p) const {
   return {at.lo, at.lo + at.size};
 }
 
+std::vector<Bounds3> SDTree::leaf_boxes() const {
+  std::vector<Bounds3> boxes(leaves_.size());
+  std::vector<std::pair<uint32_t, Lookup>> stack{{0, Lookup{0, root_.min, root_size_}}};
+  while (!stack.empty()) {
+    auto [n, at] = stack.back();
+    stack.pop_back();
+    if (nodes_[n].first_child == 0) {
+      boxes[nodes_[n].leaf] = {at.lo, at.lo + at.size};
+      continue;
+    }
+    // The halves find_leaf descends into, computed the same way.
+    const int a = nodes_[n].axis;
+    at.size[a] *= 0.5f;
+    stack.push_back({nodes_[n].first_child, at});
+    at.lo[a] += at.size[a];
+    stack.push_back({nodes_[n].first_child + 1, at});
+  }
+  return boxes;
+}
+
 void SDTree::deposit(BuildingQuadNode* nodes, vec2 c, double value) const {
   if (!options_.directional_filter) {
     uint32_t n = 0;

@@ -157,6 +157,14 @@ class SDTree final : public DirectionalGuide {
   // The leaf box holding p (p clamped into the root box).
   Bounds3 leaf_bounds(const vec3& p) const;
 
+  // Read access for tools (guiding/field_file.h): leaves by index, their boxes
+  // in leaf-index order, the leaf holding p, and whether add_sample records s.
+  size_t leaf_count() const { return leaves_.size(); }
+  const SpatialLeaf& leaf(uint32_t index) const { return leaves_[index]; }
+  std::vector<Bounds3> leaf_boxes() const;
+  uint32_t leaf_index(const vec3& p) const { return find_leaf(p).leaf; }
+  bool records(const SDTreeSample& s) const { return target_leaf(s.p, s.wi, s.radiance, s.pdf, s.key) != kInvalidLeaf; }
+
  private:
   SDTree() = default;
   // Throws theia::Error for an option outside its range.

@@ -8,6 +8,8 @@ packages=(
   python3-numpy python3-matplotlib python3-openimageio
   slurm-wlm munge
   clang  # fuzz/: libFuzzer ships with it (THEIA_FUZZ builds)
+  libjs-three  # `theia field view` copies three.js into the page it writes
+  chromium python3-websocket python3-pil  # the field viewer's browser test (tests/tools/test_field_view.py)
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -394,7 +394,8 @@ TEST_F(ResumeOptionsCheckpoint, SummationOrderAndCheckpointOptionsResume) {
   std::sort(flags.output_flags.begin(), flags.output_flags.end());
   EXPECT_EQ(flags.output_flags,
             (std::vector<std::string>{"--checkpoint-dir", "--checkpoint-every-iteration", "--checkpoint-first",
-                                      "--memory-limit", "--resume", "--time-limit"}));
+                                      "--memory-limit", "--resume", "--save-field", "--save-field-every-iteration",
+                                      "--time-limit"}));
 
   RenderConfig plain = parse(kBase);
   const ImageBuffer uninterrupted = render_scene(scene, plain).image;

@@ -40,7 +40,7 @@ class Feature {
 // --- Light sampler (group: none) --------------------------------------------
 
 struct LightSamplerOptions {
-  // uniform | power | cachepoints | auto (cachepoints/light_sampler.h): auto
+  // uniform | power | bvh | cachepoints | auto (cachepoints/light_sampler.h): auto
   // builds cache points where the scene has enough emitters, else power.
   std::string light_sampler = "auto";
 };
@@ -48,7 +48,7 @@ struct LightSamplerOptions {
 template <class V>
 void declare_options(V& v, LightSamplerOptions& o) {
   v.image("light_sampler", o.light_sampler,
-          "Light selection: uniform, power, cachepoints (occlusion-aware many-lights sampling) or auto (cache points "
+          "Light selection: uniform, power, bvh (light hierarchy), cachepoints (occlusion-aware many-lights sampling) or auto (cache points "
           "where the scene has enough emitters, else power)");
 }
 void check(const LightSamplerOptions& o);

@@ -41,7 +41,7 @@ class PowerLightSampler final : public LightSampler {
 inline constexpr size_t kAutoCachePointEmitters = 1024;
 
 bool light_sampler_name_known(const std::string& name);
-// "uniform", "power", "cachepoints" (cachepoints/cache_points.h; power for a
+// "uniform", "power", "bvh" (cachepoints/light_bvh.h), "cachepoints" (cachepoints/cache_points.h; power for a
 // scene of one emitter, where there is nothing to choose) or "auto"; throws
 // theia::Error for anything else.
 std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights, const Accel& accel);

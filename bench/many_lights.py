@@ -20,8 +20,9 @@ temporary folder by scenes/many-lights-city/make_scene.py (26 x 26 lots,
 45,000 windows and 5,000 lamps: 50,000 quads, 100,000 emitting triangles,
 5 MB of text, so not committed); it has no pbrt-v4 reference, so the script
 first renders one with --reference-sampler at --reference-spp (seed 1000,
-independent of the runs' seeds 0..runs-1), whose own relMSE adds the same
-small constant to every sampler's:
+independent of the runs' seeds 0..runs-1; `--reference render` does the same
+for any scene), whose own relMSE adds the same small constant to every
+sampler's:
 
   bench/many_lights.py --theia build/theia --city100k --spp 32 --runs 3
 """
@@ -74,7 +75,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--theia", default="build/theia")
     ap.add_argument("--scene", default="scenes/many-lights-city/scene.pbrt")
-    ap.add_argument("--reference", default="tests/data/many-lights-city.exr")
+    ap.add_argument("--reference", default="tests/data/many-lights-city.exr",
+                    help="the converged image, or 'render' to render one as for --city100k")
     ap.add_argument("--samplers", default="uniform,power,bvh,cachepoints")
     ap.add_argument("--city100k", action="store_true", help="generate and render the 100k-emitter city")
     ap.add_argument("--reference-sampler", default="cachepoints")
@@ -87,9 +89,9 @@ def main():
     rows = []
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
-        scene, reference = args.scene, args.reference
-        if args.city100k:
-            scene, reference = make_city100k(tmp), os.path.join(tmp, "reference.exr")
+        scene, reference = (make_city100k(tmp) if args.city100k else args.scene), args.reference
+        if args.city100k or reference == "render":
+            reference = os.path.join(tmp, "reference.exr")
             log, cpu, _ = render(args, scene, args.reference_sampler, args.reference_spp, 1000, reference)
             print(f"reference: {args.reference_sampler} {args.reference_spp} spp, {log['time']['total']:.1f} s wall, "
                   f"{cpu:.1f} CPU-s", flush=True)

@@ -26,7 +26,6 @@ constexpr int kBuckets = 12;
 // relMSE 0.44 against 0.12; a clamp at r/16 gives 0.12 too.)
 constexpr float kInsideDistance2 = 1.0f / 16.0f;
 
-
 // cos(max(0, theta_a - theta_b)) and sin of it, from the cosines and sines.
 float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
   return cos_a >= cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;

@@ -46,6 +46,7 @@ std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const 
   const size_t emitters = emitter_count(lights);
   const bool cache_points = name == "cachepoints" ? emitters > 1 : name == "auto" && emitters >= kAutoCachePointEmitters;
   if (cache_points) return std::make_unique<CachePointSampler>(lights, accel);
+  if (name == "auto" && emitters >= kAutoBvhEmitters) return std::make_unique<LightBvhSampler>(lights);
   if (name == "cachepoints") log_info("--light-sampler cachepoints: one light, nothing to choose; power-proportional");
   return std::make_unique<PowerLightSampler>(lights);
 }

@@ -36,9 +36,11 @@ class PowerLightSampler final : public LightSampler {
   Distribution1D distribution_;
 };
 
-// At least this many emitters (a mesh light's triangles each count) and
-// "auto" builds cache points; below, power-proportional selection.
+// "auto": cache points from this many emitters on (a mesh light's triangles
+// each count), the light BVH from kAutoBvhEmitters, else power-proportional
+// selection (cachepoints/README.md has the measurements behind both).
 inline constexpr size_t kAutoCachePointEmitters = 1024;
+inline constexpr size_t kAutoBvhEmitters = 8;
 
 bool light_sampler_name_known(const std::string& name);
 // "uniform", "power", "bvh" (cachepoints/light_bvh.h), "cachepoints" (cachepoints/cache_points.h; power for a

@@ -232,4 +232,8 @@ TEST(LightBvh, DegenerateLightSets) {
   LightBvhSampler none(black.lights);
   EXPECT_FALSE(none.sample(random_vertices(1, 7)[0], 0.5f));
   EXPECT_STREQ(make_light_sampler("bvh", sky.lights, sky.accel)->name(), "bvh");
+  // "auto": the BVH from 8 emitters (here 2 x 2 quads a side, 16 triangles and the sky), power below.
+  LightFixture few(street_scene(2, varied, true));
+  EXPECT_STREQ(make_light_sampler("auto", few.lights, few.accel)->name(), "bvh");
+  EXPECT_STREQ(make_light_sampler("auto", sky.lights, sky.accel)->name(), "power");
 }

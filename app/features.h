@@ -40,16 +40,16 @@ class Feature {
 // --- Light sampler (group: none) --------------------------------------------
 
 struct LightSamplerOptions {
-  // uniform | power | cachepoints | auto (cachepoints/light_sampler.h): auto
-  // builds cache points where the scene has enough emitters, else power.
+  // uniform | power | bvh | cachepoints | auto (cachepoints/light_sampler.h): auto
+  // builds cache points for many emitters, the light BVH for several, else power.
   std::string light_sampler = "auto";
 };
 
 template <class V>
 void declare_options(V& v, LightSamplerOptions& o) {
   v.image("light_sampler", o.light_sampler,
-          "Light selection: uniform, power, cachepoints (occlusion-aware many-lights sampling) or auto (cache points "
-          "where the scene has enough emitters, else power)");
+          "Light selection: uniform, power, bvh (light hierarchy), cachepoints (occlusion-aware many-lights sampling) or auto (cache points "
+          "from 1024 emitters, the light BVH from 8, else power)");
 }
 void check(const LightSamplerOptions& o);
 

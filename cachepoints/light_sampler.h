@@ -36,12 +36,14 @@ class PowerLightSampler final : public LightSampler {
   Distribution1D distribution_;
 };
 
-// At least this many emitters (a mesh light's triangles each count) and
-// "auto" builds cache points; below, power-proportional selection.
+// "auto": cache points from this many emitters on (a mesh light's triangles
+// each count), the light BVH from kAutoBvhEmitters, else power-proportional
+// selection (cachepoints/README.md has the measurements behind both).
 inline constexpr size_t kAutoCachePointEmitters = 1024;
+inline constexpr size_t kAutoBvhEmitters = 8;
 
 bool light_sampler_name_known(const std::string& name);
-// "uniform", "power", "cachepoints" (cachepoints/cache_points.h; power for a
+// "uniform", "power", "bvh" (cachepoints/light_bvh.h), "cachepoints" (cachepoints/cache_points.h; power for a
 // scene of one emitter, where there is nothing to choose) or "auto"; throws
 // theia::Error for anything else.
 std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights, const Accel& accel);

@@ -99,6 +99,50 @@ double sidak_level(double significance, int n_tests) {
   return 1.0 - std::pow(1.0 - significance, 1.0 / double(std::max(n_tests, 1)));
 }
 
+Chi2Result chi2_counts(const std::vector<double>& observed, const std::vector<double>& expected, double significance,
+                       int n_tests, std::string failure) {
+  // Pool the cells that expect few samples (the chi-square approximation needs
+  // about 5 per cell), smallest first, as Mitsuba does.
+  const size_t n_cells = observed.size();
+  std::vector<size_t> order(n_cells);
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return expected[a] < expected[b]; });
+  double pooled_obs = 0.0, pooled_exp = 0.0, stat = 0.0;
+  int pooled_cells = 0, dof = 0, zero_expected_hits = 0;
+  for (size_t i : order) {
+    if (expected[i] == 0.0 && observed[i] > 0.0) ++zero_expected_hits;
+    if (expected[i] < kMinExpected || (pooled_cells > 0 && pooled_exp < kMinExpected)) {
+      pooled_obs += observed[i];
+      pooled_exp += expected[i];
+      ++pooled_cells;
+    } else {
+      stat += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
+      ++dof;
+    }
+  }
+  if (pooled_exp > 0.0) {
+    stat += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp;
+    ++dof;
+  } else if (pooled_obs > 0.0) {
+    stat = kInfinity;
+  }
+  dof -= 1;
+  if (zero_expected_hits > 0)
+    failure += fmt::format("{} cells received samples where the pdf integrates to zero\n", zero_expected_hits);
+  if (dof < 1) failure += "fewer than 2 cells after pooling: the test says nothing\n";
+
+  Chi2Result r;
+  r.statistic = stat;
+  r.dof = dof;
+  r.p_value = chi2_p_value(stat, dof);
+  double alpha = sidak_level(significance, n_tests);
+  r.passed = failure.empty() && r.p_value >= alpha;
+  r.report = fmt::format("statistic {:.2f}, dof {}, p-value {:.4g}, threshold {:.4g} ({} pooled cells): {}\n", stat,
+                         dof, r.p_value, alpha, pooled_cells, r.passed ? "passed" : "FAILED");
+  if (!r.passed) r.report += failure;
+  return r;
+}
+
 Chi2Result chi2_test(const std::string& name, const std::function<std::optional<vec2>(vec2 u, float u1)>& sample,
                      const std::function<double(vec2)>& pdf, int n_samples, int res_x, int res_y,
                      double significance, int n_tests) {
@@ -143,44 +187,13 @@ Chi2Result chi2_test(const std::string& name, const std::function<std::optional<
   std::string failure;
   if (bad > 0) failure += fmt::format("{} samples outside the domain or not finite, first: {}\n", bad, first_bad);
 
-  // Pool the cells that expect few samples (the chi-square approximation needs
-  // about 5 per cell), smallest first, as Mitsuba does.
-  std::vector<size_t> order(n_cells);
-  std::iota(order.begin(), order.end(), size_t(0));
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return expected[a] < expected[b]; });
-  double pooled_obs = 0.0, pooled_exp = 0.0, stat = 0.0;
-  int pooled_cells = 0, dof = 0, zero_expected_hits = 0;
-  for (size_t i : order) {
-    if (expected[i] == 0.0 && observed[i] > 0.0) ++zero_expected_hits;
-    if (expected[i] < kMinExpected || (pooled_cells > 0 && pooled_exp < kMinExpected)) {
-      pooled_obs += observed[i];
-      pooled_exp += expected[i];
-      ++pooled_cells;
-    } else {
-      stat += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
-      ++dof;
-    }
-  }
-  if (pooled_exp > 0.0) {
-    stat += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp;
-    ++dof;
-  } else if (pooled_obs > 0.0) {
-    stat = kInfinity;
-  }
-  dof -= 1;
-  if (zero_expected_hits > 0)
-    failure += fmt::format("{} cells received samples where the pdf integrates to zero\n", zero_expected_hits);
-  if (dof < 1) failure += "fewer than 2 cells after pooling: the test says nothing\n";
-
-  r.statistic = stat;
-  r.dof = dof;
-  r.p_value = chi2_p_value(stat, dof);
-  double alpha = sidak_level(significance, n_tests);
-  r.passed = failure.empty() && r.p_value >= alpha;
-  r.report += fmt::format("statistic {:.2f}, dof {}, p-value {:.4g}, threshold {:.4g} ({} pooled cells): {}\n", stat,
-                          dof, r.p_value, alpha, pooled_cells, r.passed ? "passed" : "FAILED");
+  const Chi2Result counted = chi2_counts(observed, expected, significance, n_tests, failure);
+  r.statistic = counted.statistic;
+  r.dof = counted.dof;
+  r.p_value = counted.p_value;
+  r.passed = counted.passed;
+  r.report += counted.report;
   if (!r.passed) {
-    r.report += failure;
     // The worst cells first, then the full histograms (x across, y down).
     std::vector<size_t> worst(n_cells);
     std::iota(worst.begin(), worst.end(), size_t(0));

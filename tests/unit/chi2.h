@@ -30,6 +30,13 @@ struct Chi2Result {
 double chi2_p_value(double statistic, int dof);
 double sidak_level(double significance, int n_tests);
 
+// Observed against expected counts per cell (for a discrete distribution:
+// its pmf times the number of samples): cells expecting fewer than 5 pooled,
+// the statistic against chi-square, Sidak's level.  `failure` holds problems
+// the caller found already (they fail the test).
+Chi2Result chi2_counts(const std::vector<double>& observed, const std::vector<double>& expected, double significance,
+                       int n_tests = 1, std::string failure = {});
+
 // The generic test over [0, 1]^2.  `sample` maps uniform (u, u1) to a point in
 // [0, 1]^2 or nullopt (the routine declined: the sample is dropped, and the
 // pdf should integrate to less than 1 accordingly).  `pdf` is the density with

@@ -10,6 +10,7 @@
 #include "core/log.h"
 #include "scene/parser.h"
 #include "tests/street_scene.h"
+#include "tests/unit/light_fixture.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -19,20 +20,9 @@
 #include <string>
 
 using namespace theia;
-using theia::test::street_scene;
+using namespace theia::test;
 
 namespace {
-
-float varied(int k) { return 0.3f * std::pow(10.0f, float(hash(uint64_t(k)) % 1000) / 333.0f); }
-float dark(int k) { return k % 3 == 0 ? 0.0f : 1.0f; }
-
-struct Fixture {
-  Scene scene;
-  Accel accel;
-  LightSet lights;
-  explicit Fixture(const std::string& text)
-      : scene(parse_scene_string(text, "<cache-points-test>", ".")), accel(scene), lights(scene, accel) {}
-};
 
 // Shading points on the floor on both sides of the wall, on the wall, and one in the air (no normal).
 std::vector<LightSampleContext> vertices() {
@@ -51,7 +41,7 @@ double pmf_sum(const CachePointSampler& s, const LightSampleContext& ctx) {
 }  // namespace
 
 TEST(CachePoints, BuildsPointsAndEmittersPerTriangle) {
-  Fixture f(street_scene(8, varied, true));
+  LightFixture f(street_scene(8, varied, true));
   CachePointSampler s(f.lights, f.accel);
   EXPECT_EQ(s.emitters().size(), 2u * 64u * 2u + 1u);  // two triangles per quad, and the sky
   EXPECT_GE(s.point_count(), 10u);
@@ -60,13 +50,13 @@ TEST(CachePoints, BuildsPointsAndEmittersPerTriangle) {
 }
 
 TEST(CachePoints, PmfSumsToOne) {
-  Fixture f(street_scene(8, varied, true));
+  LightFixture f(street_scene(8, varied, true));
   CachePointSampler s(f.lights, f.accel);
   for (const LightSampleContext& ctx : vertices()) EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
 }
 
 TEST(CachePoints, SampledPmfIsThePmfAndFrequenciesMatch) {
-  Fixture f(street_scene(8, varied, true));
+  LightFixture f(street_scene(8, varied, true));
   CachePointSampler s(f.lights, f.accel);
   const size_t n = s.emitters().size();
   for (const LightSampleContext& ctx : vertices()) {
@@ -83,28 +73,13 @@ TEST(CachePoints, SampledPmfIsThePmfAndFrequenciesMatch) {
     for (size_t e = 0; e < n; ++e)
       expected[e] = kSamples * double(s.pmf_primitive(ctx, s.emitters().emitters[e].light,
                                                       s.emitters().emitters[e].primitive));
-    // Pool emitters expecting fewer than 5 samples into one cell.
-    double stat = 0.0, pooled_o = 0.0, pooled_e = 0.0;
-    int dof = -1;
-    for (size_t e = 0; e < n; ++e) {
-      if (expected[e] < 5.0) {
-        pooled_o += observed[e];
-        pooled_e += expected[e];
-        continue;
-      }
-      stat += sqr(observed[e] - expected[e]) / expected[e];
-      ++dof;
-    }
-    if (pooled_e >= 5.0) {
-      stat += sqr(pooled_o - pooled_e) / pooled_e;
-      ++dof;
-    }
-    EXPECT_GT(chi2_p_value(stat, dof), 1e-3) << "statistic " << stat << " dof " << dof;
+    Chi2Result r = chi2_counts(observed, expected, 1e-3);
+    EXPECT_TRUE(r.passed) << r.report;
   }
 }
 
 TEST(CachePoints, PrefersTheLightsOnItsSideOfTheWall) {
-  Fixture f(street_scene(8, [](int) { return 1.0f; }, false));
+  LightFixture f(street_scene(8, [](int) { return 1.0f; }, false));
   CachePointSampler s(f.lights, f.accel);
   // On the floor left of the wall (x < 0) the lights facing -x carry almost all probability.
   const LightSampleContext ctx{vec3(-3, 0, 1), vec3(0), vec3(0, 1, 0), vec3(0, 1, 0)};
@@ -116,7 +91,7 @@ TEST(CachePoints, PrefersTheLightsOnItsSideOfTheWall) {
 
 TEST(CachePoints, LearnedVisibilityLowersOccludedLightsAndIsDeterministic) {
   const std::string text = street_scene(8, varied, true);
-  Fixture f(text);
+  LightFixture f(text);
   const LightSampleContext ctx = vertices()[0];
   // The same shadow-ray outcomes reported on 1 and on 4 threads.
   // Few points, so that each sees enough shadow rays to learn from (24
@@ -149,7 +124,7 @@ TEST(CachePoints, LearnedVisibilityLowersOccludedLightsAndIsDeterministic) {
   EXPECT_EQ(one->save_state(), four->save_state());
   EXPECT_NEAR(pmf_sum(*one, ctx), 1.0, 1e-4);
   // The occluded half lost probability to the visible half.
-  Fixture fresh(text);
+  LightFixture fresh(text);
   CachePointSampler before(fresh.lights, fresh.accel, few);
   double occluded_before = 0.0, occluded_after = 0.0;
   int lowered = 0;
@@ -174,7 +149,7 @@ TEST(CachePoints, LearnedVisibilityLowersOccludedLightsAndIsDeterministic) {
 TEST(CachePoints, DegenerateLightSets) {
   // Every light at the same place inside the wall; a third of them black.
   for (const std::string& text : {street_scene(6, varied, false, true), street_scene(6, dark, true)}) {
-    Fixture f(text);
+    LightFixture f(text);
     CachePointSampler s(f.lights, f.accel);
     for (const LightSampleContext& ctx : vertices()) {
       EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
@@ -186,14 +161,14 @@ TEST(CachePoints, DegenerateLightSets) {
     }
   }
   // One light: nothing to choose, nothing built.
-  Fixture one(street_scene(0, varied, true));
+  LightFixture one(street_scene(0, varied, true));
   EXPECT_STREQ(make_light_sampler("cachepoints", one.lights, one.accel)->name(), "power");
   EXPECT_STREQ(make_light_sampler("auto", one.lights, one.accel)->name(), "power");
   EXPECT_THROW(make_light_sampler("bvh2", one.lights, one.accel), Error);
 }
 
 TEST(CachePoints, FewPointsFallBackToLocallyOptimal) {
-  Fixture f(street_scene(4, varied, true));
+  LightFixture f(street_scene(4, varied, true));
   CachePointParams p;
   p.object_candidates = 0;
   p.pilot_width = p.pilot_height = 2;

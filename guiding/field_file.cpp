@@ -226,7 +226,8 @@ const std::vector<std::string> kColumns = {
     "samples",              "samples_nonzero",       "samples_iteration", "samples_nonzero_iteration",
     "mean_radiance",        "tree_sample_count",     "quadtree_depth",    "quadtree_nodes",
     "has_energy",           "selection_probability", "samples_min_x",     "samples_min_y",
-    "samples_min_z",        "samples_max_x",         "samples_max_y",     "samples_max_z"};
+    "samples_min_z",        "samples_max_x",         "samples_max_y",     "samples_max_z",
+    "radiance_integral"};
 
 }  // namespace
 
@@ -275,8 +276,9 @@ FieldSnapshot FieldRecorder::snapshot(const SDTree& tree, int iteration, uint32_
                           double(out.quadtree.size()),
                           leaf.has_energy ? 1.0 : 0.0,
                           leaf.has_energy ? double(tree.selection_probability(uint32_t(l))) : 0.0,
-                          seen.min.x, seen.min.y, seen.min.z, seen.max.x, seen.max.y, seen.max.z};
-    static_assert(std::size(row) == 16);
+                          seen.min.x, seen.min.y, seen.min.z, seen.max.x, seen.max.y, seen.max.z,
+                          double(leaf.radiance_integral)};
+    static_assert(std::size(row) == 17);
     snap.table.insert(snap.table.end(), std::begin(row), std::end(row));
     snap.leaves.push_back(std::move(out));
   }

@@ -70,8 +70,19 @@ class Browser:
             time.sleep(0.1)
         port = int(port_file.read_text().split()[0])
         import urllib.request
-        targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list"))
-        page = next(t for t in targets if t["type"] == "page")
+        # The port file can appear before the page is listed (or the server answers): ask until it is.
+        page = None
+        while page is None:
+            try:
+                targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list"))
+                page = next((t for t in targets if t["type"] == "page"), None)
+            except OSError:
+                pass
+            if page is None:
+                if time.time() > deadline:
+                    self.close()
+                    fail("chromium listed no page within 30 s")
+                time.sleep(0.1)
         self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=60, suppress_origin=True)
         self.next_id = 0
         self.events = []

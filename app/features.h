@@ -281,10 +281,10 @@ struct IterationOptions {
 
 template <class V>
 void declare_options(V& v, IterationOptions& o) {
-  v.image("first", o.first, "First iteration size in spp (-1: the schedule's)");
-  v.image("repeat", o.repeat, "Iterations of the first size (-1: the schedule's)");
-  v.image("growth", o.growth, "Growth factor of iteration sizes (-1: the schedule's)");
-  v.image("max", o.max, "Largest iteration size in spp (-1: the schedule's)");
+  v.image("first", o.first, "First iteration size in spp (default: the schedule's)");
+  v.image("repeat", o.repeat, "Iterations of the first size (default: the schedule's)");
+  v.image("growth", o.growth, "Growth factor of iteration sizes (default: the schedule's)");
+  v.image("max", o.max, "Largest iteration size in spp (default: the schedule's)");
 }
 
 void check(const CheckpointOptions& o);

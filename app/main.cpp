@@ -33,6 +33,10 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, on_stop_signal);
   CLI::App app{"theia: a sorted-deferred (wavefront) path tracer for pbrt-v4 scenes"};
   app.require_subcommand(1);
+  // A bad command line is an error like any other: "error: --spp: must not be negative, got -1".
+  app.failure_message([](const CLI::App*, const CLI::Error& e) {
+    return "error: " + std::string(e.what()) + "\n(--help lists the options)\n";
+  });
 
   RenderConfig rc;
   bool quiet = false;

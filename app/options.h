@@ -29,6 +29,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -52,10 +53,27 @@ struct OptionVisitor {
   std::string group;
 };
 
+// No option takes a negative number.  Counts, sizes, seeds, depths, limits
+// and probabilities are never negative, and a default that means "not given"
+// (-1: the scene's spp and maximum depth, the schedule's iteration sizes, off)
+// is not a value to type: `--spp -1` is refused, never taken as the default.
+// CLI11 names the flag: "--spp: must not be negative, got -1 ...".
+inline CLI::Validator non_negative_number() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(value, v) || !(v < 0.0)) return {};
+        return "must not be negative, got " + value + " (leave the option out for its default)";
+      },
+      "", "non-negative");
+}
+
 // Binds each option to a flag.  A bool that defaults to on, or that only
 // tunes how the render runs (an `order` option: --sort), is a switch
 // (--caustics / --no-caustics, --sort on|off); any other is a flag
-// (--guiding), which never takes the next argument as its value.
+// (--guiding), which never takes the next argument as its value.  A number
+// must not be negative (non_negative_number); a default that is one (a "not
+// given" -1) is not shown as the default.
 struct OptionBinder : OptionVisitor {
   CLI::App& app;
   explicit OptionBinder(CLI::App& a) : app(a) {}
@@ -78,6 +96,9 @@ struct OptionBinder : OptionVisitor {
             ->expected(0, 1);
       else
         app.add_flag(flag, field, help);
+    } else if constexpr (std::is_arithmetic_v<T>) {
+      CLI::Option* option = app.add_option(flag, field, help)->check(non_negative_number());
+      if (!std::signbit(double(field))) option->capture_default_str();
     } else {
       app.add_option(flag, field, help)->capture_default_str();
     }
@@ -114,16 +135,24 @@ struct OptionFingerprintText : OptionVisitor {
   void output(const char*, const T&, const char*) {}
 };
 
-// The flags of each kind (tests: every image option refuses a resume, every order option resumes).
+// The flags of each kind (tests: every image option refuses a resume, every
+// order option resumes), and those that take a number (every one refuses a negative).
 struct OptionFlags : OptionVisitor {
-  std::vector<std::string> image_flags, order_flags, output_flags;
+  std::vector<std::string> image_flags, order_flags, output_flags, number_flags;
 
   template <class T>
-  void image(const char* name, const T&, const char*) { image_flags.push_back(option_flag(group, name)); }
+  void image(const char* name, const T&, const char*) { add(image_flags, name, T{}); }
   template <class T>
-  void order(const char* name, const T&, const char*) { order_flags.push_back(option_flag(group, name)); }
+  void order(const char* name, const T&, const char*) { add(order_flags, name, T{}); }
   template <class T>
-  void output(const char* name, const T&, const char*) { output_flags.push_back(option_flag(group, name)); }
+  void output(const char* name, const T&, const char*) { add(output_flags, name, T{}); }
+
+ private:
+  template <class T>
+  void add(std::vector<std::string>& kind, const char* name, const T&) {
+    kind.push_back(option_flag(group, name));
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) number_flags.push_back(kind.back());
+  }
 };
 
 }  // namespace theia

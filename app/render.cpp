@@ -310,6 +310,13 @@ static double memory_limit_bytes(const RenderConfig& c) {
   return double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE));
 }
 
+// What --memory-limit leaves for the scene's images once its geometry is
+// loaded: each image's pixels are checked against it before they are allocated.
+static uint64_t image_bytes_left(const RenderConfig& c) {
+  const double left = memory_limit_bytes(c) - double(peak_rss_bytes());
+  return left > 0.0 ? uint64_t(left) : 0;
+}
+
 // A path's share of the engine at its peak: its 64-byte state, a
 // continuation and a shadow ray with their hits, sort keys and queue slots
 // (memory.wavefront / paths.pool in a log is below this).
@@ -401,7 +408,7 @@ int run_render(const RenderConfig& in) {
   auto t0 = std::chrono::steady_clock::now();
   if (!config.wall_start) config.wall_start = t0;
   Scene scene = load_scene(config.scene_path);
-  load_images(scene);
+  load_images(scene, image_bytes_left(config));
   double load_seconds = seconds_since(t0);
   log_info("loaded {} in {:.2f} s: {} shapes, {} lights, {}x{}", config.scene_path, load_seconds, scene.shapes.size(),
            scene.lights.size(), scene.film.width, scene.film.height);

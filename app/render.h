@@ -36,15 +36,15 @@ struct RenderOptions {
 
 template <class V>
 void declare_options(V& v, RenderOptions& o) {
-  v.image("spp", o.spp, "Samples per pixel (-1: the scene's)");
+  v.image("spp", o.spp, "Samples per pixel (default: the scene's)");
   v.order("threads", o.threads, "Worker threads (0: all cores)");
   v.image("seed", o.seed, "Random seed");
-  v.image("max_depth", o.max_depth, "Maximum path depth (-1: the scene's)");
+  v.image("max_depth", o.max_depth, "Maximum path depth (default: the scene's)");
   v.order("batch_size", o.batch_size, "Rays per wavefront batch (0: sized from the frame and thread count)");
   v.order("max_paths", o.max_paths, "Capacity of the path-state pool (0: sized from the frame and thread count)");
   v.order("sort", o.sort, "Sort rays and hits (--sort on|off, --no-sort)");
   v.image("throughput_reset_bounce", o.throughput_reset_bounce,
-          "Render the 'throughput reset at bounce N' image as the beauty (-1: off)");
+          "Render the 'throughput reset at bounce N' image as the beauty (default: off)");
   v.output("memory_limit", o.memory_limit,
            "MB the scene, film and path pool may take, checked before they are allocated (0: the machine's memory)");
 }

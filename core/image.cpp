@@ -115,7 +115,7 @@ void sort_exr_channels(std::vector<ExrChannel>& chans) {
 }
 
 // The first part of a scanline or tiled file, every channel as float.
-ImageBuffer read_exr(const std::string& path, ImageFileInfo* info) {
+ImageBuffer read_exr(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve) {
   start_exr_threads();
   Imf::InputFile file(path.c_str());
   const Imf::Header& header = file.header();
@@ -146,9 +146,10 @@ ImageBuffer read_exr(const std::string& path, ImageFileInfo* info) {
 
   std::error_code ec;
   const uintmax_t file_bytes = fs::file_size(path, ec);
-  if (ec || !image_size_fits(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes)))
-    throw_error("{}: cannot read image ({})", path,
-                image_size_error(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes)));
+  if (ec) throw_error("{}: cannot read image ({})", path, ec.message());
+  const std::string refused =
+      image_size_refusal(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes), reserve);
+  if (!refused.empty()) throw_error("{}: cannot read image ({})", path, refused);
   ImageBuffer img;
   img.width = width;
   img.height = height;
@@ -228,12 +229,12 @@ void check_buffer(const std::string& path, const ImageBuffer& img) {
 
 }  // namespace
 
-ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info) {
+ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw_error("{}: no such file", path);
   if (is_exr_file(path)) {
     try {
-      return read_exr(path, info);
+      return read_exr(path, info, reserve);
     } catch (const Error&) {
       throw;
     } catch (const std::exception& e) {
@@ -241,14 +242,14 @@ ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info) {
     }
   }
   switch (image_reader_for(path)) {
-    case ImageReader::PFM: return read_pfm(path, info);
-    case ImageReader::StbImage: return read_with_stb_image(path, info);
+    case ImageReader::PFM: return read_pfm(path, info, reserve);
+    case ImageReader::StbImage: return read_with_stb_image(path, info, reserve);
     default: break;
   }
   ImageBuffer img;
   ImageFileInfo file_info;
   std::string why;
-  if (!oiio_reader(path)(path.c_str(), img, file_info, why)) throw_error("{}: cannot read image ({})", path, why);
+  if (!oiio_reader(path)(path.c_str(), img, file_info, reserve, why)) throw_error("{}: cannot read image ({})", path, why);
   if (info) *info = std::move(file_info);
   return img;
 }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -65,12 +66,25 @@ inline std::string image_size_error(uint64_t width, uint64_t height, uint64_t ch
          " values cannot come from a file of " + std::to_string(file_bytes) + " bytes (truncated or corrupt)";
 }
 
+// Asked by a reader once the header gives the image's size, before its float
+// values are allocated: "" to go on, or why not (the scene's images against
+// a memory limit, scene/texture.h).  It must not throw (it is called inside
+// the OpenImageIO module too, core/oiio_module.h).
+using ImageReserve = std::function<std::string(uint64_t width, uint64_t height, uint64_t channels)>;
+
+// Every reader's check before it allocates: "" or why the header's size is refused.
+inline std::string image_size_refusal(uint64_t width, uint64_t height, uint64_t channels, uint64_t file_bytes,
+                                      const ImageReserve& reserve) {
+  if (!image_size_fits(width, height, channels, file_bytes)) return image_size_error(width, height, channels, file_bytes);
+  return reserve ? reserve(width, height, channels) : std::string();
+}
+
 // Any format OpenImageIO reads (EXR, PFM, PNG, TGA, JPEG, HDR, ...), first subimage,
 // all channels, values as stored (no colour conversion, alpha not premultiplied).
 // EXR (told by its magic number, not the name) comes back as OpenImageIO
 // presented it: channels by layer, R G B A first within one.
-// Throws theia::Error("path: reason").
-ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info = nullptr);
+// Throws theia::Error("path: reason"); `reserve` may refuse the size first.
+ImageBuffer read_image_file(const std::string& path, ImageFileInfo* info = nullptr, const ImageReserve& reserve = {});
 
 // Multi-channel float32 OpenEXR (zip), channel names as given.  Written to
 // path + ".tmp" and renamed, so a crash never leaves a truncated file at path.

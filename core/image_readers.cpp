@@ -105,7 +105,7 @@ ImageReader image_reader_for(const std::string& path) {
   return stb_format_name(bytes, path) ? ImageReader::StbImage : ImageReader::OpenImageIO;
 }
 
-ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info) {
+ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_error("{}: cannot open", path);
   const PfmHeader h = read_pfm_header(in, path);
@@ -114,6 +114,8 @@ ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info) {
   if (h.data_offset > size || (size - h.data_offset) / sizeof(float) < values)
     throw_error("{}: cannot read image ({})", path,
                 image_size_error(uint64_t(h.width), uint64_t(h.height), uint64_t(h.channels), size));
+  const std::string refused = reserve ? reserve(uint64_t(h.width), uint64_t(h.height), uint64_t(h.channels)) : "";
+  if (!refused.empty()) throw_error("{}: cannot read image ({})", path, refused);
 
   ImageBuffer img(int(h.width), int(h.height), channel_names(h.channels));
   const size_t row = size_t(h.width) * size_t(h.channels);
@@ -126,15 +128,15 @@ ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info) {
   return img;
 }
 
-ImageBuffer read_with_stb_image(const std::string& path, ImageFileInfo* info) {
+ImageBuffer read_with_stb_image(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve) {
   const char* format = stb_format_name(first_bytes(path), path);
   int w = 0, h = 0, n = 0;
   if (!format || !stbi_info(path.c_str(), &w, &h, &n))
     throw_error("{}: cannot read image ({})", path, stbi_failure_reason() ? stbi_failure_reason() : "unknown format");
-  if (w <= 0 || h <= 0 || n <= 0 || !image_size_fits(uint64_t(w), uint64_t(h), uint64_t(n), file_size(path)))
-    throw_error("{}: cannot read image ({})", path,
-                image_size_error(uint64_t(std::max(w, 0)), uint64_t(std::max(h, 0)), uint64_t(std::max(n, 0)),
-                                 file_size(path)));
+  const uint64_t uw = uint64_t(std::max(w, 0)), uh = uint64_t(std::max(h, 0)), un = uint64_t(std::max(n, 0));
+  const std::string refused = w <= 0 || h <= 0 || n <= 0 ? image_size_error(uw, uh, un, file_size(path))
+                                                         : image_size_refusal(uw, uh, un, file_size(path), reserve);
+  if (!refused.empty()) throw_error("{}: cannot read image ({})", path, refused);
 
   const size_t values = size_t(w) * size_t(h) * size_t(n);
   ImageBuffer img(w, h, channel_names(n));

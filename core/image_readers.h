@@ -22,8 +22,9 @@ enum class ImageReader { OpenEXR, PFM, StbImage, OpenImageIO };
 // Chosen from the file's first bytes (TGA, which has no magic number, by its extension).
 ImageReader image_reader_for(const std::string& path);
 
-// Throw theia::Error("path: reason"), before allocating anything the file cannot hold.
-ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info);
-ImageBuffer read_with_stb_image(const std::string& path, ImageFileInfo* info);
+// Throw theia::Error("path: reason"), before allocating anything the file
+// cannot hold or `reserve` refuses (core/image.h).
+ImageBuffer read_pfm(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve = {});
+ImageBuffer read_with_stb_image(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve = {});
 
 }  // namespace theia

@@ -19,6 +19,7 @@ bool fail(std::string& error, std::string why, const char* otherwise) {
 extern "C" __attribute__((visibility("default"))) bool theia_oiio_read_image(const char* path,
                                                                               theia::ImageBuffer& img,
                                                                               theia::ImageFileInfo& info,
+                                                                              const theia::ImageReserve& reserve,
                                                                               std::string& error) try {
   OIIO::ImageSpec config;
   // Keep straight alpha as stored: textures and metrics want the file's values,
@@ -35,12 +36,10 @@ extern "C" __attribute__((visibility("default"))) bool theia_oiio_read_image(con
 
   std::error_code ec;
   const uintmax_t file_bytes = std::filesystem::file_size(path, ec);
-  if (ec || !theia::image_size_fits(uint64_t(spec.width), uint64_t(spec.height), uint64_t(spec.nchannels),
-                                    uint64_t(file_bytes)))
-    return fail(error,
-                theia::image_size_error(uint64_t(spec.width), uint64_t(spec.height), uint64_t(spec.nchannels),
-                                        uint64_t(file_bytes)),
-                "");
+  if (ec) return fail(error, ec.message(), "cannot stat the file");
+  const std::string refused = theia::image_size_refusal(uint64_t(spec.width), uint64_t(spec.height),
+                                                        uint64_t(spec.nchannels), uint64_t(file_bytes), reserve);
+  if (!refused.empty()) return fail(error, refused, "");
   img.width = spec.width;
   img.height = spec.height;
   img.channels.clear();

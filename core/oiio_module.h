@@ -18,6 +18,7 @@ inline constexpr const char* kOiioReadImageSymbol = "theia_oiio_read_image";
 // read_image_file for any format OpenImageIO reads.  Returns false with a
 // reason in `error` instead of throwing: no exception crosses the module
 // boundary, and the module needs nothing of theia but these plain structs.
-using OiioReadImage = bool (*)(const char* path, ImageBuffer& image, ImageFileInfo& info, std::string& error);
+using OiioReadImage = bool (*)(const char* path, ImageBuffer& image, ImageFileInfo& info, const ImageReserve& reserve,
+                               std::string& error);
 
 }  // namespace theia

@@ -3,6 +3,9 @@
 # scratch copy of the seed corpus (new inputs land in BUILD/corpus-TARGET,
 # crashes in BUILD/crashes-TARGET).
 #   fuzz/run.sh BUILD_DIR/fuzz SECONDS [scene|ply|image ...]
+# FUZZ_TIMEOUT (seconds per input, default 10): libFuzzer's timeout is wall
+# clock, so a run under `nice` on a busy machine needs more (a starved input
+# is not a hang: replay it alone to see its CPU time).
 set -eu
 bin=$1
 seconds=$2
@@ -16,8 +19,12 @@ for t in $targets; do
   mkdir -p "$corpus" "$crashes"
   cp -n "$here"/corpus/$t/* "$corpus"/ 2>/dev/null || true
   # 2 GB RSS and 10 s per input: an allocation the header checks missed, or a hang, is a finding.
-  # Full stacks at allocations, so the suppression sees the library that leaked.
-  ASAN_OPTIONS=fast_unwind_on_malloc=0 LSAN_OPTIONS=suppressions="$here"/lsan.supp "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 \
+  timeout=${FUZZ_TIMEOUT:-10}
+  # Image loading: full stacks at allocations, so the suppression sees the
+  # library that leaked (lsan.supp); elsewhere the fast unwinder (several times the executions).
+  unwind=fast_unwind_on_malloc=1
+  [ "$t" = image ] && unwind=fast_unwind_on_malloc=0
+  ASAN_OPTIONS=$unwind LSAN_OPTIONS=suppressions="$here"/lsan.supp "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout="$timeout" \
     -artifact_prefix="$crashes"/ -print_final_stats=1 2>"$bin"/fuzz-$t.log || status=1
   grep -E "stat::number_of_executed_units|SUMMARY|ERROR" "$bin"/fuzz-$t.log | sed "s/^/$t: /"
 done

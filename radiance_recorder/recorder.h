@@ -136,7 +136,7 @@ void declare_options(V& v, RecorderOptions& o) {
   v.image("min_distance", o.min_distance, "Closer than this to its parent, a vertex is merged into the parent");
   v.image("debug", o.debug, "Write the recorder's primary-hit debug layer 'recorder' (equals the beauty)");
   v.image("debug_bounce", o.debug_bounce,
-          "Also write layer 'recorder_bounceN' (compare with --throughput-reset-bounce N); -1: none");
+          "Also write layer 'recorder_bounceN' (compare with --throughput-reset-bounce N; default: none)");
 }
 
 struct RecorderStats {

@@ -7,8 +7,11 @@
 #include <charconv>
 #include <cstdio>
 #include <cstring>
+#include <cmath>
 #include <filesystem>
+#include <optional>
 #include <string_view>
+#include <utility>
 
 namespace theia {
 
@@ -59,6 +62,19 @@ struct Element {
   std::vector<Property> props;
 };
 
+// The values an integer type holds (what a binary file can store), none for the float types.
+std::optional<std::pair<double, double>> integer_range(Scalar s) {
+  switch (s) {
+    case Scalar::Int8: return std::pair{-128.0, 127.0};
+    case Scalar::UInt8: return std::pair{0.0, 255.0};
+    case Scalar::Int16: return std::pair{-32768.0, 32767.0};
+    case Scalar::UInt16: return std::pair{0.0, 65535.0};
+    case Scalar::Int32: return std::pair{-2147483648.0, 2147483647.0};
+    case Scalar::UInt32: return std::pair{0.0, 4294967295.0};
+    default: return std::nullopt;
+  }
+}
+
 enum class Format { Ascii, BinaryLE, BinaryBE };
 
 template <typename T>
@@ -88,7 +104,7 @@ class BodyReader {
   size_t min_bytes(Scalar t) const { return ascii_ ? 2 : scalar_size(t); }
 
   double read(Scalar t, const char* what) {
-    if (ascii_) return read_ascii(what);
+    if (ascii_) return read_ascii(t, what);
     size_t n = scalar_size(t);
     if (size_t(end_ - p_) < n) truncated(what);
     const char* q = p_;
@@ -106,7 +122,9 @@ class BodyReader {
   }
 
  private:
-  double read_ascii(const char* what) {
+  // An ASCII value of an integer type is a whole number in its range, as a
+  // binary one is (a list length read as "nan" once reached an allocation).
+  double read_ascii(Scalar t, const char* what) {
     while (p_ < end_ && (*p_ == ' ' || *p_ == '\t' || *p_ == '\r' || *p_ == '\n')) ++p_;
     if (p_ >= end_) truncated(what);
     const char* b = p_;
@@ -117,6 +135,10 @@ class BodyReader {
     auto [ptr, ec] = std::from_chars(s, p_, v);
     if (ec != std::errc() || ptr != p_)
       throw_error("{}: error: bad number \"{}\" in the {} data, expected a number", path_, std::string_view(b, size_t(p_ - b)), what);
+    const auto range = integer_range(t);
+    if (range && !(v >= range->first && v <= range->second && v == std::floor(v)))
+      throw_error("{}: error: bad number \"{}\" in the {} data, expected a whole number in [{}, {}]", path_,
+                  std::string_view(b, size_t(p_ - b)), what, range->first, range->second);
     return v;
   }
   [[noreturn]] void truncated(const char* what) const {
@@ -283,7 +305,7 @@ TriangleMesh read_ply(const std::string& path) {
           continue;
         }
         double count = in.read(p.count_type, e.name.c_str());
-        if (count < 0) throw_error("{}: error: negative list length in the {} data", path, e.name);
+        if (!(count >= 0)) throw_error("{}: error: negative list length in the {} data", path, e.name);
         if (count > double(in.remaining() / in.min_bytes(p.type)))
           throw_error("{}: error: unexpected end of file in the {} data: a list of {} values, {} bytes left, expected "
                       "more values", path, e.name, count, in.remaining());

@@ -9,11 +9,13 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <system_error>
 #include <type_traits>
 
@@ -80,14 +82,14 @@ std::vector<int> texture_channels(const ImageBuffer& buf) {
 
 }  // namespace
 
-void load_image(Image& image, const std::string& base_dir) {
+void load_image(Image& image, const std::string& base_dir, const ImageReserve& reserve) {
   if (image.filename.empty()) {
     if (!image.pixels.empty()) return;
     throw_error("image without a filename and without pixels");
   }
   std::string path = resolve_path(image.filename, base_dir);
   ImageFileInfo info;
-  ImageBuffer buf = read_image_file(path, &info);
+  ImageBuffer buf = read_image_file(path, &info, reserve);
   ParsedEncoding enc = parse_encoding(path, image.encoding, info.float_pixels);
   // pbrt-v4 applies an encoding only to integer pixels; float files are linear.
   if (info.float_pixels) enc.kind = Encoding::Linear;
@@ -136,16 +138,72 @@ void load_image(Image& image, const std::string& base_dir) {
     }
 }
 
-void load_images(Scene& scene) {
+namespace {
+
+// The scene's images against a byte limit while they load in parallel: each
+// reserves its float values (the file's width x height x channels) once its
+// header is read, before they are allocated.  The image a refusal names does
+// not depend on which thread came first: it is the first, in scene order, at
+// which the sizes add up beyond the limit (what a sequential load refuses).
+std::string size_text(uint64_t bytes) {
+  return bytes < 100'000 ? fmt::format("{} bytes", bytes) : fmt::format("{:.1f} MB", double(bytes) * 1e-6);
+}
+
+struct ImageBudget {
+  struct Size {
+    uint64_t width = 0, height = 0, channels = 0;
+    uint64_t bytes() const { return width * height * channels * sizeof(float); }
+  };
+  uint64_t limit;
+  std::vector<Size> asked;      // per image, what its header asked for (0 if never read)
+  std::vector<uint8_t> refused;  // per image
+  std::atomic<uint64_t> used{0};
+
+  ImageBudget(uint64_t max_bytes, size_t images) : limit(max_bytes), asked(images), refused(images, 0) {}
+
+  ImageReserve reserve_for(size_t i) {
+    if (limit == UINT64_MAX) return {};
+    return [this, i](uint64_t w, uint64_t h, uint64_t c) -> std::string {
+      asked[i] = {w, h, c};  // the reader's file-size check keeps w * h * c far from overflow
+      const uint64_t bytes = asked[i].bytes();
+      if (used.fetch_add(bytes) + bytes <= limit) return {};
+      used.fetch_sub(bytes);
+      refused[i] = 1;
+      return "over the memory limit";
+    };
+  }
+  // After the loads: the image named for the limit (or none), and why.
+  std::optional<std::pair<size_t, std::string>> refusal(const std::vector<Image>& images) const {
+    if (std::find(refused.begin(), refused.end(), 1) == refused.end()) return std::nullopt;
+    uint64_t total = 0;
+    for (size_t i = 0; i < asked.size(); ++i) {
+      total += asked[i].bytes();
+      if (total <= limit) continue;
+      const Size& s = asked[i];
+      std::string with =
+          total > s.bytes() ? fmt::format(" ({} with the images before it)", size_text(total)) : std::string();
+      return std::pair{i, fmt::format("{}: its {}x{}x{} float values need {}{}, over the {} the memory limit leaves "
+                                      "for the scene's images (--memory-limit)",
+                                      images[i].filename, s.width, s.height, s.channels, size_text(s.bytes()), with,
+                                      size_text(limit))};
+    }
+    return std::nullopt;
+  }
+};
+
+}  // namespace
+
+void load_images(Scene& scene, uint64_t max_bytes) {
   std::string base_dir;
   if (!scene.path.empty()) base_dir = fs::path(scene.path).parent_path().string();
   size_t n = scene.images.size();
+  ImageBudget budget(max_bytes, n);
   // Collect per-image errors and report in index order, so the message does
   // not depend on which thread failed first.
   std::vector<std::string> errors(n);
   tbb::parallel_for(size_t(0), n, [&](size_t i) {
     try {
-      load_image(scene.images[i], base_dir);
+      load_image(scene.images[i], base_dir, budget.reserve_for(i));
     } catch (const std::exception& e) {
       const Image& image = scene.images[i];
       errors[i] = e.what();
@@ -157,6 +215,13 @@ void load_images(Scene& scene) {
       if (!image.loc.file.empty()) errors[i] = fmt::format("{}: error: {}", format_loc(image.loc), errors[i]);
     }
   });
+  if (auto refusal = budget.refusal(scene.images)) {
+    for (size_t i = 0; i < n; ++i)
+      if (budget.refused[i]) errors[i].clear();
+    const Image& image = scene.images[refusal->first];
+    errors[refusal->first] =
+        image.loc.file.empty() ? refusal->second : fmt::format("{}: error: {}", format_loc(image.loc), refusal->second);
+  }
   size_t failed = 0;
   const std::string* first = nullptr;
   for (const std::string& e : errors)

@@ -10,6 +10,9 @@
 
 #include "scene/scene.h"
 
+#include "core/image.h"
+
+#include <cstdint>
 #include <string>
 
 namespace theia {
@@ -24,9 +27,12 @@ namespace theia {
 // with pixels already present and no filename are left alone.  Throws
 // theia::Error naming the file.  Then builds the MIP pyramids trilinear and EWA
 // textures need (build_mipmaps, scene/mipmap.h).
-void load_images(Scene& scene);
-// One image; `base_dir` as above ("" = as given).
-void load_image(Image& image, const std::string& base_dir = "");
+// `max_bytes`: what the images' float values may take together (the memory
+// limit's share left for them), checked from each header before its pixels
+// are allocated; the image at which they would exceed it is a located error.
+void load_images(Scene& scene, uint64_t max_bytes = UINT64_MAX);
+// One image; `base_dir` as above ("" = as given); `reserve` as read_image_file's (core/image.h).
+void load_image(Image& image, const std::string& base_dir = "", const ImageReserve& reserve = {});
 
 // uv's screen-space derivatives: the filter footprint of trilinear and EWA imagemaps
 // (all zero = no footprint: level 0).  theia has no ray differentials; the

@@ -58,7 +58,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
       const PixelSample s = camera_sample(first + i, ranges, sample_begin, sample_count);
       const SamplerKey key{opt.seed, s.pixel, s.sample};
-      FilterSample fs = sample_filter(filter, sample_2d(key, CameraDims::film));
+      FilterSample fs = camera_filter_sample(filter, opt.seed, s.pixel, s.sample);
       vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
       auto cam = generate_camera_ray(camera, p_film, sample_2d(key, CameraDims::lens));
       Ray ray;

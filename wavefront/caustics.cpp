@@ -4,6 +4,7 @@
 #include "core/sampler.h"
 #include "core/stats.h"
 #include "scene/bsdf.h"
+#include "wavefront/sample_dims.h"
 
 #include <tbb/parallel_for.h>
 
@@ -38,7 +39,6 @@ float adjoint_shading_correction(const vec3& wo, const vec3& wi, const vec3& ns,
 struct Connection {
   vec2 raster{0.0f};
   RGB value{0.0f};  // per unit raster area, before the filter
-  bool odd = false;
   bool alive = false;
 };
 
@@ -76,19 +76,18 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
 }
 
 // One pass: the light paths of an iteration's samples, traced a chunk at a
-// time, and the per-pixel estimate they add up to.
+// time and splatted into the film as parts of their camera samples.
 struct CausticTracer::Pass {
   const CausticTracer& tracer;
+  Film& film;
   const std::function<UVFootprint(const SurfaceInteraction&)>& footprint;
-  const uint32_t seed, sample_begin;
+  const CausticSamples samples;
+  const uint32_t seed;
   const size_t pixels;
   const uint64_t total;  // light paths: one per camera sample
   const int width, height;
   const vec2 radius;
-  const float scale;     // per-path share of a pixel's estimate, over the filter's integral
-  // Each pixel's estimate, RGB interleaved, from all light paths and from
-  // the odd-numbered ones (the film's half buffers).
-  std::vector<float> estimate, estimate_odd;
+  const float inv_integral;  // the filter's
 
   // The chunk in flight.
   uint64_t first = 0;
@@ -101,18 +100,22 @@ struct CausticTracer::Pass {
   std::vector<Connection> connections;
   std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
 
-  Pass(const CausticTracer& t, const Film& film, uint32_t s_begin, uint32_t s_end,
+  Pass(const CausticTracer& t, Film& f, const CausticSamples& s,
        const std::function<UVFootprint(const SurfaceInteraction&)>& fp)
-      : tracer(t), footprint(fp), seed(uint32_t(hash(t.options_.seed, 0xca057u))), sample_begin(s_begin),
-        pixels(film.pixel_count()), total(uint64_t(pixels) * uint64_t(s_end - s_begin)), width(film.width),
-        height(film.height), radius(filter_radius(t.filter_)),
-        scale(float(double(pixels) / double(total)) / filter_integral(t.filter_)), estimate(3 * pixels, 0.0f),
-        estimate_odd(3 * pixels, 0.0f), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
-        dense_hits(kChunk), blocked(kChunk), dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
+      : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
+        pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
+        height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
+        rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk), dense_hits(kChunk), blocked(kChunk),
+        dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
 
   SamplerKey key(size_t i) const {
     uint64_t k = first + i;
-    return SamplerKey{seed, uint32_t(k % pixels), sample_begin + uint32_t(k / pixels)};
+    return SamplerKey{seed, uint32_t(k % pixels), samples.sample_begin + uint32_t(k / pixels)};
+  }
+  // Whether camera sample (pixel, sample) of this pass was rendered.
+  bool rendered(size_t pixel, uint32_t sample) const {
+    const uint64_t n = samples.sample_end - samples.sample_begin;
+    return uint64_t(pixel) * n + (sample - samples.sample_begin) < samples.rendered;
   }
   template <class Body>
   void parallel(Body&& body) const {
@@ -218,17 +221,19 @@ void CausticTracer::Pass::the_receiver() {
                 (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance *
                  adjoint_shading_correction(si.wo, cw->wi, bsdf.shading.n, si.ng));
     if (!keep(value)) return;
-    connections[i] = {cw->raster, value, (key(i).sample & 1u) != 0, true};
+    connections[i] = {cw->raster, value, true};
     shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
   });
 }
 
-// Splat through the pixel filter, as pbrt-v4's film adds splats.
+// Splat through the pixel filter, as pbrt-v4's film adds splats, each pixel's
+// share weighted as a part of that pixel's camera sample of the same index.
 void CausticTracer::Pass::splat() {
   parallel([&](size_t i) {
     const Connection& c = connections[i];
     if (!c.alive || blocked[i]) return;
     splats.fetch_add(1, std::memory_order_relaxed);
+    const uint32_t sample = key(i).sample;
     int x0 = std::max(0, int(std::ceil(c.raster.x - 0.5f - radius.x)));
     int x1 = std::min(width - 1, int(std::floor(c.raster.x - 0.5f + radius.x)));
     int y0 = std::max(0, int(std::ceil(c.raster.y - 0.5f - radius.y)));
@@ -236,23 +241,19 @@ void CausticTracer::Pass::splat() {
     for (int y = y0; y <= y1; ++y)
       for (int x = x0; x <= x1; ++x) {
         float h = filter_eval(tracer.filter_, c.raster - vec2(float(x) + 0.5f, float(y) + 0.5f));
-        if (h == 0.0f) continue;
-        RGB v = c.value * (h * scale);
-        size_t j = 3 * (size_t(y) * size_t(width) + size_t(x));
-        for (int ch = 0; ch < 3; ++ch) {
-          atomic_add(estimate[j + size_t(ch)], v[ch]);
-          // Half the paths are odd: their own estimate counts them twice.
-          if (c.odd) atomic_add(estimate_odd[j + size_t(ch)], 2.0f * v[ch]);
-        }
+        const size_t pixel = size_t(y) * size_t(width) + size_t(x);
+        if (h == 0.0f || !rendered(pixel, sample)) continue;
+        const float w = camera_filter_sample(tracer.filter_, samples.camera_seed, uint32_t(pixel), sample).weight;
+        film.splat(uint32_t(pixel), sample, c.value * (h * w * inv_integral));
       }
   });
 }
 
-void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end,
+void CausticTracer::trace(Film& film, const CausticSamples& samples,
                           const std::function<UVFootprint(const SurfaceInteraction&)>& footprint) {
-  if (!active_ || sample_end <= sample_begin) return;
+  if (!active_ || samples.sample_end <= samples.sample_begin) return;
   auto t0 = std::chrono::steady_clock::now();
-  Pass pass(*this, film, sample_begin, sample_end, footprint);
+  Pass pass(*this, film, samples, footprint);
   for (pass.first = 0; pass.first < pass.total; pass.first += kChunk) {
     pass.n = size_t(std::min<uint64_t>(kChunk, pass.total - pass.first));
     pass.leave_light();
@@ -263,7 +264,6 @@ void CausticTracer::trace(Film& film, uint32_t sample_begin, uint32_t sample_end
     pass.trace_connections();
     pass.splat();
   }
-  film.add_resolved(pass.estimate, pass.estimate_odd);
   stats_.paths += pass.total;
   stats_.caster_hits += pass.caster_hits.load();
   stats_.receiver_hits += pass.receiver_hits.load();

@@ -60,6 +60,15 @@ struct CausticStats {
 inline constexpr uint64_t kCausticDecisionPaths = 100'000;
 inline constexpr double kCausticMinSplatRate = 1e-3;
 
+// The camera samples a pass adds to: samples [sample_begin, sample_end) of
+// every pixel, numbered as the engine numbers them (g = pixel * n + sample -
+// sample_begin, n = sample_end - sample_begin), of which g < rendered are in.
+struct CausticSamples {
+  uint32_t camera_seed = 0;  // the camera rays' seed (their filter weights)
+  uint32_t sample_begin = 0, sample_end = 0;
+  uint64_t rendered = 0;
+};
+
 class CausticTracer {
  public:
   CausticTracer(const Scene& scene, const Accel& accel, const LightSet& lights, const Camera& camera,
@@ -79,12 +88,18 @@ class CausticTracer {
   // Why the pass is off (for the log), empty when active.
   const std::string& inactive_reason() const { return inactive_reason_; }
 
-  // One light path per camera sample of samples [sample_begin, sample_end)
-  // of every pixel; adds each pixel's estimate of its directly seen caustics
-  // to the film (Film::add_resolved).  Deterministic per (seed, samples).
+  // One light path per camera sample of `samples`: sample index s of the
+  // frame has one light path per pixel (keyed by seed, index, s).  Where a
+  // light path of sample s lands, its splat into pixel p is part of camera
+  // sample (p, s): weighted by that sample's filter weight
+  // (camera_filter_sample) and added to the film as the sample's own value
+  // is, and only if the sample was rendered.  So the film's sums over any set
+  // of samples hold exactly their caustics: a frame split into sample ranges
+  // anywhere (farm/) merges to the whole render, and a stopped iteration keeps
+  // its rendered samples' share.  Deterministic per (seed, samples).
   // `footprint` is the engine's texture footprint at a hit, so that both
   // tracers make the same BSDF there (and agree on casters and receivers).
-  void trace(Film& film, uint32_t sample_begin, uint32_t sample_end,
+  void trace(Film& film, const CausticSamples& samples,
              const std::function<UVFootprint(const SurfaceInteraction&)>& footprint);
 
   const CausticStats& stats() const { return stats_; }

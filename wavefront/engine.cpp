@@ -157,7 +157,7 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
 void WavefrontEngine::Impl::trace_caustics() {
   if (!caustics) return;
   ScopedTimer timer(stats.phases[Phase::Caustics]);
-  caustics->trace(film, sample_begin, sample_begin + sample_count,
+  caustics->trace(film, CausticSamples{opt.seed, sample_begin, sample_begin + sample_count, next_camera},
                   [this](const SurfaceInteraction& si) { return footprint(si); });
 }
 

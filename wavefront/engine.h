@@ -164,9 +164,8 @@ class WavefrontEngine {
                   uint64_t first_camera_sample = 0);
   // The last render() was stopped and its samples are kept as they are (a
   // time limit ends the render there): the caustic pass adds its estimate for
-  // that iteration's samples, as a finished iteration's does.  Its estimate
-  // is per pixel, scaled by the pixel's own weight, so a pixel the iteration
-  // did not reach gets none and one it reached is complete.
+  // that iteration's samples, as a finished iteration's does.  Its splats are
+  // parts of camera samples, so only the samples rendered get theirs.
   void finish_stopped_iteration();
   // The last render() abandoned paths in flight after a signal (see
   // EngineOptions::abandon_after_seconds): its film and its samples are not

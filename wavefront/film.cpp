@@ -123,17 +123,6 @@ ImageBuffer resolve_film(const Film& film) {
   return img;
 }
 
-void Film::add_resolved(const std::vector<float>& rgb, const std::vector<float>& rgb_odd) {
-  for (size_t j = 0; j < pixel_count(); ++j) {
-    r[j] += rgb[3 * j] * weight[j];
-    g[j] += rgb[3 * j + 1] * weight[j];
-    b[j] += rgb[3 * j + 2] * weight[j];
-    r_odd[j] += rgb_odd[3 * j] * weight_odd[j];
-    g_odd[j] += rgb_odd[3 * j + 1] * weight_odd[j];
-    b_odd[j] += rgb_odd[3 * j + 2] * weight_odd[j];
-  }
-}
-
 ImageBuffer film_sums_image(const Film& film, const std::string& prefix) {
   std::vector<std::string> names;
   for (const char* n : Film::kPlaneNames) names.push_back(prefix + n);

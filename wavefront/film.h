@@ -70,12 +70,6 @@ struct Film {
   void add_alpha_weight(uint32_t pixel, float w);
   void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
-  // Adds a per-pixel estimate in resolved units (RGB interleaved; `rgb_odd`
-  // from the odd-numbered samples alone) times the pixel's weight sums, so
-  // that resolving returns it on top of the samples: how an estimator that
-  // does not go through camera samples (light-traced caustics) reaches the
-  // film.  Call it once the pixel's samples are all in.
-  void add_resolved(const std::vector<float>& rgb, const std::vector<float>& rgb_odd);
 };
 
 // sum / weight, or 0 where that is not a finite number: a pixel whose

@@ -10,6 +10,9 @@
 // not use it draws exactly the numbers it drew before.
 #pragma once
 
+#include "core/sampler.h"
+#include "scene/filter.h"
+
 #include <cstdint>
 
 namespace theia {
@@ -35,6 +38,13 @@ struct CameraDims {
   static constexpr uint32_t lens = 2;  // 2D: the point on the lens
   static constexpr uint32_t count = 4;
 };
+
+// Camera sample (pixel, sample)'s point on the pixel and filter weight: the
+// camera rays draw it, and the caustic pass weights its splats into that
+// sample by the same weight (wavefront/caustics.h).
+inline FilterSample camera_filter_sample(const Filter& filter, uint32_t seed, uint32_t pixel, uint32_t sample) {
+  return sample_filter(filter, sample_2d(SamplerKey{seed, pixel, sample}, CameraDims::film));
+}
 
 // The dimensions of bounce `depth` (the vertex at hit `depth`, 0 = the primary hit).
 struct BounceDims {

@@ -53,6 +53,23 @@ TEST(Caustics, LightTracedCausticsConvergeToThePathTracedImage) {
   EXPECT_EQ(ca.log["caustics"]["dropped"].get<uint64_t>(), 0u);
 }
 
+// A light path's splat into a pixel counts as part of that pixel's camera
+// sample of the same index, weighted by that sample's filter weight: under
+// Mitchell's filter some weights are negative, and the estimate must still
+// converge to the path tracer's image.
+TEST(Caustics, SplatsTakeTheirCameraSamplesFilterWeightsNegativeLobesIncluded) {
+  Scene scene = load_test_scene("PixelFilter \"mitchell\"\n" + kMirrorRoom);
+  RenderResult pt = render(scene, 4096, false);
+  RenderResult ca = render(scene, 256, true);
+  ASSERT_GT(ca.log["caustics"]["splats"].get<uint64_t>(), 10000u);
+  RGB mp = image_mean(pt.image), mc = image_mean(ca.image);
+  std::printf("mirror room, Mitchell: path traced 4096 spp (%.4f %.4f %.4f), with caustics 256 spp (%.4f %.4f %.4f)\n",
+              mp.x, mp.y, mp.z, mc.x, mc.y, mc.z);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(mc[c] / mp[c], 1.0, 0.01) << "channel " << c;
+  EXPECT_NEAR(half_mean(ca.image, false) / half_mean(pt.image, false), 1.0, 0.01);
+  EXPECT_NEAR(half_mean(ca.image, true) / half_mean(pt.image, true), 1.0, 0.04);
+}
+
 // Splats add atomically in any order; the light paths themselves are a
 // function of (seed, pixel, sample).
 TEST(Caustics, ImageIndependentOfThreadCount) {

@@ -85,11 +85,55 @@ TEST(Hostile, HugeSizesAreClearErrorsNotBadAlloc) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("over the memory limit of 1 MB (--memory-limit"), std::string::npos) << r.output;
   r = run("render " + scene + " --spp 1 --memory-limit -3" + out);
-  EXPECT_EQ(r.output, "error: --memory-limit must be zero (the machine's memory) or a positive number of MB, got -3\n");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.output, "error: --memory-limit: must not be negative, got -3 (leave the option out for its default)\n"
+                      "(--help lists the options)\n");
   r = run("render " + scene + " --spp 1 --memory-limit nan" + out);
   EXPECT_EQ(r.exit_code, 1);
   expect_nothing_written(d);
   r = run("render " + scene + " --spp 1 --memory-limit 4000" + out);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+// A "not given" default is not a value to type (issue 16: `--spp -1` was taken
+// as the scene's spp): every number option refuses a negative value, as the
+// command line's first error (tests/e2e/test_resume.cpp checks every flag).
+TEST(Hostile, NegativeCountsOnTheCommandLineAreErrors) {
+  TempDir tmp("theia_hostile_negative");
+  const std::string scene = tmp.write("s.pbrt", kLitScene);
+  const std::string out = " -q -o " + (tmp.path / "o.exr").string();
+  for (const char* bad : {"--spp -1", "--max-depth -1", "--iteration-first -1", "--iteration-growth -1",
+                          "--threads -2", "--seed -1", "--max-paths -1", "--recorder-debug-bounce -1"}) {
+    RunResult r = run("render " + scene + " " + bad + out);
+    EXPECT_NE(r.exit_code, 0) << bad;
+    const std::string flag = std::string(bad).substr(0, std::string(bad).find(' '));
+    EXPECT_EQ(r.output.rfind("error: " + flag + ": must not be negative, got -", 0), 0u) << bad << ": " << r.output;
+  }
+  expect_nothing_written(tmp.path);
+}
+
+// An image texture's pixels count against --memory-limit before they are
+// allocated: the error names the scene line and the image.
+TEST(Hostile, ATextureBeyondTheMemoryLimitIsALocatedError) {
+  TempDir tmp("theia_hostile_texmem");
+  std::string pfm = "PF\n64 64\n-1.0\n";
+  pfm += std::string(64 * 64 * 3 * sizeof(float), '\0');
+  tmp.write("wood.pfm", pfm);
+  std::string text = kLitScene;
+  text.insert(text.find("Shape"), "Texture \"wood\" \"spectrum\" \"imagemap\" \"string filename\" \"wood.pfm\"\n"
+                                  "Material \"diffuse\" \"texture reflectance\" \"wood\"\n");
+  const std::string scene = tmp.write("s.pbrt", text);
+  const std::string out = " --spp 1 -q -o " + (tmp.path / "o.exr").string();
+  // 1 MB leaves nothing once the program itself is loaded.
+  RunResult r = run("render " + scene + " --memory-limit 1" + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output.rfind(scene + ":6:38: error: " + (tmp.path / "wood.pfm").string() +
+                               ": its 64x64x3 float values need 49152 bytes, "
+                           "over the 0 bytes the memory limit leaves for the scene's images (--memory-limit)", 0),
+            0u)
+      << r.output;
+  EXPECT_FALSE(fs::exists(tmp.path / "o.exr"));
+  r = run("render " + scene + out);
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 

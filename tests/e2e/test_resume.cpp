@@ -428,6 +428,31 @@ TEST(ResumeOptions, ParsedFlagsReachTheirFields) {
   EXPECT_THROW(parse({"--sort", "maybe"}), CLI::ParseError);
 }
 
+// No option takes a negative number, and a "not given" default (-1: the
+// scene's spp) is not a value to type: every number flag refuses -1 in the
+// one place that binds them (app/options.h), and still takes 0 or more.
+TEST(ResumeOptions, EveryNumberOptionRefusesANegativeValue) {
+  const std::vector<std::string> numbers = declared_flags().number_flags;
+  for (const char* flag : {"--spp", "--max-depth", "--seed", "--threads", "--max-paths", "--iteration-first",
+                           "--iteration-repeat", "--iteration-growth", "--iteration-max", "--combine-window",
+                           "--checkpoint-first", "--throughput-reset-bounce", "--recorder-debug-bounce",
+                           "--memory-limit", "--time-limit", "--guiding-pdf-floor"})
+    EXPECT_TRUE(std::count(numbers.begin(), numbers.end(), flag)) << flag;
+  for (const std::string& flag : numbers) {
+    for (const char* negative : {"-1", "-0.5", "-1e9"}) {
+      try {
+        parse({flag, negative});
+        ADD_FAILURE() << flag << " " << negative << " was accepted";
+      } catch (const CLI::ValidationError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  flag + ": must not be negative, got " + negative + " (leave the option out for its default)");
+      }
+    }
+    EXPECT_NO_THROW(parse({flag, "1"})) << flag;
+  }
+  EXPECT_EQ(parse({}).spp, -1);  // left out: the scene's
+}
+
 // A scene with a medium around the camera: its per-path medium state starts
 // afresh with every camera sample, so a stop anywhere resumes exactly.
 TEST(Resume, MediaSceneResumesExactly) {

@@ -122,6 +122,40 @@ TEST(ImageHostile, HeaderSizesBeyondTheFileAreRefusedBeforeAllocating) {
   EXPECT_EQ(read_image_file(ok).pixel_count(), 8u);
 }
 
+// Textures count against the memory limit: each image's float values are
+// checked from its header before they are allocated, and the image at which
+// the scene's images (in scene order) would exceed what is left is named with
+// the scene line that loaded it, whichever thread read it first.
+TEST(ImageHostile, TexturesBeyondTheMemoryLeftAreRefusedWithTheirSceneLine) {
+  TempDir dir;
+  const size_t bytes = 8 * 8 * 3 * sizeof(float);  // 768
+  const std::string a = dir.write("a.pfm", pfm(8, 8, bytes));
+  const std::string b = dir.write("b.pfm", pfm(8, 8, bytes));
+  const std::string text = "WorldBegin\nTexture \"a\" \"spectrum\" \"imagemap\" \"string filename\" \"a.pfm\"\n"
+                           "Texture \"b\" \"spectrum\" \"imagemap\" \"string filename\" \"b.pfm\"\n";
+  auto load = [&](uint64_t max_bytes) {
+    Scene s = parse_scene_string(text, "test.pbrt", dir.path.string());
+    return error_from([&] { load_images(s, max_bytes); });
+  };
+  const std::string left = ", over the 1000 bytes the memory limit leaves for the scene's images (--memory-limit)";
+  for (int repeat = 0; repeat < 4; ++repeat)
+    EXPECT_EQ(load(1000), "test.pbrt:3:35: error: " + b +
+                              ": its 8x8x3 float values need 768 bytes (1536 bytes with the images before it)" + left);
+  EXPECT_EQ(load(700), "test.pbrt:2:35: error: " + a +
+                           ": its 8x8x3 float values need 768 bytes, over the 700 bytes the memory limit leaves for "
+                           "the scene's images (--memory-limit)");
+  EXPECT_EQ(load(1536), "no error");
+  // Megabytes where they are megabytes.
+  const std::string big = dir.write("big.pfm", pfm(512, 512, 512 * 512 * 3 * sizeof(float)));
+  Image image;
+  image.filename = big;
+  Scene s;
+  s.images.push_back(image);
+  EXPECT_EQ(error_from([&] { load_images(s, 1'000'000); }),
+            big + ": its 512x512x3 float values need 3.1 MB, over the 1.0 MB the memory limit leaves for the scene's "
+                  "images (--memory-limit)");
+}
+
 // ---------------------------------------------------------------- the film
 
 TEST(FilmHostile, ValuesThatWouldOverflowItsSumsAreDroppedAndCounted) {

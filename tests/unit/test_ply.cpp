@@ -203,6 +203,27 @@ TEST(Ply, CountsTheFileCannotHoldAreErrorsBeforeAnyAllocation) {
                                    "bytes left, expected more values");
 }
 
+// An ASCII value of an integer type must be a whole number in the type's
+// range, as a binary one is: the fuzzer's list length "nan" passed every
+// check and reached an allocation (fuzz/corpus/ply/found-nan-list-length.ply).
+TEST(Ply, AsciiIntegersAreWholeNumbersInTheirTypesRange) {
+  TempDir dir;
+  const std::string header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                             "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                             "0 0 0\n1 0 0\n0 1 0\n";
+  auto error = [&](const std::string& face) { return error_of(dir.write("f.ply", header + face)); };
+  const std::string path = (dir.path / "f.ply").string();
+  EXPECT_EQ(error("nan 0 1 2\n"),
+            path + ": error: bad number \"nan\" in the face data, expected a whole number in [0, 255]");
+  EXPECT_EQ(error("3 0 1 inf\n"),
+            path + ": error: bad number \"inf\" in the face data, expected a whole number in [-2147483648, 2147483647]");
+  EXPECT_EQ(error("256 0 1 2\n"),
+            path + ": error: bad number \"256\" in the face data, expected a whole number in [0, 255]");
+  EXPECT_EQ(error("3 0 1.5 2\n"),
+            path + ": error: bad number \"1.5\" in the face data, expected a whole number in [-2147483648, 2147483647]");
+  EXPECT_EQ(error("3 0 1 2\n"), "no error");
+}
+
 TEST(Ply, NonFiniteVerticesAreErrors) {
   TempDir dir;
   std::string path = dir.write("nan.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"

@@ -11,12 +11,13 @@ namespace theia {
 
 std::vector<int> make_schedule(const ScheduleOptions& o, int total_spp) {
   if (total_spp <= 0) throw_error("the schedule needs a positive total spp, got {}", total_spp);
-  if (o.first <= 0) throw_error("the first iteration size must be positive, got {}", o.first);
+  // The fields are the command line's --iteration-NAME overrides (schedule.h), so the messages name those.
+  if (o.first <= 0) throw_error("--iteration-first (the first iteration size) must be positive, got {}", o.first);
   if (o.max < o.first)
-    throw_error("the maximum iteration size ({}) is below the first size ({})", o.max, o.first);
-  if (o.repeat < 1) throw_error("the first iteration size must be used at least once, got {}", o.repeat);
+    throw_error("--iteration-max ({}) is below the first iteration size, --iteration-first ({})", o.max, o.first);
+  if (o.repeat < 1) throw_error("--iteration-repeat (uses of the first size) must be at least 1, got {}", o.repeat);
   if (!(o.growth >= 1.0) || !std::isfinite(o.growth))
-    throw_error("the iteration growth factor must be at least 1, got {}", o.growth);
+    throw_error("--iteration-growth (the growth factor of iteration sizes) must be at least 1, got {}", o.growth);
   std::vector<int> sizes;
   int done = 0;
   double size = o.first;

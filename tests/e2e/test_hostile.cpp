@@ -112,6 +112,23 @@ TEST(Hostile, NegativeCountsOnTheCommandLineAreErrors) {
   expect_nothing_written(tmp.path);
 }
 
+// Iteration sizes that cannot make progress name the flag that set them.
+TEST(Hostile, ImpossibleIterationSizesNameTheirFlag) {
+  TempDir tmp("theia_hostile_iterations");
+  const std::string scene = tmp.write("s.pbrt", kLitScene);
+  const std::string out = " -q -o " + (tmp.path / "o.exr").string();
+  const std::pair<const char*, const char*> cases[] = {{"--iteration-first 0", "--iteration-first"},
+                                                       {"--iteration-growth 0.5", "--iteration-growth"},
+                                                       {"--iteration-repeat 0", "--iteration-repeat"},
+                                                       {"--iteration-first 8 --iteration-max 4", "--iteration-max"}};
+  for (const auto& [bad, flag] : cases) {
+    RunResult r = run("render " + scene + " " + bad + out);
+    EXPECT_NE(r.exit_code, 0) << bad;
+    EXPECT_NE(r.output.find(std::string("error: ") + flag), std::string::npos) << bad << ": " << r.output;
+  }
+  expect_nothing_written(tmp.path);
+}
+
 // An image texture's pixels count against --memory-limit before they are
 // allocated: the error names the scene line and the image.
 TEST(Hostile, ATextureBeyondTheMemoryLimitIsALocatedError) {

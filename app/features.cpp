@@ -175,11 +175,35 @@ SDTreeSample sd_tree_sample(const TrainingSample& s) {
   return {s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags)};
 }
 
-int guiding_holdout_iteration(const std::vector<int>& schedule) {
+int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp) {
   int begin = 0;
   for (size_t i = 0; i + 1 < schedule.size(); begin += schedule[i], ++i)
-    if (begin >= 8 && schedule[i] >= 4 && schedule[i + 1] >= 2) return int(i);
+    if (begin >= from_spp && schedule[i] >= 4 && schedule[i + 1] >= 2) return int(i);
   return -1;
+}
+
+// Training that never ends is judged as if its budget were the default's.
+static int judged_training_spp(int training_spp) { return training_spp > 0 ? training_spp : 256; }
+
+int guiding_probe_iteration(const std::vector<int>& schedule, int training_spp) {
+  return guiding_holdout_iteration(schedule, std::clamp(judged_training_spp(training_spp) / 4, 8, 64));
+}
+
+int guiding_final_iteration(const std::vector<int>& schedule, int training_spp) {
+  const int probe = guiding_probe_iteration(schedule, training_spp);
+  if (probe < 0) return -1;
+  int after_probe = 0;  // where the probe's pair ends
+  for (int i = 0; i <= probe + 1; ++i) after_probe += schedule[size_t(i)];
+  return guiding_holdout_iteration(schedule, std::max(judged_training_spp(training_spp), after_probe));
+}
+
+double GuidingVerdict::Round::efficiency_ratio() const {
+  const double u = unguided_variance * unguided_seconds_per_spp, g = guided_variance * guided_seconds_per_spp;
+  return u > 0.0 && g > 0.0 ? u / g : 0.0;
+}
+
+double GuidingVerdict::Round::variance_ratio() const {
+  return unguided_variance > 0.0 && guided_variance > 0.0 ? guided_variance / unguided_variance : 0.0;
 }
 
 GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
@@ -188,7 +212,10 @@ GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& sce
   if (!options.enabled) return;
   tree_ = std::make_unique<SDTree>(scene_bounds, options);
   trainer_ = std::make_unique<SDTreeTrainer>(*tree_, training_);
-  if (options.auto_off) verdict_.unguided_iteration = guiding_holdout_iteration(schedule);
+  if (options.auto_off) {
+    verdict_.probe.unguided_iteration = guiding_probe_iteration(schedule, options.training_spp);
+    verdict_.final.unguided_iteration = guiding_final_iteration(schedule, options.training_spp);
+  }
 }
 
 GuidingFeature::~GuidingFeature() = default;
@@ -222,44 +249,58 @@ bool GuidingFeature::trains(const IterationInfo& it) const {
   return options_.training_spp == 0 || it.spp_begin < uint32_t(options_.training_spp);
 }
 
-void GuidingFeature::judge(const IterationInfo& it) {
+GuidingVerdict::Round* GuidingFeature::round_of(const IterationInfo& it) {
+  for (GuidingVerdict::Round* r : {&verdict_.probe, &verdict_.final}) {
+    const bool deciding = r == &verdict_.probe ? verdict_.state == GuidingVerdict::Undecided
+                                               : verdict_.state == GuidingVerdict::Provisional;
+    if (deciding && r->unguided_iteration >= 0 &&
+        (it.index == r->unguided_iteration || it.index == r->unguided_iteration + 1))
+      return r;
+  }
+  return nullptr;
+}
+
+void GuidingFeature::judge(GuidingVerdict::Round& round, const IterationInfo& it) {
   const double spp = double(it.spp_end - it.spp_begin);
-  const double efficiency =
-      it.sample_variance > 0.0 && it.seconds > 0.0 ? spp / (it.sample_variance * it.seconds) : 0.0;
-  if (it.index == verdict_.unguided_iteration) {
-    verdict_.unguided_efficiency = efficiency;
+  const double variance = std::max(it.sample_variance, 0.0), seconds_per_spp = it.seconds / spp;
+  if (it.index == round.unguided_iteration) {
+    round.unguided_variance = variance;
+    round.unguided_seconds_per_spp = seconds_per_spp;
     return;
   }
-  verdict_.guided_efficiency = efficiency;
+  round.guided_variance = variance;
+  round.guided_seconds_per_spp = seconds_per_spp;
+  const bool is_probe = &round == &verdict_.probe;
+  const double efficiency = round.efficiency_ratio();
   // Unknown either way (a noiseless image): nothing says guiding loses.
-  const bool known = verdict_.unguided_efficiency > 0.0 && efficiency > 0.0;
-  verdict_.state = !known || efficiency > verdict_.unguided_efficiency ? GuidingVerdict::On : GuidingVerdict::Off;
-  log_info("guiding: efficiency (1 / variance x time) guided {:.4g} against unguided {:.4g}: {}", efficiency,
-           verdict_.unguided_efficiency,
-           verdict_.state == GuidingVerdict::On ? "guiding stays on" : "guiding off for the rest of the render");
+  const bool pays = efficiency == 0.0 || efficiency > 1.0;
+  const bool final_to_come = is_probe && verdict_.final.unguided_iteration >= 0;
+  verdict_.state = !pays ? GuidingVerdict::Off : final_to_come ? GuidingVerdict::Provisional : GuidingVerdict::On;
+  static const char* kSays[] = {"", "guiding stays on", "guiding off for the rest of the render",
+                                "guiding and training go on, to be judged again once training ends"};
+  log_info("guiding ({} round): guided / unguided efficiency {:.3g} (per-sample variance {:.3g}): {}",
+           is_probe ? "probe" : "final", efficiency, round.variance_ratio(), kSays[verdict_.state]);
 }
 
 // The field learns from each training iteration's samples (handed over by
 // the recorder at the iteration's end); the next iteration samples it.  With
-// --guiding-auto the held-out iteration (no guide, no recorder) is judged
-// against the one after it, guided as the render after training will be:
-// by the field without recording, unless training never ends.
+// --guiding-auto each round's held-out iteration (no guide, no recorder) is
+// judged against the one after it, guided as the render after training will
+// be: by the field without recording, unless training never ends.
 void GuidingFeature::add_tasks(IterationTasks& tasks) {
   if (!tree_) return;
-  const bool judging = options_.auto_off && verdict_.unguided_iteration >= 0;
+  const bool judging = options_.auto_off && verdict_.probe.unguided_iteration >= 0;
   if (judging) tasks.measure_variance();
-  tasks.on_begin([this, judging](const IterationInfo& it) {
-    const bool undecided = judging && verdict_.state == GuidingVerdict::Undecided;
-    const bool held_out = undecided && it.index == verdict_.unguided_iteration;
-    const bool judged = undecided && it.index == verdict_.unguided_iteration + 1;
+  tasks.on_begin([this](const IterationInfo& it) {
+    const GuidingVerdict::Round* round = round_of(it);
+    const bool held_out = round && it.index == round->unguided_iteration;
+    const bool judged = round && !held_out;
     const bool guide = verdict_.state != GuidingVerdict::Off && !held_out;
     set_hooks(guide, trains(it) && !held_out && !(judged && options_.training_spp != 0));
   });
   if (judging) {
     tasks.on_end([this](const IterationInfo& it) {
-      if (verdict_.state == GuidingVerdict::Undecided &&
-          (it.index == verdict_.unguided_iteration || it.index == verdict_.unguided_iteration + 1))
-        judge(it);
+      if (GuidingVerdict::Round* round = round_of(it)) judge(*round, it);
     });
   }
   tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) {
@@ -271,25 +312,36 @@ void GuidingFeature::add_tasks(IterationTasks& tasks) {
 // interrupted one left it, so it guides the same.
 void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
   if (!tree_) return;
-  participants.push_back({"guiding", 3,
+  participants.push_back({"guiding", 4,
                           [this] {
                             ByteWriter w;
                             w.put_vector(tree_->serialize());
                             w.put(int32_t(verdict_.state));
-                            w.put(verdict_.unguided_efficiency);
-                            w.put(verdict_.guided_efficiency);
+                            for (const GuidingVerdict::Round* round : {&verdict_.probe, &verdict_.final}) {
+                              w.put(round->unguided_variance);
+                              w.put(round->unguided_seconds_per_spp);
+                              w.put(round->guided_variance);
+                              w.put(round->guided_seconds_per_spp);
+                            }
                             return w.bytes;
                           },
                           [this](const CheckpointSection& section) {
+                            if (section.version != 4)
+                              throw_error("checkpoint section 'guiding' has version {}, this build reads 4",
+                                          section.version);
                             ByteReader r(section.bytes, "checkpoint section 'guiding'");
                             std::vector<uint8_t> tree = r.get_vector<uint8_t>();
                             *tree_ = SDTree::deserialize(tree);
                             const int32_t state = r.get<int32_t>();
-                            if (state < GuidingVerdict::Undecided || state > GuidingVerdict::Off)
-                              throw_error("checkpoint section 'guiding': verdict {} is not one of 0, 1, 2", state);
+                            if (state < GuidingVerdict::Undecided || state > GuidingVerdict::Provisional)
+                              throw_error("checkpoint section 'guiding': verdict {} is not one of 0 .. 3", state);
                             verdict_.state = GuidingVerdict::State(state);
-                            verdict_.unguided_efficiency = r.get<double>();
-                            verdict_.guided_efficiency = r.get<double>();
+                            for (GuidingVerdict::Round* round : {&verdict_.probe, &verdict_.final}) {
+                              round->unguided_variance = r.get<double>();
+                              round->unguided_seconds_per_spp = r.get<double>();
+                              round->guided_variance = r.get<double>();
+                              round->guided_seconds_per_spp = r.get<double>();
+                            }
                           }});
 }
 
@@ -303,11 +355,20 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                     {"updates", gs.updates},
                     {"training_spp", options_.training_spp}};
   if (options_.auto_off) {
-    static const char* kStates[] = {"undecided", "on", "off"};
-    log["guiding"]["auto"] = {{"unguided_iteration", verdict_.unguided_iteration},
-                              {"unguided_efficiency", verdict_.unguided_efficiency},
-                              {"guided_efficiency", verdict_.guided_efficiency},
-                              {"verdict", kStates[verdict_.state]}};
+    static const char* kStates[] = {"undecided", "on", "off", "provisional"};
+    auto round_log = [](const GuidingVerdict::Round& r) {
+      return nlohmann::json{{"unguided_iteration", r.unguided_iteration},
+                            {"measured", r.measured()},
+                            {"unguided_variance", r.unguided_variance},
+                            {"unguided_seconds_per_spp", r.unguided_seconds_per_spp},
+                            {"guided_variance", r.guided_variance},
+                            {"guided_seconds_per_spp", r.guided_seconds_per_spp},
+                            {"efficiency_ratio", r.efficiency_ratio()},
+                            {"variance_ratio", r.variance_ratio()}};
+    };
+    log["guiding"]["auto"] = {{"verdict", kStates[verdict_.state]},
+                              {"probe", round_log(verdict_.probe)},
+                              {"final", round_log(verdict_.final)}};
   }
   log["memory"]["guiding"] = tree_->memory_bytes();
 }

@@ -111,8 +111,8 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("enabled", o.enabled,
           "Path guiding: an SD-tree learned every iteration from the radiance recorder, combined with BSDF sampling");
   v.image("auto", o.auto_off,
-          "Guiding measures whether it pays (variance x time of an unguided against a guided iteration) and turns "
-          "itself off where it does not; implies --guiding");
+          "Guiding measures whether it pays (variance x time of an unguided against a guided iteration, once the "
+          "field has learned and again after training) and turns itself off where it does not; implies --guiding");
   v.image("sampling", o.sampling,
           "Guided directions: ris (resampling one BSDF and one guide candidate) or mis (one-sample MIS)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
@@ -130,19 +130,39 @@ void declare_options(V& v, GuidingOptions& o) {
 void check(const GuidingOptions& o);
 
 // Guiding's efficiency estimate (seeds/000 ch. 2 section 6.3), for
-// --guiding-auto: one iteration is rendered without the guide and without the
-// recorder, the next with both, and each one's efficiency is
-// 1 / (per-sample variance x seconds per spp).  Guiding stays on only if the
-// guided one is more efficient; otherwise the rest of the render is unguided.
+// --guiding-auto, in two rounds.  A round renders one iteration without the
+// guide and without the recorder and the next guided as the render after
+// training is (without recording); each one's efficiency is
+// 1 / (per-sample variance x seconds per spp).
+// - The probe, once the field has learned from a quarter of the training
+//   budget (8 to 64 spp: a field trained on 8 spp can have 4x the unguided
+//   variance where one trained on 64 has half of it): guiding is off for the
+//   rest of the render unless it already pays; if it does, it stays on
+//   *provisionally* and training goes on.
+// - The final round, once training has ended: guiding stays on only if it
+//   pays with the field it will keep (the probe may have been lucky with
+//   the machine's timing, or the field may have got worse).
 struct GuidingVerdict {
-  int unguided_iteration = -1;  // the held-out iteration (-1: the schedule has none to spare)
-  double unguided_efficiency = 0.0, guided_efficiency = 0.0;
-  enum State : int32_t { Undecided, On, Off } state = Undecided;
+  struct Round {
+    int unguided_iteration = -1;  // the held-out iteration (-1: the schedule has none to spare)
+    double unguided_variance = 0.0, unguided_seconds_per_spp = 0.0;
+    double guided_variance = 0.0, guided_seconds_per_spp = 0.0;
+    // Guided over unguided; 0 when either side is unknown.
+    double efficiency_ratio() const;
+    double variance_ratio() const;
+    bool measured() const { return guided_seconds_per_spp > 0.0; }
+  };
+  Round probe, final;
+  enum State : int32_t { Undecided, On, Off, Provisional } state = Undecided;
 };
-// The first iteration of at least 4 spp that starts after 8 spp and has a
-// successor of at least 2 spp (the variance needs two samples per pixel): the
-// field has learned from the first iterations by then.  -1 if none.
-int guiding_holdout_iteration(const std::vector<int>& schedule);
+// The first iteration of at least 4 spp that starts at `from_spp` or later
+// and has a successor of at least 2 spp (the variance needs two samples per
+// pixel).  -1 if none.
+int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp);
+// The probe's and the final round's held-out iterations (the final round's
+// after the probe's pair, and -1 where the schedule has none).
+int guiding_probe_iteration(const std::vector<int>& schedule, int training_spp);
+int guiding_final_iteration(const std::vector<int>& schedule, int training_spp);
 
 // A recorder sample as the SD-tree trains on it: luminance, and a key naming the vertex.
 SDTreeSample sd_tree_sample(const TrainingSample& s);
@@ -168,7 +188,9 @@ class GuidingFeature final : public Feature {
  private:
   // The engine's hooks with or without the guide and the recorder.
   void set_hooks(bool guide, bool record);
-  void judge(const IterationInfo& it);
+  void judge(GuidingVerdict::Round& round, const IterationInfo& it);
+  // The round an iteration belongs to (held out or judged), if it is being decided now.
+  GuidingVerdict::Round* round_of(const IterationInfo& it);
   bool trains(const IterationInfo& it) const;
 
   GuidingOptions options_;

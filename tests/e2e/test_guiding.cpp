@@ -76,27 +76,49 @@ TEST(Guiding, FieldFrozenAfterTrainingSamples) {
   EXPECT_GT(max_relative_difference(r.image, all.image), 1e-3);
 }
 
-// --guiding-auto holds one iteration out (no guide, no recorder), judges the
-// next against it and logs its verdict; whichever way it goes (it is a
-// measurement of time), the image stays unbiased.
-TEST(Guiding, AutoJudgesOneIterationAndStaysUnbiased) {
-  EXPECT_EQ(guiding_holdout_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16}), 9);  // 4 spp from 10 spp on
-  EXPECT_EQ(guiding_holdout_iteration({16, 16, 32}), 1);                              // from 16 spp
-  EXPECT_EQ(guiding_holdout_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4}), -1);            // no successor
-  EXPECT_EQ(guiding_holdout_iteration({8, 4, 1}), -1);                                 // successor of 1 spp
+// --guiding-auto judges in two rounds (each an iteration held out, without
+// guide and recorder, against the next, guided without recording): a probe
+// once the field has learned from a quarter of the training budget, and, if
+// guiding paid there, a final round once training has ended.  Whichever way
+// it goes (it is a measurement of time), the image stays unbiased.
+TEST(Guiding, AutoJudgesInTwoRoundsAndStaysUnbiased) {
+  const std::vector<int> guiding_schedule{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16};
+  EXPECT_EQ(guiding_holdout_iteration(guiding_schedule, 8), 9);  // 4 spp from 10 spp on
+  EXPECT_EQ(guiding_holdout_iteration({16, 16, 32}, 8), 1);      // from 16 spp
+  EXPECT_EQ(guiding_holdout_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4}, 8), -1);  // no successor
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 1}, 8), -1);                       // successor of 1 spp
+  // Training 256 spp: the probe from 64 spp (iteration 14 starts at 70), the final round from 256.
+  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 256), 14);
+  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 256), -1);  // the schedule ends at 198 spp
+  std::vector<int> longer = guiding_schedule;
+  longer.resize(40, 16);
+  EXPECT_EQ(guiding_final_iteration(longer, 256), 26);  // iteration 26 starts at 262
+  // A small budget: the probe from 8 spp, the final round after the probe's pair.
+  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 16), 9);
+  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 16), 11);  // 9, 10 end at 22 spp
+  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 0), 14);   // never-ending training: as 256
+
   Scene scene = load_test_scene_file(kCornell);
   RenderConfig c = quick_config(256);
   c.guiding.auto_off = true;
+  c.guiding.training_spp = 32;  // probe from 8 spp, final round after it
   RenderResult r = render_scene(scene, c);
   const nlohmann::json& a = r.log["guiding"]["auto"];
   std::printf("guiding-auto on cornell-box: %s\n", a.dump().c_str());
   EXPECT_EQ(r.log["options"]["guiding"].get<bool>(), true);  // auto implies guiding
   const std::vector<int> schedule = r.log["scheduler"]["schedule"].get<std::vector<int>>();
-  EXPECT_EQ(a["unguided_iteration"].get<int>(), guiding_holdout_iteration(schedule));
-  EXPECT_GT(a["unguided_efficiency"].get<double>(), 0.0);
-  EXPECT_GT(a["guided_efficiency"].get<double>(), 0.0);
+  EXPECT_EQ(a["probe"]["unguided_iteration"].get<int>(), guiding_probe_iteration(schedule, 32));
+  EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), guiding_final_iteration(schedule, 32));
+  EXPECT_TRUE(a["probe"]["measured"].get<bool>());
+  EXPECT_GT(a["probe"]["unguided_variance"].get<double>(), 0.0);
+  EXPECT_GT(a["probe"]["guided_seconds_per_spp"].get<double>(), 0.0);
   const std::string verdict = a["verdict"].get<std::string>();
   EXPECT_TRUE(verdict == "on" || verdict == "off") << verdict;
+  // The final round is measured exactly when the probe found that guiding paid.
+  EXPECT_EQ(a["final"]["measured"].get<bool>(), a["probe"]["efficiency_ratio"].get<double>() > 1.0);
+  if (verdict == "on") {
+    EXPECT_GT(a["final"]["efficiency_ratio"].get<double>(), 1.0);
+  }
   ImageBuffer ref = read_image_file(std::string(THEIA_TEST_DATA) + "/cornell-box.exr");
   EXPECT_LT(rel_mse(r.image, ref), 0.005);
   EXPECT_LT(channel_mean_deviation(r.image, ref), 0.02);

@@ -381,3 +381,74 @@ TEST(RecorderDebug, NthBounceBufferEqualsThroughputResetImageInFog) {
     EXPECT_GT(image_mean(reference).x, 0.01f) << "bounce " << bounce;
   }
 }
+
+// Bounded memory in a dense medium (seeds/000 ch. 2 sections 3.4.4, 5.1):
+// dense-glass with ten times its scattering, isotropic and without
+// absorption (sigma_t 200 in a sphere of radius 0.5: a walk takes thousands
+// of scattering events to leave it) holds every path's chain
+// of vertices until the path ends; skipping in-medium vertices or merging
+// close ones into their parent shrinks the peak, and since the camera's
+// vertices are on the glass (not in the medium) the primary buffer still
+// equals the beauty: merged light reaches the nearest recorded ancestor.
+TEST(RecorderMemory, DenseMediumSkippingBoundsThePeak) {
+  Scene scene = media_scene("dense-glass", 16, 20000);
+  scene.media[0].sigma_s *= 10.0f;
+  scene.media[0].sigma_a = RGB(0.0f);
+  scene.media[0].g = 0.0f;
+  EngineOptions opt = media_options(scene);
+  auto run = [&](float medium_skip, float min_distance) {
+    RecorderOptions ro;
+    ro.debug = true;
+    ro.vertex_budget = 0.0f;
+    ro.medium_skip_probability = medium_skip;
+    ro.min_distance = min_distance;
+    RecordedRender r = render_recorded(scene, opt, ro, 1, 1);
+    EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4)
+        << "skip " << medium_skip << ", distance " << min_distance;
+    return r.stats;
+  };
+  const RecorderStats all = run(0.0f, 0.0f), skipped = run(0.9f, 0.0f), merged = run(0.0f, 0.05f);
+  // Measured: 181 vertex events per path, a peak of 13,118 live vertices for 256 paths; with
+  // skipping 1,364, with the minimum distance 276.
+  EXPECT_GT(double(all.vertex_events) / double(all.paths), 100.0) << "paths scatter hundreds of times";
+  EXPECT_GT(all.peak_live_vertices, 10000u);
+  EXPECT_LT(double(skipped.peak_live_vertices), 0.2 * double(all.peak_live_vertices));
+  EXPECT_LT(double(merged.peak_live_vertices), 0.2 * double(all.peak_live_vertices));
+  EXPECT_GT(merged.merged_vertices, all.recorded / 2);
+}
+
+// With the camera in the fog, depth-0 vertices are skipped too: the primary
+// buffer is then noisier than the beauty (its splats weighted by 1 / keep
+// probability) but converges to it.
+TEST(RecorderDebug, MediumSkippingIsNoisierButConvergesInFog) {
+  Scene scene = media_scene("fog-cornell", 16, 8);
+  RecorderOptions ro;
+  ro.debug = true;
+  ro.vertex_budget = 0.0f;
+  ro.medium_skip_probability = 0.5f;
+  auto error_at = [&](int spp, RecorderStats* st) {
+    RecordedRender r = render_recorded(scene, media_options(scene), ro, 1, spp);
+    if (st) *st = r.stats;
+    return rel_mse(layer(r.image, "recorder"), layer(r.image, ""));
+  };
+  RecorderStats st;
+  const double e_few = error_at(4, nullptr), e_many = error_at(32, &st);
+  EXPECT_GT(st.skipped_vertices, 0u);
+  EXPECT_GT(e_few, 1e-4) << "skipped depth-0 vertices make the buffer differ sample for sample";
+  EXPECT_LT(e_many, 0.35 * e_few) << "relMSE " << e_few << " at 4 spp, " << e_many << " at 32 spp";
+}
+
+// Each skip probability is a probability below 1 (1 would record nothing),
+// refused with the flag's name.
+TEST(RecorderOptionsCheck, SkipProbabilitiesAreBelowOne) {
+  for (float p : {1.0f, -0.1f, std::nanf("")}) {
+    RenderConfig c = quick_config(1);
+    c.recorder.medium_skip_probability = p;
+    try {
+      check_config(c);
+      ADD_FAILURE() << "accepted " << p;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("--recorder-medium-skip-probability"), std::string::npos) << e.what();
+    }
+  }
+}

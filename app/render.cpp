@@ -94,11 +94,6 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.max_depth < 0) c.max_depth = scene.settings.max_depth;
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
   if (c.guiding.auto_off) c.guiding.enabled = true;
-  // The guide is not used at medium vertices yet.
-  if (scene.has_media() && c.guiding.enabled) {
-    log_warning("{}: guiding is off: the scene has participating media, which it does not handle yet", scene.path);
-    c.guiding.enabled = c.guiding.auto_off = false;
-  }
   c.schedule = schedule_name(c, c.guiding.enabled);
   if (!c.sample_range.empty()) c.caustics.may_switch_off = false;
   return c;

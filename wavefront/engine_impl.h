@@ -15,6 +15,7 @@
 #include "scene/bsdf.h"
 #include "scene/media.h"
 #include "wavefront/engine.h"
+#include "wavefront/guided_phase.h"
 #include "wavefront/guided_sampling.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
@@ -80,6 +81,9 @@ struct MediumVertex {
   float g = 0.0f;         // the medium's Henyey-Greenstein asymmetry
   BounceDims dims{};
   RGB beta{0.0f};         // throughput at the vertex (reset to 1 at the throughput-reset bounce)
+  uint32_t guide_region = kNoGuideRegion;  // != kNoGuideRegion: the vertex is guided
+  float guide_fraction = 0.0f;             // one-sample MIS: the guide's selection probability
+  bool guided() const { return guide_region != kNoGuideRegion; }
 };
 
 // The ray-sorting key: origin Morton code, then a coarse direction.
@@ -157,6 +161,8 @@ struct WavefrontEngine::Impl {
   bool interact_in_medium(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
   void scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium, ShadeOutput& out);
   void sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out);
+  std::optional<PhaseContinuation> sample_phase_continuation(const MediumVertex& v) const;
+  float phase_mis_pdf(const MediumVertex& v, const vec3& wi) const;
   void attenuate_shadow_rays_in_media();      // transmittance through every segment, across interfaces
   RGB shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const;
 

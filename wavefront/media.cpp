@@ -117,10 +117,12 @@ static PathVertexInfo medium_vertex_info(const MediumVertex& v, const vec3& wi, 
 }
 
 // A real scattering vertex: NEE with MIS against the phase function, then
-// the phase-function sample (exact, so its weight is 1) and roulette.  The
-// observer sees both as a surface vertex's: the NEE ray's vertex and the
-// scattered ray's, flagged in-medium, whose local factor is phase / pdf
-// (1 for Henyey-Greenstein) with the roulette compensation.
+// the scattered direction (the phase function's sample, or where a guide
+// has learned the region, phase and guide combined: guided_phase.h) and
+// roulette.  The observer sees both as a surface vertex's: the NEE ray's
+// vertex and the scattered ray's, flagged in-medium, whose local factor is
+// phase / pdf (1 for an unguided Henyey-Greenstein sample) with the roulette
+// compensation.
 void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium,
                                               ShadeOutput& out) {
   PathState& ps = pool[slot];
@@ -130,28 +132,63 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
                  bounce_dims(ps.depth)};
   // The throughput-reset image (recorder debug, bounce N) starts at this vertex.
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ff.beta;
+  if (hooks.guide) {
+    v.guide_region = hooks.guide->region(v.si.p);
+    if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
+  }
   if (int(ps.depth) >= opt.throughput_reset_bounce) sample_direct_light_in_medium(v, medium, out);
 
-  float pdf = 0.0f;
-  const vec3 wi = sample_henyey_greenstein(v.si.wo, v.g, sample2(ps, v.dims.bsdf_dir), &pdf);
-  RGB beta = v.beta, local(1.0f);
+  const std::optional<PhaseContinuation> c = sample_phase_continuation(v);
+  if (!c) return end_path(slot, out);
+  RGB local = v.guided() ? RGB(c->phase / c->pdf) : RGB(1.0f);
+  RGB beta = v.beta * local;
+  double correction = 1.0;
+  if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
   float survival = 1.0f;
-  if (!(pdf > 0.0f) || !survives_roulette(ps, v.dims.roulette, beta, local, ps.eta_scale, 1.0, -1.0f, survival) ||
+  if (!survives_roulette(ps, v.dims.roulette, beta, local, ps.eta_scale, correction, -1.0f, survival) ||
       !is_finite(beta) || is_black(beta))
     return end_path(slot, out);
   if (observer) {
-    PathVertexInfo info = medium_vertex_info(v, wi, local, pdf * survival);
-    const uint32_t child = observer->vertex_created(ps.vertex, info);
+    const uint32_t child = observer->vertex_created(ps.vertex, medium_vertex_info(v, c->wi, local, c->pdf * survival));
     observer->vertex_done(ps.vertex);
     ps.vertex = child;
   }
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
-  ps.prev_pdf = pdf;
+  ps.prev_pdf = c->mis_pdf;
   ps.flags = 0;
   ps.prev_p = v.si.p;
   ps.prev_ng = vec3(0.0f);
-  queue_ray(slot, v.si, Ray{v.si.p, 0.0f, wi, kInfinity}, out);
+  queue_ray(slot, v.si, Ray{v.si.p, 0.0f, c->wi, kInfinity}, out);
+}
+
+// The scattered direction: where the vertex is not guided, the phase
+// function's sample (the numbers it drew before guiding existed), else
+// phase function and guide combined as the options say.
+std::optional<PhaseContinuation> WavefrontEngine::Impl::sample_phase_continuation(const MediumVertex& v) const {
+  if (!v.guided()) {
+    PhaseContinuation c;
+    c.wi = sample_henyey_greenstein(v.si.wo, v.g, sample2(v.ps, v.dims.bsdf_dir), &c.pdf);
+    if (!(c.pdf > 0.0f)) return std::nullopt;
+    c.phase = c.mis_pdf = c.pdf;
+    return c;
+  }
+  GuidedDraw u{0.0f, sample2(v.ps, v.dims.bsdf_dir)};
+  if (opt.guiding.mixing == GuideMixing::OneSampleMIS)
+    return sample_guided_phase_mis(v.si.wo, v.g, *hooks.guide, v.guide_region, v.guide_fraction, u);
+  u.u_guide = sample2(v.ps, v.dims.guide_dir);
+  u.u_pick = sample1(v.ps, v.dims.guide_pick);
+  return sample_guided_phase_ris(v.si.wo, v.g, *hooks.guide, v.guide_region, opt.guiding.defensive, u);
+}
+
+// The density MIS against light sampling takes for a direction from a
+// medium vertex: the phase function's, or where the vertex is guided the
+// mixture's (as scattering_pdf at surfaces).
+float WavefrontEngine::Impl::phase_mis_pdf(const MediumVertex& v, const vec3& wi) const {
+  const float phase = henyey_greenstein(glm::dot(v.si.wo, wi), v.g);
+  if (!v.guided()) return phase;
+  const float c = opt.guiding.mixing == GuideMixing::Resampled ? kRISCandidateShare : v.guide_fraction;
+  return guided_mis_pdf(phase, hooks.guide->pdf(v.guide_region, wi), c);
 }
 
 // NEE from a medium vertex: a shadow ray through the media, MIS-weighted
@@ -165,7 +202,7 @@ void WavefrontEngine::Impl::sample_direct_light_in_medium(const MediumVertex& v,
   const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
   if (!ls || !(light_pdf > 0.0f) || !std::isfinite(light_pdf)) return;
   const float phase = henyey_greenstein(glm::dot(v.si.wo, ls->wi), v.g);
-  const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, phase);
+  const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, phase_mis_pdf(v, ls->wi));
   const RGB contribution = ps.filter_weight * v.beta * (phase * w / light_pdf) * ls->L;
   if (!is_finite(contribution) || is_black(contribution)) return;
   queue_shadow(out, spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light), contribution, ps, *sl, {},

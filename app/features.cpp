@@ -40,6 +40,8 @@ void check(const RecorderOptions& o) {
     throw_error("--recorder-vertex-budget must be zero (off) or positive, got {}", o.vertex_budget);
   if (!(o.vertex_skip_probability >= 0.0f && o.vertex_skip_probability < 1.0f))
     throw_error("--recorder-vertex-skip-probability must be in [0, 1), got {}", o.vertex_skip_probability);
+  if (!(o.medium_skip_probability >= 0.0f && o.medium_skip_probability < 1.0f))
+    throw_error("--recorder-medium-skip-probability must be in [0, 1), got {}", o.medium_skip_probability);
   if (!(o.min_distance >= 0.0f))
     throw_error("--recorder-min-distance must be zero or positive, got {}", o.min_distance);
   parse_training_mode(o.training);

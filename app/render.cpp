@@ -94,15 +94,6 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.max_depth < 0) c.max_depth = scene.settings.max_depth;
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
   if (c.guiding.auto_off) c.guiding.enabled = true;
-  // The recorder does not record in-medium vertices yet, so neither it nor
-  // the guide it trains may run where paths scatter in media.
-  if (scene.has_media() && (c.guiding.enabled || RecorderFeature::debug_layers(c.recorder))) {
-    log_warning("{}: guiding and the radiance recorder are off: the scene has participating media, which they do not "
-                "handle yet", scene.path);
-    c.guiding.enabled = c.guiding.auto_off = false;
-    c.recorder.debug = false;
-    c.recorder.debug_bounce = -1;
-  }
   c.schedule = schedule_name(c, c.guiding.enabled);
   if (!c.sample_range.empty()) c.caustics.may_switch_off = false;
   return c;

@@ -142,6 +142,7 @@ RadianceRecorder::RadianceRecorder(const RecorderOptions& options, TrainingSampl
       id_(next_recorder_id.fetch_add(1, std::memory_order_relaxed)) {
   opt_.max_blocks = std::clamp<uint32_t>(opt_.max_blocks, 1, kPVMaxBlocks);
   opt_.vertex_skip_probability = std::clamp(opt_.vertex_skip_probability, 0.0f, 1.0f);
+  opt_.medium_skip_probability = std::clamp(opt_.medium_skip_probability, 0.0f, 1.0f);
   blocks_ = std::make_unique<std::atomic<Block*>[]>(opt_.max_blocks);
   for (uint32_t b = 0; b < opt_.max_blocks; ++b) blocks_[b].store(nullptr, std::memory_order_relaxed);
   size_t pixels = size_t(std::max(opt_.width, 0)) * size_t(std::max(opt_.height, 0));
@@ -253,6 +254,19 @@ bool RadianceRecorder::trainable(const PathVertexInfo& info) const {
   return sink_ && !delta && info.guidable && (!info.is_nee || sink_->wants_nee_samples());
 }
 
+double RadianceRecorder::keep_probability(bool in_medium) const {
+  const double keep = 1.0 - double(opt_.vertex_skip_probability);
+  return in_medium ? keep * (1.0 - double(opt_.medium_skip_probability)) : keep;
+}
+
+// Stochastic vertex skipping: a pure function of the vertex (pixel, sample,
+// depth, kind), so whatever the thread count the same vertices are skipped.
+bool RadianceRecorder::skipped(const PathVertexInfo& info) const {
+  const double skip = 1.0 - keep_probability(info.in_medium);
+  return skip > 0.0 && to_unit_float(uint32_t(hash(opt_.seed, info.pixel, info.sample, uint32_t(info.depth),
+                                                    uint32_t(info.is_nee), 0x5eedu))) < skip;
+}
+
 // The debug buffers splat the vertices of these depths.
 bool RadianceRecorder::debug_records(int depth) const {
   return (!debug_primary_.empty() && depth == 0) || (!debug_bounce_.empty() && depth == opt_.debug_bounce);
@@ -285,9 +299,7 @@ uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo&
       return merge();
     }
   }
-  if (opt_.vertex_skip_probability > 0.0f &&
-      to_unit_float(uint32_t(hash(opt_.seed, info.pixel, info.sample, uint32_t(info.depth), uint32_t(info.is_nee),
-                                  0x5eedu))) < opt_.vertex_skip_probability) {
+  if (skipped(info)) {
     ++tc.skipped_vertices;
     return merge();
   }
@@ -396,7 +408,8 @@ void RadianceRecorder::finish(ThreadCache& tc, PVIndex i) {
 void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
   const RGB indirect = load(v.em_indirect), direct = v.em_direct;
   const RGB total = indirect + direct;
-  const double keep = (1.0 - skip_rate_) * (1.0 - double(opt_.vertex_skip_probability));
+  // A splat stands for the vertices skipped in its place.
+  const double keep = (1.0 - skip_rate_) * keep_probability((v.flags & kVertexInMedium) != 0);
   const float debug_weight = keep > 0.0 ? float(1.0 / keep) : 0.0f;
 
   if (!debug_primary_.empty() && v.depth == 0) {

@@ -114,6 +114,10 @@ struct RecorderOptions {
   std::string training = "mis-direct";
   float vertex_budget = 4.0f;          // target recorded vertices per path; <= 0: no path skipping
   float vertex_skip_probability = 0.0f;// stochastic vertex skipping
+  // In-medium vertices are skipped with this probability as well (seeds/000
+  // ch. 2 section 5.1.3): a dense medium makes far more of them than surfaces
+  // do, and skipping them lets a path record deep in the medium within its budget.
+  float medium_skip_probability = 0.0f;
   float min_distance = 0.0f;           // closer to its parent than this: the parent is continued instead
   uint32_t seed = 0;
   // Debug buffers (section 4.1); width * height pixels, RGB sums.
@@ -133,6 +137,8 @@ void declare_options(V& v, RecorderOptions& o) {
           "indirect (eq. 22)");
   v.image("vertex_budget", o.vertex_budget, "Recorded vertices per path (path skipping); 0: off");
   v.image("vertex_skip_probability", o.vertex_skip_probability, "Probability of skipping a path vertex, in [0, 1)");
+  v.image("medium_skip_probability", o.medium_skip_probability,
+          "Probability of skipping an in-medium vertex (besides vertex_skip_probability), in [0, 1)");
   v.image("min_distance", o.min_distance, "Closer than this to its parent, a vertex is merged into the parent");
   v.image("debug", o.debug, "Write the recorder's primary-hit debug layer 'recorder' (equals the beauty)");
   v.image("debug_bounce", o.debug_bounce,
@@ -216,6 +222,8 @@ class RadianceRecorder final : public PathObserver {
   ThreadCache& cache() const;
   Vertex& at(PVIndex i) const;
   bool trainable(const PathVertexInfo& info) const;
+  bool skipped(const PathVertexInfo& info) const;
+  double keep_probability(bool in_medium) const;  // of a vertex, given the path was not skipped
   bool debug_records(int depth) const;
   PVIndex allocate(ThreadCache& tc);
   void release(ThreadCache& tc, PVIndex i);

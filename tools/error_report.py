@@ -85,7 +85,8 @@ REL_EPS = 1e-2  # as core/metrics.h
 # `theia render scenes/guiding-panel/scene.pbrt --spp 262144 --seed 4242`; its relMSE is about 1.4e-5,
 # a tenth of an unguided 30-second render's (a 4096-spp reference would swamp the comparison).
 EQUAL_TIME_SCENES = VALIDATION_SCENES + [("guiding-panel", "scenes/guiding-panel/scene.pbrt",
-                                          "tests/data/guiding-panel.exr")]
+                                          "tests/data/guiding-panel.exr"),
+                                         ("fog-slit", "scenes/fog-slit/scene.pbrt", None)]
 EQUAL_TIME_DEFAULT_SCENES = ["guiding-panel", "cornell-box", "living-room", "material-testball", "veach-mis",
                              "veach-ajar"]
 EQUAL_TIME_CONFIGURATIONS = [("unguided", []), ("guided", ["--guiding"])]

@@ -381,11 +381,10 @@ void WavefrontEngine::set_hooks(const EngineHooks& hooks) {
   impl_->check_media_hooks();
 }
 
-// Paths that end in a medium do not report to an observer, and the caustic
-// pass's light paths do not track media: the caller switches both off.
+// The caustic pass's light paths do not track media: the caller switches it off.
 void WavefrontEngine::Impl::check_media_hooks() const {
-  if (!pool.medium.empty() && (hooks.observer || hooks.caustics))
-    throw std::invalid_argument("a scene with participating media renders without a path observer or caustic pass");
+  if (!pool.medium.empty() && hooks.caustics)
+    throw std::invalid_argument("a scene with participating media renders without the caustic pass");
 }
 
 const EngineHooks& WavefrontEngine::hooks() const { return impl_->hooks; }

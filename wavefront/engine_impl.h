@@ -15,6 +15,7 @@
 #include "scene/bsdf.h"
 #include "scene/media.h"
 #include "wavefront/engine.h"
+#include "wavefront/guided_phase.h"
 #include "wavefront/guided_sampling.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
@@ -51,6 +52,35 @@ struct ShadingPoint {
   BounceDims dims{};
   uint8_t caustic_flags = 0;  // kPathCausticReceiver / kPathCausticCaster at this vertex
   bool guidable = false;      // bsdf_is_guidable: the engine guides here when it has a guide
+  uint32_t guide_region = kNoGuideRegion;  // != kNoGuideRegion: the vertex is guided
+  float guide_fraction = 0.0f;             // one-sample MIS: the guide's selection probability
+  bool guided() const { return guide_region != kNoGuideRegion; }
+};
+
+// What a vertex, at a surface or in a medium, tells the observer about
+// itself: the path's fields, the throughput `beta` before it, its direction.
+inline PathVertexInfo path_vertex_info(const PathState& ps, const vec3& p, const RGB& beta, const vec3& wi,
+                                       const RGB& local, float pdf) {
+  PathVertexInfo info;
+  info.p = p;
+  info.wi = wi;
+  info.prefix = ps.filter_weight * beta;
+  info.local = local;
+  info.pdf = pdf;
+  info.camera_weight = ps.filter_weight;
+  info.pixel = ps.pixel;
+  info.sample = ps.sample;
+  info.depth = int(ps.depth);
+  return info;
+}
+
+// One medium scattering vertex while it is handled (media.cpp).
+struct MediumVertex {
+  PathState& ps;
+  SurfaceInteraction si;  // the point and wo only: no surface
+  float g = 0.0f;         // the medium's Henyey-Greenstein asymmetry
+  BounceDims dims{};
+  RGB beta{0.0f};         // throughput at the vertex (reset to 1 at the throughput-reset bounce)
   uint32_t guide_region = kNoGuideRegion;  // != kNoGuideRegion: the vertex is guided
   float guide_fraction = 0.0f;             // one-sample MIS: the guide's selection probability
   bool guided() const { return guide_region != kNoGuideRegion; }
@@ -127,8 +157,12 @@ struct WavefrontEngine::Impl {
   void trace_shadow_rays();                 // shadow_rays.cpp
   // ---- media (media.cpp): only called when the pool has the medium table
   void handle_medium_interactions(Batch& b);  // free flight; scattered and absorbed paths leave the batch
+  void end_path(uint32_t slot, ShadeOutput& out);  // finish_path, observed if there is an observer
   bool interact_in_medium(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
   void scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium, ShadeOutput& out);
+  void sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out);
+  std::optional<PhaseContinuation> sample_phase_continuation(const MediumVertex& v) const;
+  float phase_mis_pdf(const MediumVertex& v, const vec3& wi) const;
   void attenuate_shadow_rays_in_media();      // transmittance through every segment, across interfaces
   RGB shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const;
 

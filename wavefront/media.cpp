@@ -35,13 +35,27 @@ SurfaceInteraction medium_point(const vec3& p, const vec3& wo) {
 
 }  // namespace
 
+// The medium stage checks for the observer at run time rather than being
+// compiled twice as surface shading is: the tracking numbers are hashed from
+// the ray's bits, so a scattering point rounded differently by a second
+// instantiation (contracted multiply-adds) would send the path elsewhere,
+// and the recorder's debug layers could no longer be checked against the
+// image an unobserved render makes.
+void WavefrontEngine::Impl::end_path(uint32_t slot, ShadeOutput& out) {
+  if (observer)
+    finish_path<true>(slot, out);
+  else
+    finish_path<false>(slot, out);
+}
+
 void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
   const size_t n = b.size();
   blocked.assign(n, 0);  // here: 1 = the path left the batch in the medium
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    for (size_t i = r.begin(); i < r.end(); ++i) blocked[i] = interact_in_medium(b.rays[i], hits[i], b.paths[i], out);
+    for (size_t i = r.begin(); i < r.end(); ++i)
+      blocked[i] = interact_in_medium(b.rays[i], hits[i], b.paths[i], out);
   });
   // The passing rays keep their order; surface shading and escaped rays see only them.
   size_t kept = 0;
@@ -71,9 +85,14 @@ bool WavefrontEngine::Impl::interact_in_medium(const Ray& ray, const Hit& hit, u
   }
   const float tmax = hit.geom == kInvalidId ? kInfinity : hit.t;
   const FreeFlight ff = sample_free_flight(scene.media[size_t(medium)], ray, tmax, ps.beta, rng);
-  // pbrt-v4 adds a medium's emission below the depth limit only.
-  if (!is_black(ff.emitted) && int(ps.depth) < opt.max_depth)
-    film.splat(ps.pixel, ps.sample, ps.filter_weight * ff.emitted);
+  // pbrt-v4 adds a medium's emission below the depth limit only.  It is
+  // light arriving along the path's ray: the vertex the ray left gets it
+  // (not MIS-weighted: nothing samples a medium's emission directly).
+  if (!is_black(ff.emitted) && int(ps.depth) < opt.max_depth) {
+    const RGB contribution = ps.filter_weight * ff.emitted;
+    if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution);
+    if (observer) observer->emission_added(ps.vertex, ps.pixel, contribution, 1.0f);
+  }
   switch (ff.event) {
     case MediumEvent::None:
       ps.beta = ff.beta;
@@ -84,49 +103,117 @@ bool WavefrontEngine::Impl::interact_in_medium(const Ray& ray, const Hit& hit, u
       scatter_in_medium(ray, ff, slot, medium, out);
       return true;
   }
-  finish_path<false>(slot, out);
+  end_path(slot, out);
   return true;
 }
 
+// A medium vertex as the observer takes it: no normal, a Henyey-Greenstein
+// lobe whose "roughness" is 1 - |g| (0: a delta-like forward peak).
+static PathVertexInfo medium_vertex_info(const MediumVertex& v, const vec3& wi, const RGB& local, float pdf) {
+  PathVertexInfo info = path_vertex_info(v.ps, v.si.p, v.beta, wi, local, pdf);
+  info.roughness = 1.0f - std::min(std::abs(v.g), 1.0f);
+  info.in_medium = true;
+  return info;
+}
+
 // A real scattering vertex: NEE with MIS against the phase function, then
-// the phase-function sample (exact, so its weight is 1) and roulette.
+// the scattered direction (the phase function's sample, or where a guide
+// has learned the region, phase and guide combined: guided_phase.h) and
+// roulette.  The observer sees both as a surface vertex's: the NEE ray's
+// vertex and the scattered ray's, flagged in-medium, whose local factor is
+// phase / pdf (1 for an unguided Henyey-Greenstein sample) with the roulette
+// compensation.
 void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium,
                                               ShadeOutput& out) {
   PathState& ps = pool[slot];
-  if (int(ps.depth) >= opt.max_depth) return finish_path<false>(slot, out);
+  if (int(ps.depth) >= opt.max_depth) return end_path(slot, out);
   ++out.vertices;
-  const float g = scene.media[size_t(medium)].g;
-  const SurfaceInteraction si = medium_point(ray.o + ray.d * ff.t, -glm::normalize(ray.d));
-  const BounceDims dims = bounce_dims(ps.depth);
-
-  const LightSampleContext ctx{si.p, vec3(0.0f), vec3(0.0f), vec3(0.0f)};
-  if (auto sl = light_sampler.sample(ctx, sample1(ps, dims.light_choice))) {
-    auto ls = sample_li(lights, sl->light, ctx, sample2(ps, dims.light_point), sample1(ps, dims.light_prim));
-    const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
-    if (ls && light_pdf > 0.0f && std::isfinite(light_pdf)) {
-      const float phase = henyey_greenstein(glm::dot(si.wo, ls->wi), g);
-      const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, phase);
-      const RGB contribution = ps.filter_weight * ff.beta * (phase * w / light_pdf) * ls->L;
-      if (is_finite(contribution) && !is_black(contribution))
-        queue_shadow(out, spawn_ray_to(si, ls->p_light, ls->p_light_error, ls->n_light), contribution, ps, *sl, {},
-                     medium);
-    }
+  MediumVertex v{ps, medium_point(ray.o + ray.d * ff.t, -glm::normalize(ray.d)), scene.media[size_t(medium)].g,
+                 bounce_dims(ps.depth)};
+  // The throughput-reset image (recorder debug, bounce N) starts at this vertex.
+  v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ff.beta;
+  if (hooks.guide) {
+    v.guide_region = hooks.guide->region(v.si.p);
+    if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
   }
+  if (int(ps.depth) >= opt.throughput_reset_bounce) sample_direct_light_in_medium(v, medium, out);
 
-  float pdf = 0.0f;
-  const vec3 wi = sample_henyey_greenstein(si.wo, g, sample2(ps, dims.bsdf_dir), &pdf);
-  RGB beta = ff.beta, local(1.0f);
+  const std::optional<PhaseContinuation> c = sample_phase_continuation(v);
+  if (!c) return end_path(slot, out);
+  RGB local = v.guided() ? RGB(c->phase / c->pdf) : RGB(1.0f);
+  RGB beta = v.beta * local;
+  double correction = 1.0;
+  if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
   float survival = 1.0f;
-  if (!(pdf > 0.0f) || !survives_roulette(ps, dims.roulette, beta, local, ps.eta_scale, 1.0, -1.0f, survival) ||
+  if (!survives_roulette(ps, v.dims.roulette, beta, local, ps.eta_scale, correction, -1.0f, survival) ||
       !is_finite(beta) || is_black(beta))
-    return finish_path<false>(slot, out);
+    return end_path(slot, out);
+  if (observer) {
+    const uint32_t child = observer->vertex_created(ps.vertex, medium_vertex_info(v, c->wi, local, c->pdf * survival));
+    observer->vertex_done(ps.vertex);
+    ps.vertex = child;
+  }
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
-  ps.prev_pdf = pdf;
+  ps.prev_pdf = c->mis_pdf;
   ps.flags = 0;
-  ps.prev_p = si.p;
+  ps.prev_p = v.si.p;
   ps.prev_ng = vec3(0.0f);
-  queue_ray(slot, si, Ray{si.p, 0.0f, wi, kInfinity}, out);
+  queue_ray(slot, v.si, Ray{v.si.p, 0.0f, c->wi, kInfinity}, out);
+}
+
+// The scattered direction: where the vertex is not guided, the phase
+// function's sample (the numbers it drew before guiding existed), else
+// phase function and guide combined as the options say.
+std::optional<PhaseContinuation> WavefrontEngine::Impl::sample_phase_continuation(const MediumVertex& v) const {
+  if (!v.guided()) {
+    PhaseContinuation c;
+    c.wi = sample_henyey_greenstein(v.si.wo, v.g, sample2(v.ps, v.dims.bsdf_dir), &c.pdf);
+    if (!(c.pdf > 0.0f)) return std::nullopt;
+    c.phase = c.mis_pdf = c.pdf;
+    return c;
+  }
+  GuidedDraw u{0.0f, sample2(v.ps, v.dims.bsdf_dir)};
+  if (opt.guiding.mixing == GuideMixing::OneSampleMIS)
+    return sample_guided_phase_mis(v.si.wo, v.g, *hooks.guide, v.guide_region, v.guide_fraction, u);
+  u.u_guide = sample2(v.ps, v.dims.guide_dir);
+  u.u_pick = sample1(v.ps, v.dims.guide_pick);
+  return sample_guided_phase_ris(v.si.wo, v.g, *hooks.guide, v.guide_region, opt.guiding.defensive, u);
+}
+
+// The density MIS against light sampling takes for a direction from a
+// medium vertex: the phase function's, or where the vertex is guided the
+// mixture's (as scattering_pdf at surfaces).
+float WavefrontEngine::Impl::phase_mis_pdf(const MediumVertex& v, const vec3& wi) const {
+  const float phase = henyey_greenstein(glm::dot(v.si.wo, wi), v.g);
+  if (!v.guided()) return phase;
+  const float c = opt.guiding.mixing == GuideMixing::Resampled ? kRISCandidateShare : v.guide_fraction;
+  return guided_mis_pdf(phase, hooks.guide->pdf(v.guide_region, wi), c);
+}
+
+// NEE from a medium vertex: a shadow ray through the media, MIS-weighted
+// against the phase function.
+void WavefrontEngine::Impl::sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out) {
+  const PathState& ps = v.ps;
+  const LightSampleContext ctx{v.si.p, vec3(0.0f), vec3(0.0f), vec3(0.0f)};
+  auto sl = light_sampler.sample(ctx, sample1(ps, v.dims.light_choice));
+  if (!sl) return;
+  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), sample1(ps, v.dims.light_prim));
+  const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
+  if (!ls || !(light_pdf > 0.0f) || !std::isfinite(light_pdf)) return;
+  const float phase = henyey_greenstein(glm::dot(v.si.wo, ls->wi), v.g);
+  const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, phase_mis_pdf(v, ls->wi));
+  const RGB contribution = ps.filter_weight * v.beta * (phase * w / light_pdf) * ls->L;
+  if (!is_finite(contribution) || is_black(contribution)) return;
+  queue_shadow(out, spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light), contribution, ps, *sl, {},
+               medium);
+  if (observer) {
+    out.shadows.mis_weight.push_back(w);
+    PathVertexInfo info = medium_vertex_info(v, ls->wi, RGB(phase / light_pdf), light_pdf);
+    info.is_nee = true;
+    info.delta_light = ls->is_delta;
+    out.shadows.vertex.push_back(observer->vertex_created(ps.vertex, info));
+  }
 }
 
 // ---------------------------------------------------------------- shadow rays

@@ -116,17 +116,8 @@ float WavefrontEngine::Impl::scattering_pdf(const ShadingPoint& v, const vec3& w
 }
 
 static PathVertexInfo vertex_info(const ShadingPoint& v, const vec3& wi, const RGB& local, float pdf) {
-  PathVertexInfo info;
-  info.p = v.si.p;
+  PathVertexInfo info = path_vertex_info(v.ps, v.si.p, v.beta, wi, local, pdf);
   info.n = v.ns;
-  info.wi = wi;
-  info.prefix = v.ps.filter_weight * v.beta;
-  info.local = local;
-  info.pdf = pdf;
-  info.camera_weight = v.ps.filter_weight;
-  info.pixel = v.ps.pixel;
-  info.sample = v.ps.sample;
-  info.depth = int(v.ps.depth);
   info.guidable = v.guidable;
   return info;
 }

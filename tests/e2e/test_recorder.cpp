@@ -314,3 +314,141 @@ TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyAcrossSchedulerIterations) {
   EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4);
   EXPECT_EQ(r.log["recorder"]["skipped_paths"].get<uint64_t>(), 0u);
 }
+
+// ---------------------------------------------------------------- media
+
+namespace {
+
+Scene media_scene(const std::string& name, int res, int max_depth = -1) {
+  Scene s = load_test_scene_file(std::string(THEIA_SCENES) + "/" + name + "/scene.pbrt");
+  s.film.width = s.film.height = res;
+  if (max_depth >= 0) s.settings.max_depth = max_depth;
+  return s;
+}
+
+EngineOptions media_options(const Scene& scene) {
+  EngineOptions opt;
+  opt.batch_size = 4096;
+  opt.max_depth = scene.settings.max_depth;
+  return opt;
+}
+
+}  // namespace
+
+// In-medium vertices (seeds/000 ch. 2 section 3.4.2): scattering and NEE
+// from inside a medium create vertices, a medium's emission and the
+// transmittance-weighted light beyond reach the vertex whose ray it is, so
+// the primary-hit buffer still equals the beauty: fog-cornell (the camera in
+// a fog), the same fog glowing, and dense-glass (hundreds of scattering
+// events behind glass).
+TEST(RecorderDebug, PrimaryHitBufferEqualsBeautyInMedia) {
+  for (const char* name : {"fog-cornell", "glowing fog-cornell", "dense-glass"}) {
+    const bool glow = std::string(name).rfind("glowing ", 0) == 0;
+    Scene scene = media_scene(glow ? "fog-cornell" : name, 20);
+    if (glow) scene.media[0].Le = RGB(0.4f, 0.2f, 0.1f);
+    RecorderOptions ro;
+    ro.debug = true;
+    ro.vertex_budget = 0.0f;
+    RecordedRender r = render_recorded(scene, media_options(scene), ro, 1, 4);
+    EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4) << name;
+    // Recording changes nothing the paths do (wavefront/media.cpp: one compiled
+    // medium stage), only the film's summation order.
+    const ImageBuffer plain = layer(render_recorded(scene, media_options(scene), ro, 1, 4, false).image, "");
+    EXPECT_LT(max_relative_difference(layer(r.image, ""), plain), 1e-5) << name;
+    EXPECT_GT(image_mean(layer(r.image, "recorder")).x, 0.01f) << name;
+    EXPECT_EQ(r.stats.dropped, 0u) << name;
+    EXPECT_GT(r.stats.recorded, 0u) << name;
+  }
+}
+
+// The N-th bounce buffer divides out the prefix throughput and multiplies
+// the local factor: at medium vertices that is phase / pdf (1 for
+// Henyey-Greenstein), so it equals the throughput-reset image there too
+// (roulette off: it decides on the throughput the reset changes).
+TEST(RecorderDebug, NthBounceBufferEqualsThroughputResetImageInFog) {
+  Scene scene = media_scene("fog-cornell", 16, 8);
+  EngineOptions opt = media_options(scene);
+  opt.rr_min_depth = 1000;
+  for (int bounce : {0, 1, 3}) {
+    RecorderOptions ro;
+    ro.debug_bounce = bounce;
+    ro.vertex_budget = 0.0f;
+    RecordedRender r = render_recorded(scene, opt, ro, 1, 4);
+    EngineOptions reset = opt;
+    reset.throughput_reset_bounce = bounce;
+    ImageBuffer reference = layer(render_recorded(scene, reset, ro, 1, 4, false).image, "");
+    EXPECT_LT(max_relative_difference(layer(r.image, "bounce"), reference), 1e-4) << "bounce " << bounce;
+    EXPECT_GT(image_mean(reference).x, 0.01f) << "bounce " << bounce;
+  }
+}
+
+// Bounded memory in a dense medium (seeds/000 ch. 2 sections 3.4.4, 5.1):
+// dense-glass with ten times its scattering, isotropic and without
+// absorption (sigma_t 200 in a sphere of radius 0.5: a walk takes thousands
+// of scattering events to leave it) holds every path's chain
+// of vertices until the path ends; skipping in-medium vertices or merging
+// close ones into their parent shrinks the peak, and since the camera's
+// vertices are on the glass (not in the medium) the primary buffer still
+// equals the beauty: merged light reaches the nearest recorded ancestor.
+TEST(RecorderMemory, DenseMediumSkippingBoundsThePeak) {
+  Scene scene = media_scene("dense-glass", 16, 20000);
+  scene.media[0].sigma_s *= 10.0f;
+  scene.media[0].sigma_a = RGB(0.0f);
+  scene.media[0].g = 0.0f;
+  EngineOptions opt = media_options(scene);
+  auto run = [&](float medium_skip, float min_distance) {
+    RecorderOptions ro;
+    ro.debug = true;
+    ro.vertex_budget = 0.0f;
+    ro.medium_skip_probability = medium_skip;
+    ro.min_distance = min_distance;
+    RecordedRender r = render_recorded(scene, opt, ro, 1, 1);
+    EXPECT_LT(max_relative_difference(layer(r.image, ""), layer(r.image, "recorder")), 1e-4)
+        << "skip " << medium_skip << ", distance " << min_distance;
+    return r.stats;
+  };
+  const RecorderStats all = run(0.0f, 0.0f), skipped = run(0.9f, 0.0f), merged = run(0.0f, 0.05f);
+  // Measured: 181 vertex events per path, a peak of 13,118 live vertices for 256 paths; with
+  // skipping 1,364, with the minimum distance 276.
+  EXPECT_GT(double(all.vertex_events) / double(all.paths), 100.0) << "paths scatter hundreds of times";
+  EXPECT_GT(all.peak_live_vertices, 10000u);
+  EXPECT_LT(double(skipped.peak_live_vertices), 0.2 * double(all.peak_live_vertices));
+  EXPECT_LT(double(merged.peak_live_vertices), 0.2 * double(all.peak_live_vertices));
+  EXPECT_GT(merged.merged_vertices, all.recorded / 2);
+}
+
+// With the camera in the fog, depth-0 vertices are skipped too: the primary
+// buffer is then noisier than the beauty (its splats weighted by 1 / keep
+// probability) but converges to it.
+TEST(RecorderDebug, MediumSkippingIsNoisierButConvergesInFog) {
+  Scene scene = media_scene("fog-cornell", 16, 8);
+  RecorderOptions ro;
+  ro.debug = true;
+  ro.vertex_budget = 0.0f;
+  ro.medium_skip_probability = 0.5f;
+  auto error_at = [&](int spp, RecorderStats* st) {
+    RecordedRender r = render_recorded(scene, media_options(scene), ro, 1, spp);
+    if (st) *st = r.stats;
+    return rel_mse(layer(r.image, "recorder"), layer(r.image, ""));
+  };
+  RecorderStats st;
+  const double e_few = error_at(4, nullptr), e_many = error_at(32, &st);
+  EXPECT_GT(st.skipped_vertices, 0u);
+  EXPECT_GT(e_few, 1e-4) << "skipped depth-0 vertices make the buffer differ sample for sample";
+  EXPECT_LT(e_many, 0.35 * e_few) << "relMSE " << e_few << " at 4 spp, " << e_many << " at 32 spp";
+}
+
+// Each skip probability is a probability below 1 (1 would record nothing),
+// refused with the flag's name.
+TEST(RecorderOptionsCheck, SkipProbabilitiesAreBelowOne) {
+  for (float p : {1.0f, -0.1f, std::nanf("")}) {
+    RenderConfig c = quick_config(1);
+    c.recorder.medium_skip_probability = p;
+    try {
+      check_config(c);
+      ADD_FAILURE() << "accepted " << p;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("--recorder-medium-skip-probability"), std::string::npos) << e.what();
+    }
+  }
+}

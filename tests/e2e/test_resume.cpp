@@ -280,6 +280,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--recorder-vertex-budget", {"2"}},
     {"--recorder-training", {"all"}},
     {"--recorder-vertex-skip-probability", {"0.25"}},
+    {"--recorder-medium-skip-probability", {"0.5"}},
     {"--recorder-min-distance", {"0.1"}},
     {"--recorder-debug", {}},
     {"--recorder-debug-bounce", {"1"}},

@@ -385,7 +385,7 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
       rtcSetGeometryIntersectFilterFunction(geom, hit_filter);
       if (!never_occludes) rtcSetGeometryOccludedFilterFunction(geom, hit_filter);
     }
-    // Cut-out or not.
+    // A virtual light or an interface never occludes, cut-out or not.
     if (never_occludes) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
   } else if (s.kind == ShapeKind::Curve) {
     // Curves never carry area lights (the parser drops them), so never virtual ones.

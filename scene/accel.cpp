@@ -31,14 +31,14 @@ struct QuadricGeom {
   CylinderShape cylinder;
   glm::dmat4 object_from_parent;  // parent = render space, or the prototype's space
   Bounds3 bounds;                 // in parent space
-  bool is_virtual = false;        // a virtual light: never occludes
+  bool never_occludes = false;    // a virtual light or an interface
   const Scene* scene = nullptr;
   int alpha = -1;                 // float texture index: cut-outs, or -1
 };
 
-// Virtual lights emit but do not block: shadow rays ignore every hit on them.
-// (Closest-hit rays do stop there; the engine splats the emission and
-// re-traces from the far side.)
+// Virtual lights and interfaces do not block: shadow rays ignore every hit on
+// them.  (Closest-hit rays do stop there; the engine splats a virtual light's
+// emission and re-traces from the far side.)
 void reject_occlusion(const RTCFilterFunctionNArguments* args) {
   for (unsigned i = 0; i < args->N; ++i) args->valid[i] = 0;
 }
@@ -132,7 +132,7 @@ void quadric_intersect(const RTCIntersectFunctionNArguments* args) {
 
 void quadric_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* g = static_cast<const QuadricGeom*>(args->geometryUserPtr);
-  if (g->is_virtual) return;
+  if (g->never_occludes) return;
   unsigned n = args->N;
   for (unsigned i = 0; i < n; ++i) {
     if (args->valid[i] != -1) continue;
@@ -345,8 +345,14 @@ RTCGeometry Accel::Impl::new_curve_geometry(const Scene& sc, const Shape& s) {
 
 uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
   const Shape& s = sc.shapes.at(size_t(index));
+  // Shadow rays pass virtual lights and "interface" surfaces (a medium boundary that does not
+  // scatter: pbrt-v4's shadow rays go on through a surface without a material).  Closest-hit
+  // rays still stop at both; the engine continues them.
   const bool is_virtual = s.area_light >= 0 && size_t(s.area_light) < sc.lights.size() &&
                           sc.lights[size_t(s.area_light)].is_virtual;
+  const bool is_interface = s.material >= 0 && size_t(s.material) < sc.materials.size() &&
+                            sc.materials[size_t(s.material)].kind == MaterialKind::Interface;
+  const bool never_occludes = is_virtual || is_interface;
   RTCGeometry geom = nullptr;
   if (s.kind == ShapeKind::TriangleMesh) {
     if (s.mesh < 0 || size_t(s.mesh) >= sc.meshes.size())
@@ -377,14 +383,15 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
       filter_geoms.push_back(FilterGeom{&sc, &m, nullptr, s.alpha});
       rtcSetGeometryUserData(geom, &filter_geoms.back());
       rtcSetGeometryIntersectFilterFunction(geom, hit_filter);
-      if (!is_virtual) rtcSetGeometryOccludedFilterFunction(geom, hit_filter);
+      if (!never_occludes) rtcSetGeometryOccludedFilterFunction(geom, hit_filter);
     }
-    // A virtual light never occludes, cut-out or not.
-    if (is_virtual) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
+    // A virtual light or an interface never occludes, cut-out or not.
+    if (never_occludes) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
   } else if (s.kind == ShapeKind::Curve) {
     // Curves never carry area lights (the parser drops them), so never virtual ones.
     geom = new_curve_geometry(sc, s);
     if (!geom) return kInvalidId;
+    if (is_interface) rtcSetGeometryOccludedFilterFunction(geom, reject_occlusion);
   } else {
     QuadricGeom& q = quadrics.emplace_back();
     q.kind = s.kind;
@@ -394,7 +401,7 @@ uint32_t Accel::Impl::add_shape(RTCScene scene, const Scene& sc, int index) {
     glm::dmat4 parent_from_object(s.render_from_object.m);
     q.object_from_parent = glm::inverse(parent_from_object);
     q.bounds = transform_bounds(parent_from_object, quadric_object_bounds(s));
-    q.is_virtual = is_virtual;
+    q.never_occludes = never_occludes;
     // Cut-outs are tested inside the intersect and occluded functions (user
     // geometry gets no filter calls of its own), so a cut-out first root can
     // pass the ray on to the second.

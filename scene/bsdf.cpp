@@ -84,8 +84,10 @@ Frame shading_frame(const Scene& scene, const Material* m, const SurfaceInteract
     float d = eval_float_texture(scene, m->displacement, tc);
     float d_u = eval_float_texture(scene, m->displacement, {si.uv + vec2(du, 0.0f), si.p + du * si.dpdu, tc.fp, tc.n});
     float d_v = eval_float_texture(scene, m->displacement, {si.uv + vec2(0.0f, dv), si.p + dv * si.dpdv, tc.fp, tc.n});
-    dpdu = si.dpdu + (d_u - d) / du * ns;
-    dpdv = si.dpdv + (d_v - d) / dv * ns;
+    // The partials of the displaced surface p + d n: its slope along n and its
+    // curvature term d dn/du (which shrinks the tilt where d is above a curved surface).
+    dpdu = si.dpdu + (d_u - d) / du * ns + d * si.dndu;
+    dpdv = si.dpdv + (d_v - d) / dv * ns + d * si.dndv;
     mapped = true;
   }
   if (mapped) {

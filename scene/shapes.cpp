@@ -155,6 +155,7 @@ namespace {
 // A quadric point in object space with pbrt-v4's derivatives and error.
 struct LocalGeom {
   dvec3 p, p_error, n, dpdu, dpdv;
+  dvec3 dndu{0.0}, dndv{0.0};
   vec2 uv;
 };
 
@@ -170,6 +171,9 @@ LocalGeom sphere_local(const SphereShape& s, double phi, double theta) {
   g.uv = sphere_uv(s, phi, theta);
   g.dpdu = dvec3(-s.phimax * g.p.y, s.phimax * g.p.x, 0.0);
   g.dpdv = dtheta * dvec3(g.p.z * std::cos(phi), g.p.z * std::sin(phi), -r * st);
+  // n = p / r: what pbrt-v4's Weingarten equations give on a sphere.
+  g.dndu = g.dpdu / r;
+  g.dndv = g.dpdv / r;
   return g;
 }
 
@@ -195,6 +199,7 @@ LocalGeom cylinder_local(const CylinderShape& s, double phi, double z) {
   g.uv = cylinder_uv(s, phi, z);
   g.dpdu = dvec3(-s.phimax * g.p.y, s.phimax * g.p.x, 0.0);
   g.dpdv = dvec3(0.0, 0.0, s.zmax - s.zmin);
+  g.dndu = g.dpdu / s.radius;  // n = (x, y, 0) / r
   return g;
 }
 
@@ -241,6 +246,22 @@ void coordinate_system(const vec3& n, vec3* a, vec3* b) {
   *b = f.t;
 }
 
+// pbrt-v4's dndu, dndv of a triangle's interpolated vertex normals: the normals'
+// differences over the uv differences (any orthogonal pair when the uvs are degenerate).
+void triangle_normal_derivatives(const TriangleMesh& m, size_t tri, const vec2 uv[3], vec3* dndu, vec3* dndv) {
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  vec2 duv02 = uv[0] - uv[2], duv12 = uv[1] - uv[2];
+  vec3 dn1 = m.n[i0] - m.n[i2], dn2 = m.n[i1] - m.n[i2];
+  float det = duv02.x * duv12.y - duv02.y * duv12.x;
+  if (std::abs(det) >= 1e-9f) {
+    *dndu = (duv12.y * dn1 - duv02.y * dn2) / det;
+    *dndv = (duv02.x * dn2 - duv12.x * dn1) / det;
+    return;
+  }
+  vec3 dn = glm::cross(m.n[i2] - m.n[i0], m.n[i1] - m.n[i0]);
+  if (glm::dot(dn, dn) > 0.0f) coordinate_system(glm::normalize(dn), dndu, dndv);
+}
+
 SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, size_t tri, float b1, float b2) {
   float b0 = 1.0f - b1 - b2;
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
@@ -263,6 +284,7 @@ SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, s
   si.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, tri, b0, b1, b2, &si.ns);
   if (degenerate || glm::dot(glm::cross(si.dpdu, si.dpdv), glm::cross(si.dpdu, si.dpdv)) == 0.0f)
     coordinate_system(si.ng, &si.dpdu, &si.dpdv);
+  if (!m.n.empty()) triangle_normal_derivatives(m, tri, uv, &si.dndu, &si.dndv);
   return si;
 }
 
@@ -279,6 +301,11 @@ SurfaceInteraction quadric_interaction(const Shape& s, const LocalGeom& g) {
   si.uv = g.uv;
   si.dpdu = vec3(dmat3(m) * g.dpdu);
   si.dpdv = vec3(dmat3(m) * g.dpdv);
+  // Carried as normals, as pbrt-v4 carries them, over the length the transform gives the unit
+  // normal: exact for similarities, where pbrt-v4's dndu is off by the inverse of the scale.
+  const double n_scale = glm::length(nm * g.n);
+  si.dndu = vec3(nm * g.dndu / n_scale);
+  si.dndv = vec3(nm * g.dndv / n_scale);
   return si;
 }
 
@@ -381,10 +408,13 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
     dvec3 e_back = transform_error(accel.instance_from_render(inst), p, dvec3(0.0));
     si.p = vec3(p);
     si.p_error = vec3(transform_error(m, p_inst, e_inst + e_back));
+    const float n_scale = glm::length(t.normal(si.ns));  // as for quadrics: exact for similarities
     si.ng = glm::normalize(t.normal(si.ng));
     si.ns = face_forward(glm::normalize(t.normal(si.ns)), si.ng);
     si.dpdu = t.vector(si.dpdu);
     si.dpdv = t.vector(si.dpdv);
+    si.dndu = t.normal(si.dndu) / n_scale;
+    si.dndv = t.normal(si.dndv) / n_scale;
   }
   si.wo = -glm::normalize(ray.d);
   si.t = hit.t;

@@ -67,6 +67,9 @@ struct SurfaceInteraction {
   vec3 ns{0.0f};       // shading normal, unit, same hemisphere as ng
   vec2 uv{0.0f};
   vec3 dpdu{0.0f}, dpdv{0.0f};
+  // pbrt-v4's derivatives of the normal (the shape's own, never flipped): the displaced
+  // surface p + d n of a bump map turns with them.  0 on planes, disks and curves.
+  vec3 dndu{0.0f}, dndv{0.0f};
   vec3 wo{0.0f};  // -ray.d, unit
   float t = 0.0f;
   int shape = -1, material = -1, area_light = -1, instance = -1;

@@ -2,6 +2,7 @@
 // defines them, instancing, watertightness and self-intersection.
 #include "core/log.h"
 #include "scene/accel.h"
+#include "scene/parser.h"
 #include "scene/shapes.h"
 #include "tests/unit/scene_builders.h"
 
@@ -526,6 +527,35 @@ TriangleMesh wall_at_x(float x0) {
 Ray ray_to(vec3 o, vec3 d, float tmax) { return Ray{o, 0.0f, d, tmax}; }
 
 // The sphere's front half (y < 0, seen from -y) is cut away, its back is not.
+// An "interface" surface bounds media and does not scatter: closest-hit rays
+// stop at it (the engine continues them), shadow rays pass it, as pbrt-v4's
+// shadow rays pass a surface without a material.  Every kind of shape, and a
+// scattering material as the control.
+TEST(AccelInterface, ShadowRaysPassInterfaceSurfaces) {
+  const char* shapes[] = {
+      "Shape \"sphere\" \"float radius\" [0.5]",
+      "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 0 1 0] \"integer indices\" [0 1 2]",
+      "Shape \"disk\" \"float radius\" [0.5]",
+      "Shape \"cylinder\" \"float radius\" [0.5] \"float zmin\" [-0.5] \"float zmax\" [0.5]",
+      "Shape \"curve\" \"point3 P\" [-1 0 0 -0.3 0 0 0.3 0 0 1 0 0] \"float width\" [0.2]",
+  };
+  for (const char* material : {"interface", "diffuse"}) {
+    for (const char* shape : shapes) {
+      SCOPED_TRACE(std::string(material) + ": " + shape);
+      // The cylinder's axis is z: turn it to meet the ray from the side.
+      std::string text = std::string("WorldBegin\nMaterial \"") + material + "\"\n" +
+                         (std::string(shape).find("cylinder") != std::string::npos ? "Rotate 90 1 0 0\n" : "") + shape + "\n";
+      Scene sc = parse_scene_string(text, "interface.pbrt", ".");
+      Accel a(sc);
+      Ray r = make_ray(vec3(0.0f, 0.0f, -5.0f), vec3(0, 0, 1));
+      EXPECT_TRUE(a.intersect1(r).hit());
+      Ray shadow = r;
+      shadow.tmax = 10.0f;
+      EXPECT_EQ(a.occluded1(shadow), std::string(material) != "interface");
+    }
+  }
+}
+
 TEST(AccelAlpha, CutOutSphereShowsItsFarSideAndWhatLiesBehind) {
   for (bool is_virtual : {false, true}) {
     Scene sc;

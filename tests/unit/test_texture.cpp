@@ -1,5 +1,8 @@
 #include "core/color.h"
+#include "scene/accel.h"
 #include "scene/bsdf.h"
+#include "scene/parser.h"
+#include "scene/shapes.h"
 #include "scene/texture.h"
 
 #include "core/image.h"
@@ -309,6 +312,55 @@ TEST(TextureBumpMap, OffsetIsHalfTheFootprintOrTheFixedFallback) {
   BumpPlane below(s, step, {0.5f, 0.9f});
   expect_normal(below.normal({0.0f, 0.0f, -0.1f, 0.3f}), bumped(0.0f, -1.0f / 0.2f), "dv from the footprint");
   expect_normal(below.normal({}), vec3(0, 0, 1), "dv fallback stays short");
+}
+
+// The bump-mapped normal of a curved surface is the normal of the displaced
+// surface P = p + d n, whose partials carry d dn/du: against P written out in
+// the test for a sphere of radius R (uniform scale s of a unit sphere, and its
+// centre moved), with d linear in (u, v) so the bump's finite differences are
+// exact.  Without the d dn/du term the tilt is (R + d) / R too large (up to 2x
+// here); with pbrt-v4's dn/du under a scale (carried as a normal, 1/s too
+// short) it is off by the scale.
+TEST(TextureBumpMap, CurvedSurfaceTiltsLikeTheDisplacedSurface) {
+  for (float scale : {1.0f, 2.0f}) {
+    const vec3 centre(0.5f, -1.0f, 0.25f);
+    Scene s = parse_scene_string(
+        fmt::format("WorldBegin\nTexture \"d\" \"float\" \"bilerp\" \"float v00\" 0.3 \"float v10\" 2.3 "
+                    "\"float v01\" 0.5 \"float v11\" 2.5\nMaterial \"diffuse\" \"texture displacement\" \"d\"\n"
+                    "Translate {} {} {}\nScale {} {} {}\nShape \"sphere\"\n",
+                    centre.x, centre.y, centre.z, scale, scale, scale),
+        "bump.pbrt", ".");
+    Accel accel(s);
+    const double R = scale;
+    auto d_at = [](double u, double v) { return 0.3 + 2.0 * u + 0.2 * v; };
+    // pbrt-v4's full sphere: phi = 2 pi u, theta = pi (1 - v), p - centre = (R + d) * unit direction.
+    auto displaced = [&](double u, double v) {
+      double phi = 2.0 * kPi * u, theta = kPi * (1.0 - v);
+      glm::dvec3 dir(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      return (R + d_at(u, v)) * dir;
+    };
+    int checked = 0;
+    for (vec3 dir : {vec3(1, 0.2f, 0.3f), vec3(-0.4f, 1, -0.5f), vec3(0.3f, -0.8f, 0.6f), vec3(-1, -0.3f, -0.2f)}) {
+      dir = glm::normalize(dir);
+      Ray ray{centre + 5.0f * dir, 0.0f, -dir, kInfinity};
+      Hit hit = accel.intersect1(ray);
+      ASSERT_TRUE(hit.hit());
+      SurfaceInteraction si = compute_interaction(s, accel, ray, hit);
+      vec3 n = make_bsdf(s, si, UVFootprint{}).shading.n;
+      const double h = 1e-5, u = si.uv.x, v = si.uv.y;
+      glm::dvec3 Pu = (displaced(u + h, v) - displaced(u - h, v)) / (2 * h);
+      glm::dvec3 Pv = (displaced(u, v + h) - displaced(u, v - h)) / (2 * h);
+      glm::dvec3 truth = glm::normalize(glm::cross(Pu, Pv));
+      if (glm::dot(truth, glm::dvec3(si.ng)) < 0) truth = -truth;
+      glm::dvec3 plain(si.ns);
+      EXPECT_GT(glm::length(truth - plain), 0.05) << "the bumps must tilt the normal visibly";
+      EXPECT_NEAR(n.x, truth.x, 2e-4) << "scale " << scale << " uv " << u << " " << v;
+      EXPECT_NEAR(n.y, truth.y, 2e-4) << "scale " << scale << " uv " << u << " " << v;
+      EXPECT_NEAR(n.z, truth.z, 2e-4) << "scale " << scale << " uv " << u << " " << v;
+      ++checked;
+    }
+    EXPECT_EQ(checked, 4);
+  }
 }
 
 // ---------------------------------------------------------------- loading

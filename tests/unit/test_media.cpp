@@ -299,9 +299,9 @@ TEST(ParserMedia, BadMediaAreErrorsWithLocation) {
     return std::string("no error");
   };
   EXPECT_NE(error_of("WorldBegin\nMediumInterface \"nope\"\n").find("m.pbrt:2:"), std::string::npos);
-  EXPECT_NE(error_of("WorldBegin\nMakeNamedMedium \"a\" \"string type\" \"nanovdb\"\n").find("not supported yet"),
+  EXPECT_NE(error_of("WorldBegin\nMakeNamedMedium \"a\" \"string type\" \"nanovdb\"\n").find("nanovdb medium \"a\" without \"string filename\""),
             std::string::npos);
-  EXPECT_NE(error_of("WorldBegin\nMakeNamedMedium \"a\" \"string type\" \"cloud\"\n").find("m.pbrt:2:"), std::string::npos);
+  EXPECT_NE(error_of("WorldBegin\nMakeNamedMedium \"a\" \"string type\" \"fog\"\n").find("m.pbrt:2:"), std::string::npos);
   EXPECT_NE(error_of("WorldBegin\nMakeNamedMedium \"a\" \"string type\" \"uniformgrid\" \"integer nx\" 2 "
                      "\"float density\" [1]\n")
                 .find("expected nx*ny*nz = 2"),

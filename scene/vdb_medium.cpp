@@ -46,6 +46,7 @@ std::string check_structure(const std::string& path) {
       // Uncompressed grids are stored as they are; zip inflates by at most 1032.
       const uint64_t limit = header.codec == nanovdb::io::Codec::NONE ? meta.fileSize : meta.fileSize * 1032 + 64;
       if (meta.gridSize > limit || meta.fileSize > size) return "a grid claims more bytes than the file holds";
+      if (meta.gridSize < sizeof(nanovdb::GridData)) return "a grid is smaller than its own header";
       data_bytes += meta.fileSize;
     }
     if (data_bytes > size - pos) return "truncated grid data";
@@ -69,6 +70,8 @@ Handle read_grid(const std::string& path, const std::string& name, bool required
     return handle;
   }
   const nanovdb::FloatGrid* grid = handle.grid<float>();
+  if (grid && grid->gridSize() > handle.size())
+    throw_at(loc, "grid \"{}\" in \"{}\" is corrupt: it claims more bytes than were read", name, path);
   if (!grid) throw_at(loc, "grid \"{}\" in \"{}\" does not hold floats, expected a float grid", name, path);
   if (const std::string wrong = nanovdb::GridValidator<float>::check(*grid, true); !wrong.empty())
     throw_at(loc, "grid \"{}\" in \"{}\" is corrupt: {}", name, path, wrong);

@@ -97,6 +97,34 @@ TEST(MediaRGBGrid, ColoursAreInTheWorkingSpace) {
   expect_rgb_near(medium_props(m, vec3(0.5f)).sigma_a, RGB(1.0f), 0.0f, "absent sigma_a");
 }
 
+// Cost follows the local density: through the empty part of a grid whose
+// only dense voxel is in a far corner, ratio tracking draws no number with
+// the majorant grid and about 200 with one global majorant.
+TEST(MediaRGBGrid, MajorantGridMakesEmptyRegionsCheap) {
+  Medium m;
+  m.kind = MediumKind::RGBGrid;
+  m.nx = m.ny = m.nz = 8;
+  m.sigma_a_grid.assign(512, RGB(0.0f));
+  m.sigma_s_grid.assign(512, RGB(0.0f));
+  m.sigma_a_grid.back() = RGB(200.0f);
+  m.sigma_a = m.sigma_s = RGB(1.0f);
+  build_majorant_grid(m);
+  Medium global = m;
+  global.majorants.clear();
+  const Ray ray{vec3(-1.0f, 0.1f, 0.1f), 0.0f, vec3(1.0f, 0.0f, 0.0f), kInfinity};
+  double draws_grid = 0.0, draws_global = 0.0;
+  for (uint64_t i = 0; i < 1000; ++i) {
+    TrackingRng a{i}, b{i};
+    EXPECT_EQ(ratio_tracking(m, ray, ray.tmax, a), RGB(1.0f));
+    EXPECT_EQ(ratio_tracking(global, ray, ray.tmax, b), RGB(1.0f));
+    draws_grid += a.index, draws_global += b.index;
+  }
+  // Empty majorant cells are skipped without a draw; the global majorant
+  // (200 x 1 unit) tests about 200 null collisions.
+  EXPECT_EQ(draws_grid, 0.0);
+  EXPECT_GT(draws_global / 1000.0, 150.0);
+}
+
 TEST(MediaRGBGrid, BadParametersAreLocatedErrors) {
   const std::string head = "WorldBegin\nMakeNamedMedium \"r\" \"string type\" \"rgbgrid\" ";
   EXPECT_NE(error_of(head + "\"integer nx\" 2").find("m.pbrt:2:"), std::string::npos);

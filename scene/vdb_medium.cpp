@@ -6,6 +6,7 @@
 #include <nanovdb/util/GridValidator.h>
 #include <nanovdb/util/IO.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -56,6 +57,53 @@ std::string check_structure(const std::string& path) {
   return "";
 }
 
+// A node of `size` bytes at `address` lies inside the buffer [begin, end)
+// and is aligned as NanoVDB lays nodes out.
+bool node_inside(uintptr_t address, size_t size, uintptr_t begin, uintptr_t end) {
+  return address >= begin && address <= end && size <= end - address && address % NANOVDB_DATA_ALIGNMENT == 0;
+}
+
+// Every child the tree's masks lead to lies inside the grid's `bytes`, so the
+// accessor that unfolds the grid cannot read past them.  NanoVDB's validator
+// checks less than this when a file's checksum is partial (the default), and
+// a flipped byte in a node then crashed the unfolding.
+bool tree_inside(const nanovdb::FloatGrid& g, uint64_t bytes) {
+  using Upper = nanovdb::NanoUpper<float>;
+  using Lower = nanovdb::NanoLower<float>;
+  const uintptr_t begin = reinterpret_cast<uintptr_t>(&g), end = begin + bytes;
+  if (bytes < sizeof(nanovdb::GridData) + sizeof(nanovdb::NanoTree<float>)) return false;
+  const auto* root = g.tree().root().data();
+  const uintptr_t tiles = reinterpret_cast<uintptr_t>(root + 1);
+  if (!node_inside(reinterpret_cast<uintptr_t>(root), sizeof(*root), begin, end) ||
+      uint64_t(root->mTableSize) * sizeof(*root->tile(0)) > end - std::min(tiles, end))
+    return false;
+  for (uint32_t t = 0; t < root->mTableSize; ++t) {
+    const auto* tile = root->tile(t);
+    if (!tile->isChild()) continue;
+    const uintptr_t upper_at = reinterpret_cast<uintptr_t>(root) + uintptr_t(tile->child);
+    if (!node_inside(upper_at, sizeof(Upper), begin, end)) return false;
+    const Upper* upper = reinterpret_cast<const Upper*>(upper_at);
+    for (uint32_t i = 0; i < Upper::SIZE; ++i) {
+      if (!upper->data()->mChildMask.isOn(i)) continue;
+      const uintptr_t lower_at = upper_at + uintptr_t(upper->data()->mTable[i].child);
+      if (!node_inside(lower_at, sizeof(Lower), begin, end)) return false;
+      const Lower* lower = reinterpret_cast<const Lower*>(lower_at);
+      for (uint32_t j = 0; j < Lower::SIZE; ++j)
+        if (lower->data()->mChildMask.isOn(j) &&
+            !node_inside(lower_at + uintptr_t(lower->data()->mTable[j].child), sizeof(nanovdb::NanoLeaf<float>), begin, end))
+          return false;
+    }
+  }
+  return true;
+}
+
+// The grid a handle holds, read in place: GridHandle::grid walks a chain of
+// grid sizes that a corrupt header sends past the buffer.  check_structure
+// made the buffer at least a grid header long; the type is checked by the caller.
+const nanovdb::FloatGrid* float_grid(const Handle& handle) {
+  return reinterpret_cast<const nanovdb::FloatGrid*>(handle.data());
+}
+
 // The named float grid, or an empty handle when the file has none of that
 // name and it is optional.
 Handle read_grid(const std::string& path, const std::string& name, bool required, const SourceLoc& loc) {
@@ -69,11 +117,17 @@ Handle read_grid(const std::string& path, const std::string& name, bool required
     if (required) throw_at(loc, "nanovdb file \"{}\" has no grid \"{}\", expected a float density grid of that name", path, name);
     return handle;
   }
-  const nanovdb::FloatGrid* grid = handle.grid<float>();
-  if (grid && grid->gridSize() > handle.size())
+  const nanovdb::FloatGrid* grid = float_grid(handle);
+  if (grid->gridSize() > handle.size())
     throw_at(loc, "grid \"{}\" in \"{}\" is corrupt: it claims more bytes than were read", name, path);
-  if (!grid) throw_at(loc, "grid \"{}\" in \"{}\" does not hold floats, expected a float grid", name, path);
-  if (const std::string wrong = nanovdb::GridValidator<float>::check(*grid, true); !wrong.empty())
+  if (grid->gridType() != nanovdb::GridType::Float)
+    throw_at(loc, "grid \"{}\" in \"{}\" does not hold floats, expected a float grid", name, path);
+  // Nodes first: NanoVDB's own validator follows the tree's pointers unchecked.
+  if (!tree_inside(*grid, grid->gridSize()))
+    throw_at(loc, "grid \"{}\" in \"{}\" is corrupt: a node lies outside the grid", name, path);
+  // Header, types and the checksum of the grid's head (its full checksum
+  // walks node arrays whose counts are not checked).
+  if (const std::string wrong = nanovdb::GridValidator<float>::check(*grid, false); !wrong.empty())
     throw_at(loc, "grid \"{}\" in \"{}\" is corrupt: {}", name, path, wrong);
   if (!grid->isFogVolume() && !grid->isUnknown())
     throw_at(loc, "grid \"{}\" in \"{}\" is not a fog volume, expected densities (pbrt-v4 reads fog volumes)", name, path);
@@ -94,8 +148,8 @@ void check_axis_aligned(const nanovdb::FloatGrid& g, const std::string& what, co
 }
 
 // Unfolds `grid` over the index box [lo, hi] (x fastest); NaN and negative
-// voxels become 0, counted in `clamped`.
-std::vector<float> dense(const nanovdb::FloatGrid& grid, const nanovdb::Coord& lo, const nanovdb::Coord& hi,
+// voxels become 0 and voxels above `max` become `max`, counted in `clamped`.
+std::vector<float> dense(const nanovdb::FloatGrid& grid, const nanovdb::Coord& lo, const nanovdb::Coord& hi, float max,
                          uint64_t& clamped) {
   std::vector<float> v;
   v.reserve(size_t(hi[0] - lo[0] + 1) * size_t(hi[1] - lo[1] + 1) * size_t(hi[2] - lo[2] + 1));
@@ -104,8 +158,9 @@ std::vector<float> dense(const nanovdb::FloatGrid& grid, const nanovdb::Coord& l
     for (int y = lo[1]; y <= hi[1]; ++y)
       for (int x = lo[0]; x <= hi[0]; ++x) {
         const float d = acc.getValue(nanovdb::Coord(x, y, z));
-        if (!(d >= 0.0f) || !std::isfinite(d)) ++clamped;
-        v.push_back(d >= 0.0f && std::isfinite(d) ? d : 0.0f);
+        const float c = d >= 0.0f ? std::min(d, max) : 0.0f;  // NaN fails d >= 0
+        clamped += c != d;
+        v.push_back(c);
       }
   return v;
 }
@@ -127,12 +182,12 @@ void read_vdb_grids(const ParamList& params, const SourceLoc& loc, const std::st
   const std::string density_name = params.get_string("gridname", "density");
   const Handle density = read_grid(path, density_name, true, f->loc);
   const Handle temperature = read_grid(path, params.get_string("temperaturename", "temperature"), false, f->loc);
-  const nanovdb::FloatGrid& dg = *density.grid<float>();
+  const nanovdb::FloatGrid& dg = *float_grid(density);
   check_axis_aligned(dg, fmt::format("grid \"{}\" in \"{}\"", density_name, path), f->loc);
   if (dg.activeVoxelCount() == 0) throw_at(f->loc, "grid \"{}\" in \"{}\" has no active voxels, expected a density", density_name, path);
   // One dense box over both grids' active voxels, which must share voxels.
   nanovdb::CoordBBox box = dg.indexBBox();
-  const nanovdb::FloatGrid* tg = temperature ? temperature.grid<float>() : nullptr;
+  const nanovdb::FloatGrid* tg = temperature ? float_grid(temperature) : nullptr;
   if (tg && tg->activeVoxelCount() > 0) {
     const nanovdb::Vec3d o = tg->indexToWorld(nanovdb::Vec3d(0.0)), e = tg->indexToWorld(nanovdb::Vec3d(1.0));
     if (o != dg.indexToWorld(nanovdb::Vec3d(0.0)) || e != dg.indexToWorld(nanovdb::Vec3d(1.0)))
@@ -141,14 +196,18 @@ void read_vdb_grids(const ParamList& params, const SourceLoc& loc, const std::st
     box.expand(tg->indexBBox().max());
   }
   const nanovdb::Coord lo = box.min(), hi = box.max();
+  if (!(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]))
+    throw_at(f->loc, "grid \"{}\" in \"{}\" is corrupt: its index box is empty", density_name, path);
   m.nx = hi[0] - lo[0] + 1, m.ny = hi[1] - lo[1] + 1, m.nz = hi[2] - lo[2] + 1;
   if (uint64_t(m.nx) * uint64_t(m.ny) * uint64_t(m.nz) > kMaxVdbVoxels)
     throw_at(f->loc, "nanovdb file \"{}\" spans {} x {} x {} voxels, expected at most {} in all (theia unfolds the grid)", path,
              m.nx, m.ny, m.nz, kMaxVdbVoxels);
   uint64_t clamped = 0;
-  m.density = dense(dg, lo, hi, clamped);
-  if (tg) m.temperature = dense(*tg, lo, hi, clamped);
-  if (clamped > 0) warn_at(f->loc, "nanovdb file \"{}\": {} NaN or negative voxels clamped to 0", path, clamped);
+  m.density = dense(dg, lo, hi, kMaxVdbDensity, clamped);
+  if (tg) m.temperature = dense(*tg, lo, hi, kMaxVdbKelvin, clamped);
+  if (clamped > 0)
+    warn_at(f->loc, "nanovdb file \"{}\": {} voxels NaN or negative (clamped to 0) or above {} density / {} K (clamped to it)",
+            path, clamped, kMaxVdbDensity, kMaxVdbKelvin);
   // Voxel values sit at integer index coordinates (NanoVDB's trilinear
   // sampler); the dense grid's voxel centres are half a voxel in from its box.
   const nanovdb::Vec3d w0 = dg.indexToWorld(nanovdb::Vec3d(lo[0] - 0.5, lo[1] - 0.5, lo[2] - 0.5));

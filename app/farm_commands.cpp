@@ -1,5 +1,6 @@
 #include "app/farm_commands.h"
 
+#include "app/render_command.h"
 #include "farm/part.h"
 
 namespace theia {
@@ -46,7 +47,11 @@ bool FarmCommands::parsed() const {
 
 int FarmCommands::run() const {
   if (merge_->parsed()) return run_merge(merge_parts_, merge_output_, merge_log_);
-  if (submit_->parsed()) return run_farm_submit(submit_options_);
+  if (submit_->parsed()) {
+    // A typo in the render's options fails here, not in every task on the farm.
+    check_render_words(split_words(submit_options_.render_options), "farm submit --render-options");
+    return run_farm_submit(submit_options_);
+  }
   if (status_->parsed()) return run_farm_status(farm_dir_);
   return run_farm_collect(farm_dir_);
 }

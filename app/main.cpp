@@ -3,6 +3,7 @@
 #include "app/farm_commands.h"
 #include "app/field_commands.h"
 #include "app/render.h"
+#include "app/render_command.h"
 #include "core/log.h"
 
 #include <CLI/CLI.hpp>
@@ -38,24 +39,12 @@ int main(int argc, char** argv) {
     return "error: " + std::string(e.what()) + "\n(--help lists the options)\n";
   });
 
-  RenderConfig rc;
-  bool quiet = false;
-  CLI::App* render = app.add_subcommand("render", "Render a pbrt-v4 scene to OpenEXR + PNG + JSON log");
-  render->add_option("scene", rc.scene_path, "pbrt-v4 scene file")->required();
-  render->add_option("-o,--output", rc.output, "Output .exr (default: the scene's Film filename)");
-  render->add_option("--log", rc.log_path, "JSON log file (default: OUTPUT with .json)");
-  render->add_option("--reference", rc.reference_path,
-                     "Reference image (linear sRGB EXR): log time, spp and relMSE/RMSE/MAPE at every iteration");
-  render->add_option("--sample-range", rc.sample_range,
-                     "BEGIN:END: render samples [BEGIN, END) of every pixel as a part of a split frame (theia merge)");
-  render->add_flag("-q,--quiet", quiet, "Print only warnings and errors");
-  OptionBinder binder(*render);
-  declare_render_options(binder, rc);
-  // Tests only: raise SIGTERM in iteration I once a fraction F of its camera rays were generated.
-  std::string test_sigterm;
-  render->add_option("--test-sigterm-at", test_sigterm, "")->group("");
-  // Tests only: abandon paths in flight this many seconds after a stop signal (default 2).
-  render->add_option("--test-abandon-after", rc.abandon_after_seconds, "")->group("");
+  RenderCommand render_command;
+  add_render_command(app, render_command);
+  CLI::App* render = render_command.cmd;
+  RenderConfig& rc = render_command.config;
+  const bool& quiet = render_command.quiet;
+  const std::string& test_sigterm = render_command.test_sigterm;
 
   std::string diff_a, diff_b, diff_image;
   CLI::App* diff = app.add_subcommand("diff", "Compare two images: relMSE, RMSE and more");
@@ -66,7 +55,13 @@ int main(int argc, char** argv) {
   FarmCommands farm(app);
   FieldCommands field(app);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help is a success (0); every parse error exits 1 as other errors
+    // do, with the one message of failure_message (not CLI11's own codes).
+    return app.exit(e) == 0 ? 0 : 1;
+  }
   try {
     if (render->parsed()) {
       if (quiet) set_verbosity(Verbosity::Quiet);

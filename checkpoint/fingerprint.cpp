@@ -133,6 +133,17 @@ uint64_t scene_fingerprint(const Scene& s) {
       h.vec(m.density);
       h.pod(m.p0);
       h.pod(m.p1);
+      h.vec(m.sigma_a_grid);
+      h.vec(m.sigma_s_grid);
+      h.vec(m.Le_grid);
+      h.pod(m.Le_scale);
+      h.vec(m.Le_scale_grid);
+      h.vec(m.temperature);
+      h.pod(m.temperature_offset);
+      h.pod(m.temperature_scale);
+      h.pod(m.cloud_density);
+      h.pod(m.wispiness);
+      h.pod(m.frequency);
       h.pod(m.render_from_medium);
     }
     h.pod(s.camera_medium);

@@ -43,12 +43,6 @@ std::string join_quoted(const std::vector<std::string>& words) {
   return line;
 }
 
-std::vector<std::string> split_words(const std::string& text) {
-  std::istringstream in(text);
-  std::vector<std::string> words;
-  for (std::string w; in >> w;) words.push_back(w);
-  return words;
-}
 
 int parse_int(const std::string& s, const std::string& what) {
   int v = 0;
@@ -126,6 +120,13 @@ nlohmann::json read_manifest(const std::string& dir) {
 }
 
 }  // namespace
+
+std::vector<std::string> split_words(const std::string& text) {
+  std::istringstream in(text);
+  std::vector<std::string> words;
+  for (std::string w; in >> w;) words.push_back(w);
+  return words;
+}
 
 void check(const FarmSubmitOptions& o) {
   if (o.scenes.empty() == o.pattern.empty())

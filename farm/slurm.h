@@ -24,6 +24,9 @@
 
 namespace theia {
 
+// --render-options as the words a task's command line gets (split at spaces).
+std::vector<std::string> split_words(const std::string& text);
+
 // `theia farm submit`'s options.  One name each, flag --NAME (kebab-case).
 struct FarmSubmitOptions {
   std::vector<std::string> scenes;    // scene files, in frame order

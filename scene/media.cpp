@@ -1,5 +1,9 @@
 #include "scene/media.h"
 
+#include "core/color.h"
+#include "scene/noise.h"
+#include "scene/spectrum.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -7,9 +11,34 @@ namespace theia {
 
 namespace {
 
-float voxel(const Medium& m, int x, int y, int z) {
-  if (x < 0 || y < 0 || z < 0 || x >= m.nx || y >= m.ny || z >= m.nz) return 0.0f;
-  return m.density[(size_t(z) * size_t(m.ny) + size_t(y)) * size_t(m.nx) + size_t(x)];
+template <class T>
+T voxel(const Medium& m, const std::vector<T>& values, int x, int y, int z) {
+  if (x < 0 || y < 0 || z < 0 || x >= m.nx || y >= m.ny || z >= m.nz) return T(0.0f);
+  return values[(size_t(z) * size_t(m.ny) + size_t(y)) * size_t(m.nx) + size_t(x)];
+}
+float voxel(const Medium& m, int x, int y, int z) { return voxel(m, m.density, x, y, z); }
+
+// pbrt-v4's SampledGrid::Lookup: trilinear between voxel centres over the
+// box p0-p1, zero outside.
+template <class T>
+T trilinear(const Medium& m, const std::vector<T>& v, const vec3& p) {
+  const vec3 u = (p - m.p0) / (m.p1 - m.p0);
+  const vec3 g(u.x * float(m.nx) - 0.5f, u.y * float(m.ny) - 0.5f, u.z * float(m.nz) - 0.5f);
+  const vec3 f = glm::floor(g);
+  const int x = int(f.x), y = int(f.y), z = int(f.z);
+  const vec3 d = g - f;
+  auto lerp = [](float t, const T& a, const T& b) { return (1.0f - t) * a + t * b; };
+  const T d00 = lerp(d.x, voxel(m, v, x, y, z), voxel(m, v, x + 1, y, z));
+  const T d10 = lerp(d.x, voxel(m, v, x, y + 1, z), voxel(m, v, x + 1, y + 1, z));
+  const T d01 = lerp(d.x, voxel(m, v, x, y, z + 1), voxel(m, v, x + 1, y, z + 1));
+  const T d11 = lerp(d.x, voxel(m, v, x, y + 1, z + 1), voxel(m, v, x + 1, y + 1, z + 1));
+  return lerp(d.z, lerp(d.y, d00, d10), lerp(d.y, d01, d11));
+}
+
+// The factor that turns a majorant-grid cell into sigma_maj: the rgbgrid's
+// cells hold sigma_t bounds already, the others density bounds.
+float majorant_scale(const Medium& m) {
+  return m.kind == MediumKind::RGBGrid ? 1.0f : max_component(m.sigma_a + m.sigma_s);
 }
 
 // The distance to the next tentative collision at majorant rate sigma_maj.
@@ -59,7 +88,7 @@ bool walk_grid(const Medium& m, const MediumSegment& seg, TrackingRng& rng, Visi
       delta[a] = 1.0 / std::abs(rate);
     }
   }
-  const float sigma_t_max = max_component(m.sigma_a + m.sigma_s);
+  const float sigma_t_max = majorant_scale(m);
   double s = seg.s0;
   while (true) {
     const int a = next[0] < next[1] ? (next[0] < next[2] ? 0 : 2) : (next[1] < next[2] ? 1 : 2);
@@ -81,7 +110,7 @@ template <class Visit>
 bool walk_collisions(const Medium& m, const Ray& ray, float tmax, TrackingRng& rng, Visit&& visit) {
   const MediumSegment seg = medium_segment(m, ray, 0.0f, tmax);
   if (seg.empty()) return true;
-  if (m.kind == MediumKind::UniformGrid && !m.majorants.empty()) return walk_grid(m, seg, rng, visit);
+  if (m.kind != MediumKind::Homogeneous && !m.majorants.empty()) return walk_grid(m, seg, rng, visit);
   double s = seg.s0;
   return walk_span(m, seg, s, double(seg.s1), medium_majorant(m), rng, visit);
 }
@@ -90,19 +119,42 @@ float average(const RGB& c) { return (c.x + c.y + c.z) * (1.0f / 3.0f); }
 
 }  // namespace
 
+float cloud_density(const Medium& m, const vec3& p) {
+  vec3 pp = m.frequency * p;
+  if (m.wispiness > 0.0f) {
+    // Domain warping by the noise's gradient: the wisps.
+    float vomega = 0.05f * m.wispiness, vlambda = 10.0f;
+    for (int i = 0; i < 2; ++i) {
+      pp += vomega * perlin_noise_gradient(vlambda * pp);
+      vomega *= 0.5f;
+      vlambda *= 1.99f;
+    }
+  }
+  float d = 0.0f, omega = 0.5f, lambda = 1.0f;
+  for (int i = 0; i < kCloudOctaves; ++i) {
+    d += omega * perlin_noise(lambda * pp);
+    omega *= 0.5f;
+    lambda *= 1.99f;
+  }
+  // Thinning with altitude, and a solid base below y = 0.5.
+  d = std::clamp((1.0f - p.y) * 4.5f * m.cloud_density * d, 0.0f, 1.0f);
+  d += 2.0f * std::max(0.0f, 0.5f - p.y);
+  return std::clamp(d, 0.0f, 1.0f);
+}
+
+bool medium_is_emissive(const Medium& m) {
+  return !is_black(m.Le) || (!m.Le_grid.empty() && m.Le_scale > 0.0f) || !m.blackbody_table.empty();
+}
+
 float medium_density(const Medium& m, const vec3& p) {
-  if (m.kind == MediumKind::Homogeneous) return 1.0f;
-  const vec3 u = (p - m.p0) / (m.p1 - m.p0);
-  const vec3 g(u.x * float(m.nx) - 0.5f, u.y * float(m.ny) - 0.5f, u.z * float(m.nz) - 0.5f);
-  const vec3 f = glm::floor(g);
-  const int x = int(f.x), y = int(f.y), z = int(f.z);
-  const vec3 d = g - f;
-  auto lerp = [](float t, float a, float b) { return (1.0f - t) * a + t * b; };
-  const float d00 = lerp(d.x, voxel(m, x, y, z), voxel(m, x + 1, y, z));
-  const float d10 = lerp(d.x, voxel(m, x, y + 1, z), voxel(m, x + 1, y + 1, z));
-  const float d01 = lerp(d.x, voxel(m, x, y, z + 1), voxel(m, x + 1, y, z + 1));
-  const float d11 = lerp(d.x, voxel(m, x, y + 1, z + 1), voxel(m, x + 1, y + 1, z + 1));
-  return lerp(d.z, lerp(d.y, d00, d10), lerp(d.y, d01, d11));
+  switch (m.kind) {
+    case MediumKind::Homogeneous:
+    case MediumKind::RGBGrid: return 1.0f;
+    case MediumKind::Cloud: return cloud_density(m, p);
+    case MediumKind::UniformGrid:
+    case MediumKind::NanoVDB: break;
+  }
+  return trilinear(m, m.density, p);
 }
 
 // pbrt-v4 scales a grid's Le by "Lescale" looked up in a 1 x 1 x 1 grid,
@@ -114,41 +166,169 @@ float grid_emission_scale(const Medium& m, const vec3& p) {
   return f.x * f.y * f.z;
 }
 
-MediumProps medium_props(const Medium& m, const vec3& p) {
-  const float d = medium_density(m, p);
-  if (m.kind == MediumKind::UniformGrid && !is_black(m.Le))
-    return MediumProps{m.sigma_a * d, m.sigma_s * d, m.Le * grid_emission_scale(m, p)};
-  return MediumProps{m.sigma_a * d, m.sigma_s * d, m.Le};
+RGB blackbody_emission(const Medium& m, float kelvin) {
+  const float t = (kelvin - m.temperature_offset) * m.temperature_scale;
+  if (!(t > kMinEmittingKelvin) || m.blackbody_table.empty()) return RGB(0.0f);
+  const float x = std::min((t - kMinEmittingKelvin) / (m.blackbody_t_max - kMinEmittingKelvin), 1.0f) *
+                  float(m.blackbody_table.size() - 1);
+  const size_t i = std::min(size_t(x), m.blackbody_table.size() - 2);
+  const float f = x - float(i);
+  return (1.0f - f) * m.blackbody_table[i] + f * m.blackbody_table[i + 1];
 }
+
+namespace {
+
+// Le of a uniformgrid or nanovdb: "Le" or the temperature's blackbody, times
+// "Lescale" (a uniformgrid's as a grid, pbrt-v4's 1 x 1 x 1 one by default).
+RGB grid_emission(const Medium& m, const vec3& p) {
+  const bool hot = !m.temperature.empty();
+  if (!hot && is_black(m.Le)) return RGB(0.0f);
+  float scale = m.Le_scale;
+  if (m.kind == MediumKind::UniformGrid)
+    scale = m.Le_scale_grid.empty() ? grid_emission_scale(m, p) : trilinear(m, m.Le_scale_grid, p);
+  if (!hot) return m.Le * scale;
+  if (m.kind == MediumKind::UniformGrid && m.Le_scale_grid.empty()) scale *= m.Le_scale;
+  return blackbody_emission(m, trilinear(m, m.temperature, p)) * scale;
+}
+
+MediumProps rgb_grid_props(const Medium& m, const vec3& p) {
+  MediumProps mp;
+  mp.sigma_a = m.sigma_a * (m.sigma_a_grid.empty() ? RGB(1.0f) : trilinear(m, m.sigma_a_grid, p));
+  mp.sigma_s = m.sigma_s * (m.sigma_s_grid.empty() ? RGB(1.0f) : trilinear(m, m.sigma_s_grid, p));
+  if (!m.Le_grid.empty()) mp.Le = m.Le_scale * trilinear(m, m.Le_grid, p);
+  return mp;
+}
+
+}  // namespace
+
+MediumProps medium_props(const Medium& m, const vec3& p) {
+  switch (m.kind) {
+    case MediumKind::Homogeneous: return MediumProps{m.sigma_a, m.sigma_s, m.Le};
+    case MediumKind::RGBGrid: return rgb_grid_props(m, p);
+    case MediumKind::Cloud: {
+      const float d = cloud_density(m, p);
+      return MediumProps{m.sigma_a * d, m.sigma_s * d, RGB(0.0f)};
+    }
+    case MediumKind::UniformGrid:
+    case MediumKind::NanoVDB: break;
+  }
+  const float d = trilinear(m, m.density, p);
+  return MediumProps{m.sigma_a * d, m.sigma_s * d, grid_emission(m, p)};
+}
+
+namespace {
+
+// The largest of `values` over the voxels whose centres the trilinear lookup
+// blends anywhere in majorant cell c.
+template <class Bound>
+float cell_max(const Medium& m, const int c[3], Bound&& bound) {
+  const int res = kMajorantGridRes;
+  const int n[3] = {m.nx, m.ny, m.nz};
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::max(int(std::floor(float(c[a]) / res * float(n[a]) - 0.5f)), 0);
+    hi[a] = std::min(int(std::floor(float(c[a] + 1) / res * float(n[a]) - 0.5f)) + 1, n[a] - 1);
+  }
+  float v = 0.0f;
+  for (int k = lo[2]; k <= hi[2]; ++k)
+    for (int j = lo[1]; j <= hi[1]; ++j)
+      for (int i = lo[0]; i <= hi[0]; ++i) v = std::max(v, bound(i, j, k));
+  return v;
+}
+
+float rgb_cell_max(const Medium& m, const std::vector<RGB>& grid, const int c[3]) {
+  if (grid.empty()) return 1.0f;
+  return cell_max(m, c, [&](int i, int j, int k) { return max_component(voxel(m, grid, i, j, k)); });
+}
+
+// A bound on the cloud's density over the cell's altitudes [y0, y1]: its
+// noise sum is at most kCloudNoiseSum in magnitude (every octave's |noise|
+// <= 2: a convex blend of gradient dots of at most 2), so only the altitude
+// falloff bounds it (cells above y = 1 with little falloff stay low).
+float cloud_cell_bound(const Medium& m, float y0, float y1) {
+  const float falloff = std::max(std::abs(1.0f - y0), std::abs(1.0f - y1));
+  const float noise = std::min(falloff * 4.5f * std::abs(m.cloud_density) * kCloudNoiseSum, 1.0f);
+  return std::min(noise + 2.0f * std::max(0.0f, 0.5f - y0), 1.0f);
+}
+
+float majorant_cell(const Medium& m, const int c[3]) {
+  switch (m.kind) {
+    case MediumKind::Homogeneous: return 1.0f;
+    case MediumKind::RGBGrid: {
+      // pbrt-v4's bound: the largest sigma_a plus the largest sigma_s.
+      const float scale = max_component(m.sigma_a);
+      return scale * (rgb_cell_max(m, m.sigma_a_grid, c) + rgb_cell_max(m, m.sigma_s_grid, c));
+    }
+    case MediumKind::Cloud: {
+      const float h = (m.p1.y - m.p0.y) / float(kMajorantGridRes);
+      return cloud_cell_bound(m, m.p0.y + float(c[1]) * h, m.p0.y + float(c[1] + 1) * h);
+    }
+    case MediumKind::UniformGrid:
+    case MediumKind::NanoVDB: break;
+  }
+  return cell_max(m, c, [&](int i, int j, int k) { return voxel(m, i, j, k); });
+}
+
+}  // namespace
 
 void build_majorant_grid(Medium& m) {
   const int res = kMajorantGridRes;
   m.majorants.assign(size_t(res) * res * res, 0.0f);
-  const int n[3] = {m.nx, m.ny, m.nz};
   for (int z = 0; z < res; ++z)
     for (int y = 0; y < res; ++y)
       for (int x = 0; x < res; ++x) {
-        // The voxels whose centres the trilinear lookup blends anywhere in the cell.
         const int c[3] = {x, y, z};
-        int lo[3], hi[3];
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = std::max(int(std::floor(float(c[a]) / res * float(n[a]) - 0.5f)), 0);
-          hi[a] = std::min(int(std::floor(float(c[a] + 1) / res * float(n[a]) - 0.5f)) + 1, n[a] - 1);
-        }
-        float v = 0.0f;
-        for (int k = lo[2]; k <= hi[2]; ++k)
-          for (int j = lo[1]; j <= hi[1]; ++j)
-            for (int i = lo[0]; i <= hi[0]; ++i) v = std::max(v, voxel(m, i, j, k));
-        m.majorants[(size_t(z) * res + size_t(y)) * res + size_t(x)] = v;
+        m.majorants[(size_t(z) * res + size_t(y)) * res + size_t(x)] = majorant_cell(m, c);
       }
+  m.max_density = *std::max_element(m.majorants.begin(), m.majorants.end());
 }
 
-float medium_majorant(const Medium& m) { return max_component(m.sigma_a + m.sigma_s) * m.max_density; }
+namespace {
+
+// pbrt-v4's BlackbodySpectrum (Planck's law over its value at the peak
+// wavelength, Wien's law) as RGB in the working space: its luminance
+// (CIE Y over the integral of y-bar, 1 nm steps over 360-830 nm) times
+// blackbody_rgb's colour of luminance 1.
+RGB normalized_blackbody(float kelvin) {
+  auto planck = [&](double lambda_nm) {
+    const double c = 299792458.0, h = 6.62606957e-34, kb = 1.3806488e-23, l = lambda_nm * 1e-9;
+    return (2.0 * h * c * c) / (std::pow(l, 5.0) * (std::exp((h * c) / (l * kb * double(kelvin))) - 1.0));
+  };
+  const double peak = planck(2.8977721e-3 / double(kelvin) * 1e9);
+  double y = 0.0, y_bar = 0.0;
+  for (int lambda = 360; lambda <= 830; ++lambda) {
+    const double cmf_y = double(cie_xyz_cmf(float(lambda)).y);
+    y += planck(double(lambda)) / peak * cmf_y;
+    y_bar += cmf_y;
+  }
+  const RGB rgb = srgb_to_working(blackbody_rgb(kelvin)) * float(y / y_bar);
+  const bool finite = std::isfinite(rgb.x) && std::isfinite(rgb.y) && std::isfinite(rgb.z);
+  return finite ? rgb : RGB(0.0f);  // a cold body's Y underflows
+}
+
+}  // namespace
+
+void build_blackbody_table(Medium& m) {
+  m.blackbody_table.clear();
+  if (m.temperature.empty()) return;
+  // The hottest temperature a lookup can give: a voxel's, or 0 outside the grid.
+  const auto [lo, hi] = std::minmax_element(m.temperature.begin(), m.temperature.end());
+  float t_max = 0.0f;
+  for (float t : {*lo, *hi, 0.0f}) t_max = std::max(t_max, (t - m.temperature_offset) * m.temperature_scale);
+  if (!(t_max > kMinEmittingKelvin)) return;
+  m.blackbody_t_max = t_max;
+  m.blackbody_table.resize(kBlackbodyTableSize);
+  for (int i = 0; i < kBlackbodyTableSize; ++i)
+    m.blackbody_table[size_t(i)] =
+        normalized_blackbody(kMinEmittingKelvin + (t_max - kMinEmittingKelvin) * float(i) / float(kBlackbodyTableSize - 1));
+}
+
+float medium_majorant(const Medium& m) { return majorant_scale(m) * m.max_density; }
 
 MediumSegment medium_segment(const Medium& m, const Ray& ray, float t0, float t1) {
   MediumSegment seg;
   vec3 o = ray.o, d = ray.d;
-  if (m.kind == MediumKind::UniformGrid) {
+  if (m.kind != MediumKind::Homogeneous) {
     const Transform medium_from_render = m.render_from_medium.inverse();
     o = medium_from_render.point(ray.o);
     d = medium_from_render.vector(ray.d);
@@ -160,7 +340,7 @@ MediumSegment medium_segment(const Medium& m, const Ray& ray, float t0, float t1
   seg.t_per_s = 1.0f / len;
   // Distances in double: an unbounded segment (a ray that leaves the scene) stays infinite.
   double s0 = double(t0) * len, s1 = double(t1) * len;
-  if (m.kind == MediumKind::UniformGrid) {
+  if (m.kind != MediumKind::Homogeneous) {
     // The slab test against the grid's box: outside it the density is 0.
     for (int a = 0; a < 3; ++a) {
       const double inv = 1.0 / double(seg.d[a]);
@@ -182,7 +362,7 @@ MediumSegment medium_segment(const Medium& m, const Ray& ray, float t0, float t1
 FreeFlight sample_free_flight(const Medium& m, const Ray& ray, float tmax, const RGB& beta_in, TrackingRng& rng) {
   FreeFlight ff;
   RGB beta = beta_in;
-  const bool emissive = !is_black(m.Le);
+  const bool emissive = medium_is_emissive(m);
   walk_collisions(m, ray, tmax, rng, [&](const MediumProps& mp, float sigma_maj, float t) {
     if (emissive) ff.emitted += beta * mp.sigma_a * mp.Le / sigma_maj;
     const RGB sigma_n = glm::max(RGB(sigma_maj) - mp.sigma_a - mp.sigma_s, RGB(0.0f));

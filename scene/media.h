@@ -21,18 +21,40 @@ struct MediumProps {
   RGB sigma_a{0.0f}, sigma_s{0.0f}, Le{0.0f};
 };
 
-// Density at a point of medium space: 1 for a homogeneous medium, the
-// grid's trilinear interpolation between voxel centres (pbrt-v4's
-// SampledGrid::Lookup, zero outside) for a uniformgrid.
+// Density at a point of medium space: 1 for a homogeneous medium and an
+// rgbgrid (whose coefficients are grids themselves), the grid's trilinear
+// interpolation between voxel centres (pbrt-v4's SampledGrid::Lookup, zero
+// outside) for a uniformgrid or nanovdb, pbrt-v4's procedural density for a
+// cloud.
 float medium_density(const Medium& m, const vec3& p_medium);
 MediumProps medium_props(const Medium& m, const vec3& p_medium);
-// The majorant: max over channels of sigma_a + sigma_s, times the largest density.
+// Whether medium_props can give any Le (tracking gathers emission only then).
+bool medium_is_emissive(const Medium& m);
+// The majorant: the largest extinction of any channel anywhere in the medium.
 float medium_majorant(const Medium& m);
-// A uniformgrid's majorant grid (Medium::majorants): kMajorantGridRes^3 cells
-// over its box, each the largest density that can be interpolated inside it
-// (pbrt-v4's 16^3), so that tracking's cost follows the local density.
+// The majorant grid (Medium::majorants) of a grid or cloud medium:
+// kMajorantGridRes^3 cells over its box, each a bound on the density (an
+// rgbgrid: on sigma_t) anywhere inside it (pbrt-v4's 16^3), so that
+// tracking's cost follows the local density.  Also sets max_density.
 inline constexpr int kMajorantGridRes = 16;
 void build_majorant_grid(Medium& m);
+
+// pbrt-v4's CloudMedium density at a point of medium space (in [0, 1]):
+// kCloudOctaves of noise at "frequency", warped by the noise's gradient
+// ("wispiness"), thinned with altitude (y) and solid below y = 0.5.
+inline constexpr int kCloudOctaves = 5;
+inline constexpr float kCloudNoiseSum = 2.0f * (1.0f - 1.0f / float(1 << kCloudOctaves));  // bounds |sum|
+float cloud_density(const Medium& m, const vec3& p_medium);
+
+// A grid's blackbody emission at a temperature (before offset and scale),
+// from Medium::blackbody_table: pbrt-v4's BlackbodySpectrum (peak 1) for
+// (T - temperatureoffset) * temperaturescale, none at or below kMinEmittingKelvin.
+inline constexpr float kMinEmittingKelvin = 100.0f;
+RGB blackbody_emission(const Medium& m, float kelvin);
+// Fills Medium::blackbody_table (kBlackbodyTableSize entries, lerped) up to
+// the hottest temperature the grid can give; empty when nothing emits.
+inline constexpr int kBlackbodyTableSize = 512;
+void build_blackbody_table(Medium& m);
 
 // A stream of uniform numbers: a pure function of (key, index), so a path's
 // tracking draws the same numbers on every thread count and batch order.

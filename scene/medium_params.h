@@ -9,10 +9,10 @@
 
 namespace theia {
 
-// `type` "homogeneous" or "uniformgrid"; pbrt-v4's other types ("rgbgrid",
-// "cloud", "nanovdb") and "preset" are file:line errors until theia has them.
-// `render_from_medium` is the CTM at the directive.
+// `type` "homogeneous", "uniformgrid", "rgbgrid", "cloud" or "nanovdb"
+// (its file relative to `base_dir`); `render_from_medium` is the CTM at the
+// directive.
 Medium read_medium(const std::string& name, const std::string& type, const ParamList& params, const SourceLoc& loc,
-                   const Transform& render_from_medium);
+                   const Transform& render_from_medium, const std::string& base_dir);
 
 }  // namespace theia

@@ -501,8 +501,10 @@ void SceneParser::parse(Tokenizer& tok, const std::string& base_dir) {
       ParamList params = parse_params(tok);
       if (named_media_.count(name)) throw_at(loc, "medium \"{}\" defined twice, expected one MakeNamedMedium per name", name);
       const Param* type = params.find("type", ParamType::String);
-      if (!type) throw_at(loc, "MakeNamedMedium \"{}\" without \"string type\", expected \"homogeneous\" or \"uniformgrid\"", name);
-      scene_.media.push_back(read_medium(name, type->strings[0], params, loc, gs_.ctm));
+      if (!type)
+        throw_at(loc, "MakeNamedMedium \"{}\" without \"string type\", expected \"homogeneous\", \"uniformgrid\", "
+                 "\"rgbgrid\", \"cloud\" or \"nanovdb\"", name);
+      scene_.media.push_back(read_medium(name, type->strings[0], params, loc, gs_.ctm, base_dir));
       named_media_[name] = int(scene_.media.size()) - 1;
     } else if (d == "MediumInterface") {
       // One name is both sides; pbrt-v4's order is inside, then outside.

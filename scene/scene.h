@@ -301,23 +301,38 @@ struct RenderSettings {
 // ---------------------------------------------------------------- media
 
 // pbrt-v4's MakeNamedMedium, resolved at parse time (scene/medium_params.h):
-// "scale" is applied to sigma_a and sigma_s, "Lescale" to Le.  A uniformgrid
-// scales both coefficients by its trilinearly interpolated density
-// (scene/media.h), in the medium's space: distances there are measured in
-// that space, as pbrt-v4 measures them.
-enum class MediumKind { Homogeneous, UniformGrid };
+// "scale" is applied to sigma_a and sigma_s, "Lescale" to Le.  The grid
+// types scale both coefficients by a trilinearly interpolated density (or,
+// for an rgbgrid, interpolate the coefficients themselves) and "cloud" by
+// pbrt-v4's procedural density (scene/media.h), in the medium's space:
+// distances there are measured in that space, as pbrt-v4 measures them.
+// "nanovdb" is a uniform grid resampled from the file's sparse one
+// (scene/vdb_medium.h).
+enum class MediumKind { Homogeneous, UniformGrid, RGBGrid, Cloud, NanoVDB };
 struct Medium {
   std::string name;
   MediumKind kind = MediumKind::Homogeneous;
-  RGB sigma_a{1.0f}, sigma_s{1.0f};  // per unit length (times density for a grid)
+  RGB sigma_a{1.0f}, sigma_s{1.0f};  // per unit length (times density for a grid; rgbgrid: "scale")
   RGB Le{0.0f};                      // emitted radiance (times sigma_a along a path)
   float g = 0.0f;                    // Henyey-Greenstein asymmetry
-  // uniformgrid: nx * ny * nz densities (x fastest) over the box p0-p1 of medium space.
+  // Grids: nx * ny * nz values (x fastest) over the box p0-p1 of medium space.
   int nx = 1, ny = 1, nz = 1;
   std::vector<float> density;
   float max_density = 1.0f;          // the majorant's density (1 for homogeneous)
-  std::vector<float> majorants;      // uniformgrid: the majorant grid's densities (scene/media.h)
+  std::vector<float> majorants;      // grids and cloud: the majorant grid (scene/media.h)
   vec3 p0{0.0f}, p1{1.0f};
+  // rgbgrid: per-voxel sigma_a, sigma_s (empty: 1) and Le (empty: none).
+  std::vector<RGB> sigma_a_grid, sigma_s_grid, Le_grid;
+  float Le_scale = 1.0f;             // "Lescale" (folded into Le where Le is one colour)
+  std::vector<float> Le_scale_grid;  // uniformgrid: "Lescale" given per voxel
+  // uniformgrid / nanovdb "temperature" (Kelvin before "temperatureoffset"
+  // and "temperaturescale"): blackbody emission, tabulated over temperature.
+  std::vector<float> temperature;
+  float temperature_offset = 0.0f, temperature_scale = 1.0f;
+  std::vector<RGB> blackbody_table;
+  float blackbody_t_max = 0.0f;
+  // cloud: pbrt-v4's "density", "wispiness", "frequency".
+  float cloud_density = 1.0f, wispiness = 1.0f, frequency = 5.0f;
   Transform render_from_medium;
   SourceLoc loc;
 };

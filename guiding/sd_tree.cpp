@@ -124,6 +124,11 @@ void deposit_box(BuildingQuadNode* nodes, uint32_t index, dvec2 origin, double s
   }
 }
 
+// Flux of a sampling node, in the order sample() splits it: columns first.
+inline double sampling_total(const SamplingQuadNode& n) {
+  return (double(n.flux[0]) + double(n.flux[2])) + (double(n.flux[1]) + double(n.flux[3]));
+}
+
 // A uniform float in [0,1) from 21 bits of h, `slot` 0..2.
 inline float hash_unit(uint64_t h, int slot) { return float((h >> (21 * slot)) & 0x1fffffu) * 0x1p-21f; }
 
@@ -350,10 +355,8 @@ void SDTree::update() {
       }
   }
   refine_spatial();
-  for (SpatialLeaf& leaf : leaves_) {
-    leaf.sampler = make_quad_sampler(leaf.sampling);
+  for (SpatialLeaf& leaf : leaves_)
     leaf.building = refine_quadtree(leaf.building, options_.flux_threshold, options_.max_quadtree_depth);
-  }
   last_recorded_ = recorded_;
   last_dropped_ = dropped_;
   recorded_ = dropped_ = 0;
@@ -409,16 +412,17 @@ float SDTree::radiance_integral(uint32_t region) const {
 // a uniform leaf, in sample() too.
 float SDTree::pdf(uint32_t region, const vec3& wi) const {
   if (region >= leaves_.size() || !leaves_[region].has_energy) return 0.0f;
-  const QuadSamplerNode* nodes = leaves_[region].sampler.data();
+  const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
   vec2 c = sd_direction_to_square(wi);
   double density = 1.0;
   uint32_t n = 0;
   for (;;) {
-    const QuadSamplerNode& node = nodes[n];
-    const int i = descend(c);
-    density *= quad_density(node, i);
-    if (node.child[i] == 0 || density == 0.0) break;
-    n = node.child[i];
+    double total = sampling_total(nodes[n]);
+    if (!(total > 0.0)) break;
+    int i = descend(c);
+    density *= 4.0 * double(nodes[n].flux[i]) / total;
+    if (nodes[n].child[i] == 0 || density == 0.0) break;
+    n = nodes[n].child[i];
   }
   return float(density * (1.0 / (4.0 * 3.14159265358979323846)));
 }
@@ -430,7 +434,7 @@ float SDTree::pdf(uint32_t region, const vec3& wi) const {
 // set of measure zero in the continuous domain, so both are the density.
 GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   if (region >= leaves_.size() || !leaves_[region].has_energy) return {};
-  const QuadSamplerNode* nodes = leaves_[region].sampler.data();
+  const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
   // u is rescaled at every level (hierarchical warping, McCool and Harwood
   // 1997), in double so that a depth-20 descent keeps bits for the leaf.
   constexpr double kBelowOne = 0x1.fffffffffffffp-1;
@@ -438,21 +442,37 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   double ox = 0.0, oy = 0.0, size = 1.0, density = 1.0;
   uint32_t n = 0;
   for (;;) {
-    const QuadSamplerNode& node = nodes[n];
-    // Column first (x: quadrants 0,2 vs 1,3), then the row within it.
-    const double sx = node.split_x;
-    const int col = ux < sx ? 0 : 1;
-    ux = (col ? ux - sx : ux) * double(node.inv_x[col]);
-    const double sy = node.split_y[col];
-    const int row = uy < sy ? 0 : 1;
-    const int i = col | row << 1;
-    uy = (row ? uy - sy : uy) * double(node.inv_y[i]);
-    ux = std::clamp(ux, 0.0, kBelowOne);
-    uy = std::clamp(uy, 0.0, kBelowOne);
-    density *= quad_density(node, i);
+    const SamplingQuadNode& node = nodes[n];
+    // Column first (x: quadrants 0,2 vs 1,3), then the row within it.  The
+    // total is summed as in pdf(), so an empty column gets b = 0 or 1 exactly.
+    double left = double(node.flux[0]) + double(node.flux[2]);
+    double right = double(node.flux[1]) + double(node.flux[3]);
+    double total = left + right;
+    if (!(total > 0.0)) break;
+    double b = left / total;
+    int i = 0;
+    double col;
+    if (ux < b) {
+      ux /= b;
+      col = left;
+    } else {
+      ux = (ux - b) / (1.0 - b);
+      i |= 1;
+      col = right;
+    }
+    b = double(node.flux[i]) / col;
+    if (uy < b) {
+      uy /= b;
+    } else {
+      uy = (uy - b) / (1.0 - b);
+      i |= 2;
+    }
+    ux = std::min(ux, kBelowOne);
+    uy = std::min(uy, kBelowOne);
+    density *= 4.0 * double(node.flux[i]) / total;
     size *= 0.5;
-    if (col) ox += size;
-    if (row) oy += size;
+    if (i & 1) ox += size;
+    if (i & 2) oy += size;
     if (node.child[i] == 0 || density == 0.0) break;
     n = node.child[i];
   }
@@ -462,33 +482,6 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   s.wi = sd_square_to_direction(c);
   s.pdf = float(density * (1.0 / (4.0 * 3.14159265358979323846)));
   return s;
-}
-
-std::vector<QuadSamplerNode> make_quad_sampler(const std::vector<SamplingQuadNode>& sampling) {
-  std::vector<QuadSamplerNode> out(sampling.size());
-  auto inverse = [](double share) { return share > 0.0 ? float(1.0 / share) : 0.0f; };
-  for (size_t n = 0; n < sampling.size(); ++n) {
-    const SamplingQuadNode& in = sampling[n];
-    QuadSamplerNode& s = out[n];
-    for (int i = 0; i < 4; ++i) s.child[i] = in.child[i];
-    const double column[2] = {double(in.flux[0]) + double(in.flux[2]), double(in.flux[1]) + double(in.flux[3])};
-    const double total = column[0] + column[1];
-    if (!(total > 0.0)) {
-      s = QuadSamplerNode{};  // uniform, and the descent ends here
-      continue;
-    }
-    const double bx = column[0] / total;
-    s.split_x = float(bx);
-    s.inv_x[0] = inverse(bx);
-    s.inv_x[1] = inverse(1.0 - bx);
-    for (int c = 0; c < 2; ++c) {
-      const double by = column[c] > 0.0 ? double(in.flux[c]) / column[c] : 0.5;  // an empty column is never taken
-      s.split_y[c] = float(by);
-      s.inv_y[c] = inverse(by);
-      s.inv_y[c | 2] = inverse(1.0 - by);
-    }
-  }
-  return out;
 }
 
 SDTreeStats SDTree::stats() const {
@@ -507,8 +500,7 @@ SDTreeStats SDTree::stats() const {
 size_t SDTree::memory_bytes() const {
   size_t bytes = sizeof(*this) + nodes_.capacity() * sizeof(SpatialNode) + leaves_.capacity() * sizeof(SpatialLeaf);
   for (const SpatialLeaf& leaf : leaves_)
-    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.sampler.capacity() * sizeof(QuadSamplerNode) +
-             leaf.building.capacity() * sizeof(BuildingQuadNode);
+    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.building.capacity() * sizeof(BuildingQuadNode);
   return bytes;
 }
 

@@ -95,28 +95,6 @@ struct QuadNode {
 using SamplingQuadNode = QuadNode<float>;
 using BuildingQuadNode = QuadNode<double>;
 
-// A sampling node as sample() and pdf() walk it, derived from the sampling
-// quadtree after every update: the split points and their reciprocals, so the
-// descent rescales its sample with multiplications instead of a chain of
-// double divisions, in one aligned cache line (the walk waits on each node's
-// load).  A quadrant's density factor is 4 x its column's share x its row's
-// share, computed alike by both walks; an empty node is uniform and ends the
-// walk.
-struct alignas(64) QuadSamplerNode {
-  float split_x = 0.5f;                       // share of the left column (quadrants 0, 2)
-  float split_y[2] = {0.5f, 0.5f};            // per column, share of its lower quadrant
-  float inv_x[2] = {2.0f, 2.0f};              // 1 / each column's share (0 for an empty one)
-  float inv_y[4] = {2.0f, 2.0f, 2.0f, 2.0f};  // per quadrant, 1 / its share of its column
-  uint32_t child[4] = {0, 0, 0, 0};
-};
-// 4 x the share of quadrant i in the node.
-inline double quad_density(const QuadSamplerNode& n, int i) {
-  const double col = i & 1 ? 1.0 - double(n.split_x) : double(n.split_x);
-  const double row = i & 2 ? 1.0 - double(n.split_y[i & 1]) : double(n.split_y[i & 1]);
-  return 4.0 * col * row;
-}
-std::vector<QuadSamplerNode> make_quad_sampler(const std::vector<SamplingQuadNode>& sampling);
-
 struct SpatialNode {
   uint32_t first_child = 0;  // children at first_child and first_child + 1; 0: a leaf
   uint32_t leaf = 0;         // index into the leaves, for a leaf
@@ -125,7 +103,6 @@ struct SpatialNode {
 
 struct SpatialLeaf {
   std::vector<SamplingQuadNode> sampling;
-  std::vector<QuadSamplerNode> sampler;  // make_quad_sampler(sampling), what sample() and pdf() read
   std::vector<BuildingQuadNode> building;
   double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux

@@ -215,7 +215,6 @@ struct SDTreeSerializer {
       if (!(leaf.radiance_integral >= 0.0f) || !std::isfinite(leaf.radiance_integral))
         throw_error("SD-tree data corrupt: leaf {} radiance integral {}", l, leaf.radiance_integral);
       leaf.sampling = get_quadtree<float>(r, "sampling", l);
-      leaf.sampler = make_quad_sampler(leaf.sampling);
       leaf.building = get_quadtree<double>(r, "building", l);
     }
     if (r.at != body) throw_error("SD-tree data corrupt: {} unread bytes before the checksum", body - r.at);

@@ -47,7 +47,7 @@ TEST(CommandLineErrors, ParseErrorsExitOneWithOneMessage) {
       {"render " + scene + out + " --spp", "--spp"},                // a missing value (CLI11: 107)
       {"render" + out, "scene"},                                    // the scene missing (CLI11: 106)
       {"render " + scene + " extra.pbrt" + out, "extra.pbrt"},      // one positional too many (CLI11: 109)
-      {"rendr " + scene, "subcommand"},                             // an unknown command
+      {"rendr " + scene, "unknown command \"rendr\" (commands: render"},  // an unknown command, named
       {"", "subcommand"},                                           // no command at all
   };
   for (const auto& [args, what] : cases) expect_one_error(run(args), what, args);

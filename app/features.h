@@ -95,7 +95,9 @@ class RecorderFeature final : public Feature {
 struct GuidingOptions : SDTreeOptions {
   bool enabled = false;
   bool auto_off = false;  // --guiding-auto (implies enabled)
-  std::string sampling = "ris";  // ris | mis: EngineOptions::guiding.mixing
+  // ris | mis | mis-learned: EngineOptions::guiding.mixing, and for
+  // mis-learned SDTreeOptions::learn_selection.
+  std::string sampling = "ris";
   float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
   float defensive = 0.5f;
   bool roulette_correction = true;
@@ -114,7 +116,8 @@ void declare_options(V& v, GuidingOptions& o) {
           "Guiding measures whether it pays (variance x time of an unguided against a guided iteration, once the "
           "field has learned and again after training) and turns itself off where it does not; implies --guiding");
   v.image("sampling", o.sampling,
-          "Guided directions: ris (resampling one BSDF and one guide candidate) or mis (one-sample MIS)");
+          "Guided directions: ris (resampling one BSDF and one guide candidate), mis (one-sample MIS with a fixed "
+          "share) or mis-learned (one-sample MIS, the share learned per region)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
   v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
   v.image("roulette_correction", o.roulette_correction,

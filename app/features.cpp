@@ -219,8 +219,8 @@ double GuidingVerdict::Round::variance_ratio() const {
 }
 
 GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
-                               const std::vector<int>& schedule, bool keep_recorder)
-    : options_(options), keep_recorder_(keep_recorder) {
+                               const std::vector<int>& schedule, bool keep_recorder, uint32_t first_sample)
+    : options_(options), keep_recorder_(keep_recorder), first_sample_(first_sample) {
   if (!options.enabled) return;
   SDTreeOptions tree = options;
   tree.learn_selection = options.sampling == "mis-learned";
@@ -260,7 +260,7 @@ void GuidingFeature::set_hooks(bool guide, bool record) {
 }
 
 bool GuidingFeature::trains(const IterationInfo& it) const {
-  return options_.training_spp == 0 || it.spp_begin < uint32_t(options_.training_spp);
+  return options_.training_spp == 0 || it.spp_begin - first_sample_ < uint32_t(options_.training_spp);
 }
 
 GuidingVerdict::Round* GuidingFeature::round_of(const IterationInfo& it) {

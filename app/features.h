@@ -102,9 +102,10 @@ struct GuidingOptions : SDTreeOptions {
   float defensive = 0.5f;
   bool roulette_correction = true;
   bool adjoint_roulette = false;
-  // The field learns from samples [0, training_spp) of every pixel, then is
-  // frozen and the recorder detached, so the rest of the render pays for
-  // guided sampling alone (0: it learns from every sample).
+  // The field learns from samples [0, training_spp) of every pixel (a split
+  // frame's part: the first training_spp of its range), then is frozen and
+  // the recorder detached, so the rest of the render pays for guided
+  // sampling alone (0: it learns from every sample).
   int training_spp = 256;
 };
 
@@ -175,9 +176,11 @@ SDTreeSample sd_tree_sample(const TrainingSample& s);
 class GuidingFeature final : public Feature {
  public:
   // `keep_recorder`: the recorder also feeds debug layers, so it stays
-  // attached once training ends.
+  // attached once training ends.  `first_sample`: where the render's samples
+  // begin (a split frame's part learns on its own from there: its training
+  // budget counts from it, and `schedule` is its own).
   GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds, const std::vector<int>& schedule,
-                 bool keep_recorder);
+                 bool keep_recorder, uint32_t first_sample = 0);
   ~GuidingFeature() override;
   // Where the recorder hands its training samples; null when off.
   TrainingSampleSink* trainer() const { return trainer_.get(); }
@@ -203,6 +206,7 @@ class GuidingFeature final : public Feature {
   EngineHooks guided_hooks_;
   GuidingVerdict verdict_;
   bool keep_recorder_ = false;
+  uint32_t first_sample_ = 0;
   bool training_ = true;  // this iteration's samples train the field
 };
 

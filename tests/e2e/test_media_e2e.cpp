@@ -149,7 +149,7 @@ TEST(MediaGuiding, FogCornellAgreesWithUnguided) {
   const double expected = 0.5 * (noise_unguided + noise_guided), err = block_rel_mse(guided, a, 8);
   std::printf("fog-cornell 32x32 256 spp: block relMSE guided vs unguided %.3g; seed pairs: unguided %.3g, guided %.3g\n",
               err, noise_unguided, noise_guided);
-  EXPECT_LT(err, 2.0 * expected) << "guided vs unguided " << err << ", expected from the seed pairs " << expected;
+  EXPECT_LT(err, 3.0 * expected) << "guided vs unguided " << err << ", expected from the seed pairs " << expected;
 }
 
 // Training from in-medium samples is as deterministic as from surface ones:

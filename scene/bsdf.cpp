@@ -399,6 +399,10 @@ bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness) {
   return false;
 }
 
+uint8_t bsdf_nondelta_kind(const BSDF& bsdf) {
+  return (bxdf_flags(bsdf.bxdf) & kLobeGlossy) ? kLobeGlossy : kLobeDiffuse;
+}
+
 RGB bsdf_albedo(const BSDF& bsdf) {
   RGB a(0.0f);
   for (int i = 0; i < bsdf.lobe_count; ++i) a += bsdf.lobes[i].albedo;

@@ -167,10 +167,10 @@ TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {
   Film film(2, 1);
   film.add_weight(0, 0, 1.0f);
   film.add_weight(0, 1, 1.0f);
-  film.splat(0, 0, RGB(1, 2, 3));
-  film.splat(0, 1, RGB(3, 2, 1));
-  film.splat(0, 1, RGB(std::numeric_limits<float>::infinity(), 0, 0));
-  film.splat(1, 0, RGB(std::numeric_limits<float>::quiet_NaN()));
+  film.splat(0, 0, RGB(1, 2, 3), kEventEmission);
+  film.splat(0, 1, RGB(3, 2, 1), kEventEmission);
+  film.splat(0, 1, RGB(std::numeric_limits<float>::infinity(), 0, 0), kEventEmission);
+  film.splat(1, 0, RGB(std::numeric_limits<float>::quiet_NaN()), kEventEmission);
   EXPECT_EQ(film.dropped.load(), 2u);
   EXPECT_EQ(film.r[0], 4.0f);
   EXPECT_EQ(film.r_odd[0], 3.0f);  // sample 1 only

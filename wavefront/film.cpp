@@ -69,7 +69,7 @@ void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L, uint8_t event) {
   atomic_add(g[pixel], L.y);
   atomic_add(b[pixel], L.z);
   if (aov_events()) {
-    std::vector<float>(&e)[3] = events[event < kEventCount ? event : kEventEmission];
+    std::vector<float>(&e)[3] = events[event < kEventCount ? event : uint8_t(kEventEmission)];
     for (int c = 0; c < 3; ++c) atomic_add(e[c][pixel], L[c]);
   }
   if (sample & 1) {

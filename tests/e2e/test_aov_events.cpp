@@ -104,7 +104,9 @@ TEST(AovEvents, LayersSumToTheBeauty) {
     EXPECT_LT(worst_layer_sum_error(r.image), 1e-5);
     EXPECT_GT(layer_mean(r.image, k.nonzero, 1), 0.0);
     EXPECT_EQ(r.log["aov_event_layers"].size(), 5u);
-    if (k.name.starts_with("mirror")) EXPECT_GT(r.log["caustics"]["splats"].get<uint64_t>(), 0u) << r.log["caustics"];
+    if (k.name.starts_with("mirror")) {
+      EXPECT_GT(r.log["caustics"]["splats"].get<uint64_t>(), 0u) << r.log["caustics"];
+    }
   }
 }
 
@@ -134,11 +136,11 @@ TEST(AovEvents, MirrorPathsAreSpecularLambertianPathsDiffuse) {
           for (int c = 0; c < 3; ++c) {
             const float v = layer(img, l, x, y, c);
             if (l == std::string(k.layer)) {
-              if (hit) EXPECT_GT(v, 0.0f) << x << "," << y;
-              if (miss) EXPECT_EQ(v, 0.0f) << x << "," << y;
+              if (hit) { EXPECT_GT(v, 0.0f) << x << "," << y; }
+              if (miss) { EXPECT_EQ(v, 0.0f) << x << "," << y; }
             } else if (l == std::string("emission")) {
-              if (hit) EXPECT_EQ(v, 0.0f) << x << "," << y;
-              if (miss) EXPECT_NEAR(v, pixel_channel(img, x, y, c), 1e-6f) << x << "," << y;
+              if (hit) { EXPECT_EQ(v, 0.0f) << x << "," << y; }
+              if (miss) { EXPECT_NEAR(v, pixel_channel(img, x, y, c), 1e-6f) << x << "," << y; }
             } else {
               EXPECT_EQ(v, 0.0f) << l << " " << x << "," << y;
             }

@@ -71,7 +71,7 @@ TEST(ScatteringEvents, NonDeltaSamplesHaveTheKindThatLabelsLightAndGuideDirectio
       ASSERT_EQ(e->flags & (kLobeReflection | kLobeTransmission), s->flags & (kLobeReflection | kLobeTransmission));
     }
     const bool has_non_delta = c.name != "mirror" && c.name != "thin dielectric";
-    if (has_non_delta) EXPECT_GT(non_delta, 1000);
-    if (guidable) EXPECT_GT(events, 1000);
+    if (has_non_delta) { EXPECT_GT(non_delta, 1000); }
+    if (guidable) { EXPECT_GT(events, 1000); }
   }
 }

@@ -32,9 +32,9 @@ inline constexpr float kMaxSampleValue = 1e30f;
 
 // The class of a camera path by its first scattering event (--aov-events):
 // light seen directly (or through pass-through surfaces and virtual lights)
-// is `emission`; otherwise the type of the first surface event as the BSDF
-// labels it (scene/bsdf.h, event_of_lobe), or `volume` for a real scattering
-// in a medium.  Every splat carries its path's class, so the layers sum to
+// is `emission`; otherwise the type of the first surface event as BSDF
+// sampling labels it (event_of_lobe in engine_impl.h), or `volume` for a real
+// scattering in a medium.  Every splat carries its path's class, so the layers sum to
 // the beauty.
 enum PathEvent : uint8_t { kEventEmission, kEventDiffuse, kEventGlossy, kEventSpecular, kEventVolume, kEventCount };
 inline constexpr const char* kEventLayerNames[kEventCount] = {"emission", "diffuse", "glossy", "specular", "volume"};

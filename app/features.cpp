@@ -131,8 +131,10 @@ void check(const GuidingOptions& o) {
                 o.selection_probability);
   if (!(o.min_roughness >= 0.0f))
     throw_error("--guiding-min-roughness must be zero or positive, got {}", o.min_roughness);
-  if (o.sampling != "ris" && o.sampling != "mis")
-    throw_error("--guiding-sampling {}: expected ris or mis", o.sampling);
+  if (o.sampling != "ris" && o.sampling != "mis" && o.sampling != "mis-learned")
+    throw_error("--guiding-sampling {}: expected ris, mis or mis-learned", o.sampling);
+  if (o.sampling == "mis-learned" && !(o.selection_probability > 0.0f))
+    throw_error("--guiding-sampling mis-learned starts from --guiding-selection-probability, which must then be above 0");
   if (!(o.defensive >= 0.0f && o.defensive <= 1.0f))
     throw_error("--guiding-defensive must be in [0, 1], got {}", o.defensive);
   if (!(o.split_decay > 0.0 && o.split_decay <= 0.5))
@@ -174,7 +176,15 @@ class SDTreeTrainer final : public TrainingSampleSink {
 }  // namespace
 
 SDTreeSample sd_tree_sample(const TrainingSample& s) {
-  return {s.p, s.wi, luminance(s.radiance), s.pdf, hash(s.pixel, s.sample, s.depth, s.flags)};
+  const float radiance = luminance(s.radiance);
+  return {s.p,
+          s.wi,
+          radiance,
+          s.pdf,
+          hash(s.pixel, s.sample, s.depth, s.flags),
+          radiance * s.scattering_weight,
+          s.bsdf_ratio,
+          s.guide_ratio};
 }
 
 int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp) {
@@ -209,10 +219,12 @@ double GuidingVerdict::Round::variance_ratio() const {
 }
 
 GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
-                               const std::vector<int>& schedule, bool keep_recorder)
-    : options_(options), keep_recorder_(keep_recorder) {
+                               const std::vector<int>& schedule, bool keep_recorder, uint32_t first_sample)
+    : options_(options), keep_recorder_(keep_recorder), first_sample_(first_sample) {
   if (!options.enabled) return;
-  tree_ = std::make_unique<SDTree>(scene_bounds, options);
+  SDTreeOptions tree = options;
+  tree.learn_selection = options.sampling == "mis-learned";
+  tree_ = std::make_unique<SDTree>(scene_bounds, tree);
   trainer_ = std::make_unique<SDTreeTrainer>(*tree_, training_);
   if (options.auto_off) {
     verdict_.probe.unguided_iteration = guiding_probe_iteration(schedule, options.training_spp);
@@ -225,7 +237,7 @@ GuidingFeature::~GuidingFeature() = default;
 void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const {
   if (!tree_) return;
   hooks.guide = tree_.get();
-  engine.guiding.mixing = options_.sampling == "mis" ? GuideMixing::OneSampleMIS : GuideMixing::Resampled;
+  engine.guiding.mixing = options_.sampling == "ris" ? GuideMixing::Resampled : GuideMixing::OneSampleMIS;
   engine.guiding.min_roughness = options_.min_roughness;
   engine.guiding.defensive = options_.defensive;
   engine.guiding.roulette_correction = options_.roulette_correction;
@@ -248,7 +260,7 @@ void GuidingFeature::set_hooks(bool guide, bool record) {
 }
 
 bool GuidingFeature::trains(const IterationInfo& it) const {
-  return options_.training_spp == 0 || it.spp_begin < uint32_t(options_.training_spp);
+  return options_.training_spp == 0 || it.spp_begin - first_sample_ < uint32_t(options_.training_spp);
 }
 
 GuidingVerdict::Round* GuidingFeature::round_of(const IterationInfo& it) {
@@ -361,7 +373,21 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                     {"bytes", tree_->memory_bytes()},
                     // The iterations that trained it (one update each) and the budget that ended training.
                     {"updates", gs.updates},
-                    {"training_spp", options_.training_spp}};
+                    {"training_spp", options_.training_spp},
+                    // Guide directions the BSDF did not scatter into (wasted draws).
+                    {"draw_failures", gs.draw_failures}};
+  if (tree_->options().learn_selection) {
+    // The learned share of guided directions over the leaves that guide.
+    double lo = 1.0, hi = 0.0, sum = 0.0;
+    size_t n = 0;
+    for (size_t l = 0; l < tree_->leaf_count(); ++l) {
+      const SpatialLeaf& leaf = tree_->leaf(uint32_t(l));
+      if (!leaf.has_energy) continue;
+      lo = std::min(lo, double(leaf.selection)), hi = std::max(hi, double(leaf.selection));
+      sum += leaf.selection, ++n;
+    }
+    log["guiding"]["selection"] = {{"mean", n ? sum / double(n) : 0.0}, {"min", n ? lo : 0.0}, {"max", n ? hi : 0.0}};
+  }
   if (options_.auto_off) {
     static const char* kStates[] = {"undecided", "on", "off", "provisional"};
     auto round_log = [](const GuidingVerdict::Round& r) {

@@ -95,14 +95,17 @@ class RecorderFeature final : public Feature {
 struct GuidingOptions : SDTreeOptions {
   bool enabled = false;
   bool auto_off = false;  // --guiding-auto (implies enabled)
-  std::string sampling = "ris";  // ris | mis: EngineOptions::guiding.mixing
+  // ris | mis | mis-learned: EngineOptions::guiding.mixing, and for
+  // mis-learned SDTreeOptions::learn_selection.
+  std::string sampling = "ris";
   float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
   float defensive = 0.5f;
   bool roulette_correction = true;
   bool adjoint_roulette = false;
-  // The field learns from samples [0, training_spp) of every pixel, then is
-  // frozen and the recorder detached, so the rest of the render pays for
-  // guided sampling alone (0: it learns from every sample).
+  // The field learns from samples [0, training_spp) of every pixel (a split
+  // frame's part: the first training_spp of its range), then is frozen and
+  // the recorder detached, so the rest of the render pays for guided
+  // sampling alone (0: it learns from every sample).
   int training_spp = 256;
 };
 
@@ -114,7 +117,8 @@ void declare_options(V& v, GuidingOptions& o) {
           "Guiding measures whether it pays (variance x time of an unguided against a guided iteration, once the "
           "field has learned and again after training) and turns itself off where it does not; implies --guiding");
   v.image("sampling", o.sampling,
-          "Guided directions: ris (resampling one BSDF and one guide candidate) or mis (one-sample MIS)");
+          "Guided directions: ris (resampling one BSDF and one guide candidate), mis (one-sample MIS with a fixed "
+          "share) or mis-learned (one-sample MIS, the share learned per region)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
   v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
   v.image("roulette_correction", o.roulette_correction,
@@ -172,9 +176,11 @@ SDTreeSample sd_tree_sample(const TrainingSample& s);
 class GuidingFeature final : public Feature {
  public:
   // `keep_recorder`: the recorder also feeds debug layers, so it stays
-  // attached once training ends.
+  // attached once training ends.  `first_sample`: where the render's samples
+  // begin (a split frame's part learns on its own from there: its training
+  // budget counts from it, and `schedule` is its own).
   GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds, const std::vector<int>& schedule,
-                 bool keep_recorder);
+                 bool keep_recorder, uint32_t first_sample = 0);
   ~GuidingFeature() override;
   // Where the recorder hands its training samples; null when off.
   TrainingSampleSink* trainer() const { return trainer_.get(); }
@@ -200,6 +206,7 @@ class GuidingFeature final : public Feature {
   EngineHooks guided_hooks_;
   GuidingVerdict verdict_;
   bool keep_recorder_ = false;
+  uint32_t first_sample_ = 0;
   bool training_ = true;  // this iteration's samples train the field
 };
 

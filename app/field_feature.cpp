@@ -1,6 +1,7 @@
 #include "app/field_feature.h"
 
 #include "core/atomic_file.h"
+#include "core/bytes.h"
 #include "core/hash.h"
 #include "core/log.h"
 
@@ -167,6 +168,27 @@ void FieldFeature::add_tasks(IterationTasks& tasks) {
     bytes_ = bytes.size();
     seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   });
+}
+
+// The snapshots so far and what the recorder has seen: without them a
+// resumed render's file would start over at the resume.
+void FieldFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
+  if (!sink_) return;
+  participants.push_back({"field", 1,
+                          [this] {
+                            ByteWriter w;
+                            w.put_vector(serialize_field(file_));
+                            w.put_vector(recorder_.serialize());
+                            return w.bytes;
+                          },
+                          [this](const CheckpointSection& section) {
+                            const std::string what = "checkpoint section 'field'";
+                            if (section.version != 1) throw_error("{} has version {}, this build reads 1", what, section.version);
+                            ByteReader r(section.bytes, what);
+                            file_ = deserialize_field(r.get_vector<uint8_t>(), what);
+                            recorder_.restore(r.get_vector<uint8_t>(), what);
+                            if (r.pos != r.size) throw_error("{}: {} bytes left over", what, r.size - r.pos);
+                          }});
 }
 
 void FieldFeature::write_log(nlohmann::json& log) const {

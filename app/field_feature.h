@@ -42,6 +42,7 @@ class FieldFeature final : public Feature {
   // guiding's trainer when saving, else the trainer itself.
   TrainingSampleSink* sink() const;
   void add_tasks(IterationTasks& tasks) override;
+  void add_participants(std::vector<CheckpointParticipant>& participants) override;
   void write_log(nlohmann::json& log) const override;
 
  private:

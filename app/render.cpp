@@ -46,18 +46,19 @@ void check(const RenderOptions& c) {
     throw_error("--throughput-reset-bounce must be zero or positive, got {}", c.throughput_reset_bounce);
 }
 
-// A split frame's parts must add up to the whole render: nothing may depend
-// on the samples before a part's range (what guiding and adaptive sampling
-// learn, the iterations inverse-variance weighting compares), and a part must
-// render its whole range (no time limit).
+// A split frame's parts must merge without bias: guiding learns within each
+// part on its own (part_learning), but adaptive sampling's per-pixel counts
+// and inverse-variance weights do not fit a part's range and sums
+// (farm/README.md says why), and a part must render its whole range (no time
+// limit).
 static void check_split(const RenderConfig& c) {
   parse_sample_range(c.sample_range);
   auto refuse = [&](const char* flag, const char* why) {
     throw_error("--sample-range cannot be combined with {}: {}", flag, why);
   };
-  const char* learns = "it learns from the samples before a part's range, so the parts would not add up to one render";
-  if (c.guiding.enabled || c.guiding.auto_off) refuse(c.guiding.enabled ? "--guiding" : "--guiding-auto", learns);
-  if (c.adaptive.enabled) refuse("--adaptive", learns);
+  if (c.adaptive.enabled)
+    refuse("--adaptive", "a pixel's extra samples would take the sample indices of the next part's range (capped "
+                         "at the part's range, nothing is left to adapt)");
   if (c.combine != "equal") refuse("--combine inverse-variance", "its weights compare the iterations of one render");
   if (RecorderFeature::debug_layers(c.recorder)) refuse("--recorder-debug", "its buffers are not part of the film");
   if (c.time_limit > 0) refuse("--time-limit", "a part must render its whole range");
@@ -142,9 +143,9 @@ struct Features {
   CausticsFeature caustics;
   AdaptiveFeature adaptive;
 
-  Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule)
+  Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule, uint32_t first_sample)
       : light_sampler(*rs.light_sampler),
-        guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder)),
+        guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder), first_sample),
         field(c, rs.scene, guiding),
         recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, field.sink()),
         caustics(c.caustics, caustics_conflict(c, rs.scene), c.seed, rs),
@@ -168,8 +169,19 @@ static EngineOptions engine_options(const RenderConfig& c, const StopRequest* st
   return o;
 }
 
-static IterationConfig iteration_config(const RenderConfig& c, const Scene& scene, StopRequest* stop,
+// What learns between iterations: in a split frame's part each learns on its
+// own from the part's first sample (farm/README.md), so the merge is
+// unbiased but is not the single-process image.
+static std::vector<std::string> part_learning(const RenderConfig& c, const RenderableScene& rs) {
+  std::vector<std::string> learns;
+  if (c.guiding.enabled) learns.push_back("guiding");
+  if (rs.light_sampler->wants_feedback()) learns.push_back(rs.light_sampler->name());
+  return learns;
+}
+
+static IterationConfig iteration_config(const RenderConfig& c, const RenderableScene& rs, StopRequest* stop,
                                         std::chrono::steady_clock::time_point render_start) {
+  const Scene& scene = rs.scene;
   IterationConfig ic;
   ic.schedule = schedule_options(c.schedule, c.iteration);
   ic.total_spp = c.spp;
@@ -188,6 +200,7 @@ static IterationConfig iteration_config(const RenderConfig& c, const Scene& scen
     ic.sample_begin = r.begin;
     ic.sample_end = r.end;
     ic.keep_sums = true;
+    ic.part_learns = !part_learning(c, rs).empty();
     // A part's checkpoint is resumed only by the same range.
     ic.options_hash = hash(ic.options_hash, uint64_t(r.begin), uint64_t(r.end));
   }
@@ -261,8 +274,9 @@ static nlohmann::json options_log(const RenderConfig& c) {
 }
 
 // What the merge checks a split frame's part against the others with.
-static PartInfo part_info(const RenderConfig& c, const IterationConfig& ic) {
+static PartInfo part_info(const RenderConfig& c, const IterationConfig& ic, const RenderableScene& rs) {
   PartInfo p;
+  p.learns = part_learning(c, rs);
   p.range = {ic.sample_begin, ic.sample_end};
   p.spp = c.spp;
   p.scene_fingerprint = ic.scene_hash;
@@ -353,9 +367,9 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   StopRequest* stop = c.stop ? c.stop : &own_stop;
   RenderableScene rs(scene, c.light_sampler);
   Film film(scene.film.width, scene.film.height, c.aov_events);
-  IterationConfig ic = iteration_config(c, scene, stop, render_start);
+  IterationConfig ic = iteration_config(c, rs, stop, render_start);
   const std::vector<int> sizes = iteration_sizes(ic);
-  Features features(c, rs, sizes);
+  Features features(c, rs, sizes, ic.sample_begin);
   EngineOptions engine_opt = engine_options(c, stop);
   EngineHooks hooks{.observer = features.recorder.recorder()};
   IterationTasks tasks;
@@ -381,7 +395,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
 
   IterationResult iterations = render_iterations(engine, film, tasks, ic);
   RenderResult result = make_result(std::move(iterations), features, c, engine, rs, film);
-  if (!c.sample_range.empty()) result.log["part"] = part_json(part_info(c, ic));
+  if (!c.sample_range.empty()) result.log["part"] = part_json(part_info(c, ic, rs));
   return result;
 }
 

@@ -65,6 +65,10 @@ class DirectionalGuide {
   // pdf(region, w) times this estimates the radiance arriving from w, which
   // is what adjoint-driven roulette weighs a path's continuation by.
   virtual float radiance_integral(uint32_t region) const = 0;
+  // Statistics (the field viewer's): a direction drawn from the region's
+  // distribution that the BSDF does not scatter into, so it was wasted.
+  // Called from any thread, only when it happens.
+  virtual void count_failed_draw(uint32_t /*region*/) const {}
 };
 
 }  // namespace theia

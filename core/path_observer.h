@@ -47,6 +47,10 @@ struct PathVertexInfo {
   // The engine guides directions at this BSDF (bsdf_is_guidable); a sample
   // from one it never guides trains nothing, so the recorder does not make one.
   bool guidable = true;
+  // A direction drawn from a one-sample-MIS mixture of guide and BSDF: the
+  // BSDF's and the guide's densities of wi over the mixture's (0 otherwise).
+  // The guide learns its selection probability from them.
+  float bsdf_ratio = 0.0f, guide_ratio = 0.0f;
 };
 
 class PathObserver {

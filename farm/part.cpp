@@ -53,6 +53,10 @@ std::string differing_options(const nlohmann::json& a, const nlohmann::json& b) 
   return names.empty() ? "none by name (a different build?)" : fmt::format("{}", fmt::join(names, ", "));
 }
 
+std::string learned(const PartInfo& p) {
+  return p.learns.empty() ? "nothing" : fmt::format("{}", fmt::join(p.learns, " and "));
+}
+
 std::string scene_of(const Part& p) { return p.log.is_object() ? p.log.value("scene", "?") : "?"; }
 
 void check_same_frame(const Part& a, const Part& b) {
@@ -65,6 +69,11 @@ void check_same_frame(const Part& a, const Part& b) {
                 a.path, b.path, scene_of(a), scene_of(b));
   if (a.info.seed != b.info.seed)
     throw_error("{} and {} were rendered with different seeds ({} vs {})", a.path, b.path, a.info.seed, b.info.seed);
+  if (a.info.learns != b.info.learns)
+    throw_error("{} learned {} on its own but {} learned {}: parts of one frame learn the same way (image options "
+                "that differ: {})",
+                a.path, learned(a.info), b.path, learned(b.info),
+                differing_options(a.info.image_options, b.info.image_options));
   if (a.info.options_fingerprint != b.info.options_fingerprint)
     throw_error("{} and {} were rendered with different image options: {}", a.path, b.path,
                 differing_options(a.info.image_options, b.info.image_options));
@@ -90,7 +99,8 @@ nlohmann::json part_json(const PartInfo& p) {
           {"scene_fingerprint", hex(p.scene_fingerprint)},
           {"options_fingerprint", hex(p.options_fingerprint)},
           {"seed", p.seed},
-          {"image_options", p.image_options}};
+          {"image_options", p.image_options},
+          {"learns", p.learns}};
 }
 
 PartInfo part_from_json(const nlohmann::json& j, const std::string& what) {
@@ -105,6 +115,7 @@ PartInfo part_from_json(const nlohmann::json& j, const std::string& what) {
     info.options_fingerprint = from_hex(p.at("options_fingerprint"), what);
     info.seed = p.at("seed").get<uint32_t>();
     info.image_options = p.at("image_options");
+    info.learns = p.value("learns", std::vector<std::string>{});
     if (info.range.begin >= info.range.end || info.range.end > uint32_t(std::max(info.spp, 0)))
       throw_error("{}: sample range {} is not within its {} spp", what, range_text(info.range), info.spp);
     return info;
@@ -210,11 +221,17 @@ int run_merge(const std::vector<std::string>& paths, const std::string& output, 
   log["fingerprints"] = {{"scene", hex(first.scene_fingerprint)}, {"options", hex(first.options_fingerprint)}};
   log["dropped_samples"] = film.dropped.load();
   if (film.aov_events()) log["aov_event_layers"] = event_layer_names();
+  log["learned_per_part"] = first.learns;
+  log["equals_single_process_render"] = first.learns.empty();
   log["time"] = {{"merge", seconds_since(t0)}};
   log["outputs"] = {output, png};
   write_text_atomically(log_path, log.dump(2) + "\n");
   log_info("merged {} parts ({} spp) into {}, {}, {}", parts.size(), first.spp, output, png, log_path);
   if (film.aov_events()) log_event_layers(output);
+  if (!first.learns.empty())
+    log_info("each part learned {} on its own: the merged image is unbiased but is not the image one process "
+             "renders (its later samples would use what all earlier ones taught)",
+             learned(first));
   if (film.dropped.load() > 0) log_warning("{} non-finite samples were dropped", film.dropped.load());
   return 0;
 }

@@ -9,7 +9,13 @@
 // then every film plane as sum.NAME, float32) and PART.json (its render log,
 // whose "part" object says what the merge checks: the sample range, the
 // frame's spp, the scene and options fingerprints, the seed, the image
-// options by name).
+// options by name, and what learned on its own in the part).
+//
+// What learns between iterations (guiding, cache points' visibility) learns
+// in each part on its own, from the part's first sample: no part waits for
+// another, and every part's estimate is unbiased, so their merge is too; but
+// it is not the image one process renders, whose later samples use what its
+// earlier ones taught.  Such parts say so ("learns"), and the merge says so.
 #pragma once
 
 #include "core/image.h"
@@ -39,6 +45,9 @@ struct PartInfo {
   uint64_t options_fingerprint = 0;
   uint32_t seed = 0;
   nlohmann::json image_options;   // every image option by name (to name the ones that differ)
+  // What learned on its own in the part ("guiding", "cachepoints"); empty:
+  // the parts merge to the single-process image.
+  std::vector<std::string> learns;
 };
 nlohmann::json part_json(const PartInfo& part);
 // Throws theia::Error naming `what` when `json` is not a part's.
@@ -57,7 +66,7 @@ struct Part {
 Part read_part(const std::string& exr_path);
 
 // Checks that the parts are of one frame (scene, image options, seed, size,
-// spp) and that their ranges tile [0, spp) with no overlap and no gap; throws
+// spp, what learns in them) and that their ranges tile [0, spp) with no overlap and no gap; throws
 // theia::Error naming the parts (and options) that do not fit.  Returns the
 // parts' indices in sample order.
 std::vector<size_t> check_parts(const std::vector<Part>& parts);

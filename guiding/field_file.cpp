@@ -198,6 +198,7 @@ void FieldRecorder::record(LeafRecord& r, const SDTreeSample& s, float pdf_floor
   r.samples += 1.0, r.iteration_samples += 1.0;
   if (s.radiance > 0.0f) r.nonzero += 1.0, r.iteration_nonzero += 1.0;
   r.radiance += double(s.radiance);
+  if (s.pdf < pdf_floor) r.clamped += 1.0;
   r.seen.min = glm::min(r.seen.min, s.p);
   r.seen.max = glm::max(r.seen.max, s.p);
   // Bottom-k by a hash of the key: the same kReservoir samples whatever the order.
@@ -227,7 +228,7 @@ const std::vector<std::string> kColumns = {
     "mean_radiance",        "tree_sample_count",     "quadtree_depth",    "quadtree_nodes",
     "has_energy",           "selection_probability", "samples_min_x",     "samples_min_y",
     "samples_min_z",        "samples_max_x",         "samples_max_y",     "samples_max_z",
-    "radiance_integral"};
+    "radiance_integral",    "samples_clamped",       "draw_failures"};
 
 }  // namespace
 
@@ -277,12 +278,45 @@ FieldSnapshot FieldRecorder::snapshot(const SDTree& tree, int iteration, uint32_
                           leaf.has_energy ? 1.0 : 0.0,
                           leaf.has_energy ? double(tree.selection_probability(uint32_t(l))) : 0.0,
                           seen.min.x, seen.min.y, seen.min.z, seen.max.x, seen.max.y, seen.max.z,
-                          double(leaf.radiance_integral)};
-    static_assert(std::size(row) == 17);
+                          double(leaf.radiance_integral),
+                          r.clamped,
+                          double(leaf.draw_failures)};
+    static_assert(std::size(row) == 19);
     snap.table.insert(snap.table.end(), std::begin(row), std::end(row));
     snap.leaves.push_back(std::move(out));
   }
   return snap;
+}
+
+std::vector<uint8_t> FieldRecorder::serialize() const {
+  ByteWriter w;
+  w.put_vector(pending_);
+  w.put(uint64_t(records_.size()));
+  for (const auto& [key, r] : records_) {
+    w.put(key);
+    for (double v : {r.samples, r.nonzero, r.iteration_samples, r.iteration_nonzero, r.radiance, r.clamped}) w.put(v);
+    w.put(r.seen);
+    w.put_vector(r.reservoir);
+  }
+  return w.bytes;
+}
+
+void FieldRecorder::restore(std::span<const uint8_t> bytes, const std::string& what) {
+  ByteReader r(bytes, what);
+  pending_ = r.get_vector<SDTreeSample>();
+  records_.clear();
+  const uint64_t n = r.get<uint64_t>();
+  for (uint64_t i = 0; i < n; ++i) {
+    const BoxKey key = r.get<BoxKey>();
+    LeafRecord& rec = records_[key];
+    for (double* v : {&rec.samples, &rec.nonzero, &rec.iteration_samples, &rec.iteration_nonzero, &rec.radiance,
+                      &rec.clamped})
+      *v = r.get<double>();
+    rec.seen = r.get<Bounds3>();
+    rec.reservoir = r.get_vector<Reservoir>();
+    if (rec.reservoir.size() > kReservoir) throw_error("{}: a reservoir of {} samples", what, rec.reservoir.size());
+  }
+  if (r.pos != r.size) throw_error("{}: {} bytes after the field recorder's state", what, r.size - r.pos);
 }
 
 }  // namespace theia

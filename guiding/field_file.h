@@ -103,6 +103,11 @@ class FieldRecorder {
   using BoxKey = std::array<float, 6>;
   void add(const SDTree& tree, std::span<const SDTreeSample> samples);
   FieldSnapshot snapshot(const SDTree& tree, int iteration, uint32_t spp);
+  // Everything it has seen, for a checkpoint: a resumed render's field file
+  // counts every sample, not only those since the resume.  restore() throws
+  // theia::Error (prefixed `what`) for bytes it cannot take.
+  std::vector<uint8_t> serialize() const;
+  void restore(std::span<const uint8_t> bytes, const std::string& what);
 
  private:
   struct Reservoir {
@@ -111,6 +116,7 @@ class FieldRecorder {
   };
   struct LeafRecord {
     double samples = 0, nonzero = 0, iteration_samples = 0, iteration_nonzero = 0, radiance = 0;
+    double clamped = 0;  // samples whose pdf the training raised to the SD-tree's pdf floor
     Bounds3 seen;  // positions of the samples recorded
     std::vector<Reservoir> reservoir;
   };

@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -150,6 +151,8 @@ void SDTree::check_options(const SDTreeOptions& options) {
     throw_error("SD-tree: pdf floor must be zero or positive, got {}", options.pdf_floor);
   if (!(options.selection_probability >= 0.0f && options.selection_probability <= 1.0f))
     throw_error("SD-tree: selection probability must be in [0, 1], got {}", options.selection_probability);
+  if (options.learn_selection && !(options.selection_probability > 0.0f && options.selection_probability < 1.0f))
+    throw_error("SD-tree: a learned selection probability starts in (0, 1), got {}", options.selection_probability);
 }
 
 SDTree::SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options) : options_(options) {
@@ -175,6 +178,11 @@ SDTree::SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options) : opti
   nodes_.push_back(SpatialNode{0, 0, 0});
   leaves_.emplace_back();
   leaves_[0].sampling.resize(1);
+  leaves_[0].selection = options_.selection_probability;
+  if (options_.learn_selection) {
+    const float start = options_.selection_probability;
+    leaves_[0].learner.theta = std::log(start / (1.0f - start));
+  }
   leaves_[0].building = refine_quadtree({}, options_.flux_threshold, options_.max_quadtree_depth);
 }
 
@@ -288,20 +296,57 @@ uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, floa
   return at.leaf;
 }
 
-void SDTree::deposit_sample(SpatialLeaf& leaf, const vec3& wi, float radiance, float pdf) {
+void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
   leaf.sample_count += 1.0;
-  double value = double(radiance) / double(std::max(pdf, options_.pdf_floor));
-  if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(wi / glm::length(wi)), value);
+  double value = double(s.radiance) / double(std::max(s.pdf, options_.pdf_floor));
+  if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(s.wi / glm::length(s.wi)), value);
+  if (options_.learn_selection) learn_selection_step(leaf.learner, s);
+}
+
+// Eq. 13 of seeds/001 for the guide's share s of the mixture
+// q = s g + (1 - s) p_bsdf: d KL / d s ~ -product / pdf * (g - p_bsdf) / q,
+// times ds / dtheta = s (1 - s) (eq. 15), plus the L2 term that keeps theta
+// out of the sigmoid's flat tails (eq. 16).  The densities enter as ratios to
+// the drawing density, which cancels in (g - p_bsdf) / q.  The product is
+// divided by the mean product the leaf has seen (an estimate of its
+// integral), so the gradient is the normalised one of eq. 11 and the L2 term
+// weighs the same in dim and bright regions (Algorithm 3 leaves that balance
+// to the scene's radiance scale).
+void learn_selection_step(SelectionLearner& l, const SDTreeSample& s) {
+  constexpr float kBeta1 = 0.9f, kBeta2 = 0.999f, kEpsilon = 1e-8f, kLearningRate = 0.01f, kRegularization = 0.01f;
+  if (!(s.bsdf_ratio > 0.0f || s.guide_ratio > 0.0f) || !(s.product_weight >= 0.0f) ||
+      !std::isfinite(s.product_weight))
+    return;
+  const float sel = learned_selection(l);
+  const float mixture = sel * s.guide_ratio + (1.0f - sel) * s.bsdf_ratio;
+  if (!(mixture > 0.0f)) return;
+  l.product_sum += s.product_weight;
+  const double mean_product = l.product_sum / double(l.steps + 1);
+  const float product = mean_product > 0.0 ? float(s.product_weight / mean_product) : 0.0f;
+  const float d_sel = -product * (s.guide_ratio - s.bsdf_ratio) / mixture;
+  const float gradient = d_sel * sel * (1.0f - sel) + kRegularization * l.theta;
+  if (!std::isfinite(gradient)) return;
+  ++l.steps;
+  const double t = double(l.steps);
+  const float rate = kLearningRate * float(std::sqrt(1.0 - std::pow(double(kBeta2), t)) /
+                                           (1.0 - std::pow(double(kBeta1), t)));
+  l.m = kBeta1 * l.m + (1.0f - kBeta1) * gradient;
+  l.v = kBeta2 * l.v + (1.0f - kBeta2) * gradient * gradient;
+  l.theta -= rate * l.m / (std::sqrt(l.v) + kEpsilon);
 }
 
 void SDTree::add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) {
-  const uint32_t leaf = target_leaf(p, wi, radiance, pdf, key);
+  add_sample(SDTreeSample{p, wi, radiance, pdf, key});
+}
+
+void SDTree::add_sample(const SDTreeSample& s) {
+  const uint32_t leaf = target_leaf(s.p, s.wi, s.radiance, s.pdf, s.key);
   if (leaf == kInvalidLeaf) {
     ++dropped_;
     return;
   }
   ++recorded_;
-  deposit_sample(leaves_[leaf], wi, radiance, pdf);
+  deposit_sample(leaves_[leaf], s);
 }
 
 void SDTree::add_samples(size_t count, const std::function<SDTreeSample(size_t)>& sample) {
@@ -330,8 +375,7 @@ void SDTree::add_samples(size_t count, const std::function<SDTreeSample(size_t)>
   tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves_.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t l = r.begin(); l != r.end(); ++l)
       for (uint32_t k = first[l]; k < first[l + 1]; ++k) {
-        const SDTreeSample s = sample(order[k]);
-        deposit_sample(leaves_[l], s.wi, s.radiance, s.pdf);
+        deposit_sample(leaves_[l], sample(order[k]));
       }
   });
 }
@@ -347,6 +391,7 @@ void SDTree::update() {
     // integral over the sphere.
     leaf.radiance_integral =
         leaf.has_energy && leaf.sample_count > 0.0 ? float(std::min(total / leaf.sample_count, 1e30)) : 0.0f;
+    if (options_.learn_selection) leaf.selection = learned_selection(leaf.learner);
     leaf.sampling.resize(leaf.building.size());
     for (size_t n = 0; n < leaf.building.size(); ++n)
       for (int i = 0; i < 4; ++i) {
@@ -384,6 +429,7 @@ void SDTree::refine_spatial() {
       // The sampling tree is a normalised distribution: only the statistics decay.
       for (BuildingQuadNode& q : parent.building)
         for (double& f : q.flux) f *= decay;
+      parent.draw_failures = 0;  // the halves count their own
       leaves_.push_back(leaves_[leaf]);
       nodes_.push_back(SpatialNode{0, leaf, next});
       nodes_.push_back(SpatialNode{0, uint32_t(leaves_.size() - 1), next});
@@ -401,7 +447,15 @@ uint32_t SDTree::region(const vec3& p) const {
   return leaves_[leaf].has_energy ? leaf : kNoGuideRegion;
 }
 
-float SDTree::selection_probability(uint32_t) const { return options_.selection_probability; }
+float SDTree::selection_probability(uint32_t region) const {
+  return region < leaves_.size() ? leaves_[region].selection : options_.selection_probability;
+}
+
+void SDTree::count_failed_draw(uint32_t region) const {
+  if (region >= leaves_.size()) return;
+  std::atomic_ref<uint64_t>(leaves_[region].draw_failures).fetch_add(1, std::memory_order_relaxed);
+  std::atomic_ref<uint64_t>(draw_failures_).fetch_add(1, std::memory_order_relaxed);
+}
 
 float SDTree::radiance_integral(uint32_t region) const {
   return region < leaves_.size() ? leaves_[region].radiance_integral : 0.0f;
@@ -494,6 +548,7 @@ SDTreeStats SDTree::stats() const {
   s.samples_dropped = last_dropped_;
   s.pending_recorded = recorded_;
   s.pending_dropped = dropped_;
+  s.draw_failures = draw_failures_;
   return s;
 }
 

@@ -21,6 +21,7 @@
 #include "core/directional_guide.h"
 #include "core/math.h"
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -49,8 +50,13 @@ struct SDTreeOptions {
   // A quad is subdivided while it holds more than rho of its leaf's flux.
   double flux_threshold = 0.01;
   int max_quadtree_depth = 20;
-  // Fixed one-sample-MIS share of guided directions (learning it is later work).
+  // One-sample-MIS share of guided directions: fixed, or where learned
+  // (seeds/001 10.5) the start of every leaf's learning.
   float selection_probability = 0.5f;
+  // Learn the share per spatial leaf: Adam on the KL divergence between the
+  // mixture and the product of radiance and BSDF (samples that carry their
+  // densities, SDTreeSample::bsdf_ratio).  Set by --guiding-sampling mis-learned.
+  bool learn_selection = false;
   // Stochastic box over the containing leaf's footprint (seeds/001 10.4).
   bool spatial_filter = true;
   // Deterministic box over the containing quad's footprint, weighted by area
@@ -67,7 +73,8 @@ void declare_options(V& v, SDTreeOptions& o) {
   v.image("split_decay", o.split_decay, "SD-tree: share of a leaf's statistics each half keeps on a split, (0, 0.5]");
   v.image("pdf_floor", o.pdf_floor, "SD-tree: training weight radiance / max(pdf, this); 0: unbiased");
   v.image("selection_probability", o.selection_probability,
-          "Probability of sampling the guide rather than the BSDF where it applies, in [0, 1)");
+          "Probability of sampling the guide rather than the BSDF where it applies, in [0, 1) (learned: where "
+          "learning starts)");
 }
 
 struct SDTreeStats {
@@ -75,6 +82,7 @@ struct SDTreeStats {
   size_t quadtree_nodes = 0;  // sampling + building, all leaves
   size_t bytes = 0;           // memory_bytes()
   int updates = 0;            // update() calls so far
+  uint64_t draw_failures = 0; // guide draws the BSDF did not scatter into, all leaves, ever
   // The last finished iteration (the one the last update() consumed).
   uint64_t samples_recorded = 0;
   uint64_t samples_dropped = 0;
@@ -101,12 +109,26 @@ struct SpatialNode {
   uint8_t axis = 0;          // split axis of an inner node (x, y, z by depth)
 };
 
+// The learned selection probability of a leaf (seeds/001 10.5, Algorithm 3):
+// selection = sigmoid(theta), theta moved by Adam one training sample at a time.
+struct SelectionLearner {
+  float theta = 0.0f;
+  float m = 0.0f, v = 0.0f;  // Adam's first and second moments
+  uint32_t steps = 0;
+  double product_sum = 0.0;  // of the samples' product weights: their mean scales the gradient
+};
+
 struct SpatialLeaf {
   std::vector<SamplingQuadNode> sampling;
   std::vector<BuildingQuadNode> building;
   double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux
   float radiance_integral = 0.0f;  // sampling's: deposits / samples at the last update
+  float selection = 0.5f;          // sampling's share of guided directions (learner's at the last update)
+  SelectionLearner learner;        // building's
+  // Guide draws the BSDF did not scatter into, since the leaf was made
+  // (count_failed_draw; atomic increments from the render's threads).
+  mutable uint64_t draw_failures = 0;
 };
 
 // One training sample as add_sample takes it.
@@ -114,7 +136,19 @@ struct SDTreeSample {
   vec3 p{0.0f}, wi{0.0f};
   float radiance = 0.0f, pdf = 0.0f;
   uint64_t key = 0;
+  // For learning the selection probability: radiance x f |cos| / pdf (the
+  // product over the density the direction was drawn with), and the BSDF's
+  // and the guide's densities of wi over that density.  Both ratios 0: the
+  // direction was not drawn from a guide-and-BSDF mixture, nothing to learn.
+  float product_weight = 0.0f;
+  float bsdf_ratio = 0.0f, guide_ratio = 0.0f;
 };
+
+// One Adam step of a leaf's learner on one sample (Algorithm 3 of seeds/001,
+// with the share of the guide rather than of the BSDF as the learned
+// probability).  No step for a sample without ratios.
+void learn_selection_step(SelectionLearner& learner, const SDTreeSample& s);
+inline float learned_selection(const SelectionLearner& l) { return 1.0f / (1.0f + std::exp(-l.theta)); }
 
 class SDTree final : public DirectionalGuide {
  public:
@@ -126,6 +160,7 @@ class SDTree final : public DirectionalGuide {
   // with non-finite or negative radiance, pdf <= 0 or non-finite p / wi are
   // dropped and counted; zero radiance is recorded (it counts).
   void add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key);
+  void add_sample(const SDTreeSample& s);
   // add_sample for samples 0 .. count-1 (`sample(i)` gives sample i; it is
   // called from several threads, twice per sample), in parallel over spatial
   // leaves: each leaf takes its samples in index order, so the tree is the
@@ -143,6 +178,7 @@ class SDTree final : public DirectionalGuide {
   float pdf(uint32_t region, const vec3& wi) const override;
   float selection_probability(uint32_t region) const override;
   float radiance_integral(uint32_t region) const override;
+  void count_failed_draw(uint32_t region) const override;
 
   std::vector<uint8_t> serialize() const;
   // Throws theia::Error naming what is wrong (truncation, checksum, version, structure).
@@ -177,7 +213,7 @@ class SDTree final : public DirectionalGuide {
   // The leaf a valid sample deposits into (after the spatial jitter); kInvalidLeaf for one add_sample drops.
   static constexpr uint32_t kInvalidLeaf = 0xffffffffu;
   uint32_t target_leaf(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) const;
-  void deposit_sample(SpatialLeaf& leaf, const vec3& wi, float radiance, float pdf);
+  void deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s);
   void refine_spatial();
   void deposit(BuildingQuadNode* nodes, vec2 c, double value) const;
 
@@ -189,6 +225,7 @@ class SDTree final : public DirectionalGuide {
   std::vector<SpatialLeaf> leaves_;
   uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
   uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration
+  mutable uint64_t draw_failures_ = 0;             // every leaf's, including split ones
 
   friend struct SDTreeSerializer;
 };

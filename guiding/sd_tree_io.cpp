@@ -21,7 +21,9 @@ namespace theia {
 namespace {
 
 constexpr char kMagic[8] = {'T', 'H', 'E', 'I', 'A', 'S', 'D', 'T'};
-constexpr uint32_t kVersion = 3;  // 2: statistics accumulated over iterations; 3: radiance integral per leaf
+// 2: statistics accumulated over iterations; 3: radiance integral per leaf;
+// 4: learned selection probability per leaf
+constexpr uint32_t kVersion = 4;
 
 struct Writer {
   std::vector<uint8_t> out;
@@ -114,6 +116,7 @@ struct SDTreeSerializer {
     w.put(o.selection_probability);
     w.put(uint8_t(o.spatial_filter));
     w.put(uint8_t(o.directional_filter));
+    w.put(uint8_t(o.learn_selection));
     w.put_vec3(t.root_.min);
     w.put_vec3(t.root_.max);
     w.put_vec3(t.root_size_);
@@ -122,6 +125,7 @@ struct SDTreeSerializer {
     w.put(t.dropped_);
     w.put(t.last_recorded_);
     w.put(t.last_dropped_);
+    w.put(t.draw_failures_);
     w.put(uint32_t(t.nodes_.size()));
     for (const SpatialNode& n : t.nodes_) {
       w.put(n.first_child);
@@ -133,6 +137,9 @@ struct SDTreeSerializer {
       w.put(leaf.sample_count);
       w.put(uint8_t(leaf.has_energy));
       w.put(leaf.radiance_integral);
+      w.put(leaf.selection);
+      w.put(leaf.learner);
+      w.put(leaf.draw_failures);
       put_quadtree(w, leaf.sampling);
       put_quadtree(w, leaf.building);
     }
@@ -167,6 +174,7 @@ struct SDTreeSerializer {
     o.selection_probability = r.get<float>("selection probability");
     o.spatial_filter = r.get<uint8_t>("spatial filter") != 0;
     o.directional_filter = r.get<uint8_t>("directional filter") != 0;
+    o.learn_selection = r.get<uint8_t>("learn selection") != 0;
     SDTree::check_options(o);
     t.root_.min = r.get_vec3("root box");
     t.root_.max = r.get_vec3("root box");
@@ -181,6 +189,7 @@ struct SDTreeSerializer {
     t.dropped_ = r.get<uint64_t>("sample counters");
     t.last_recorded_ = r.get<uint64_t>("sample counters");
     t.last_dropped_ = r.get<uint64_t>("sample counters");
+    t.draw_failures_ = r.get<uint64_t>("draw failure count");
 
     uint32_t n_nodes = r.get_count("spatial node count", 9);
     if (n_nodes == 0) throw_error("SD-tree data corrupt: no spatial nodes");
@@ -214,6 +223,14 @@ struct SDTreeSerializer {
       leaf.radiance_integral = r.get<float>("leaf radiance integral");
       if (!(leaf.radiance_integral >= 0.0f) || !std::isfinite(leaf.radiance_integral))
         throw_error("SD-tree data corrupt: leaf {} radiance integral {}", l, leaf.radiance_integral);
+      leaf.selection = r.get<float>("leaf selection probability");
+      if (!(leaf.selection >= 0.0f && leaf.selection <= 1.0f))
+        throw_error("SD-tree data corrupt: leaf {} selection probability {}", l, leaf.selection);
+      leaf.learner = r.get<SelectionLearner>("leaf selection learner");
+      leaf.draw_failures = r.get<uint64_t>("leaf draw failures");
+      if (!std::isfinite(leaf.learner.theta) || !std::isfinite(leaf.learner.m) || !(leaf.learner.v >= 0.0f) ||
+          !std::isfinite(leaf.learner.v) || !(leaf.learner.product_sum >= 0.0) || !std::isfinite(leaf.learner.product_sum))
+        throw_error("SD-tree data corrupt: leaf {} selection learner", l);
       leaf.sampling = get_quadtree<float>(r, "sampling", l);
       leaf.building = get_quadtree<double>(r, "building", l);
     }

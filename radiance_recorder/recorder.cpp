@@ -7,6 +7,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <glm/gtc/packing.hpp>
+
 #include <algorithm>
 #include <bit>
 #include <cstddef>
@@ -31,26 +33,13 @@ RGB load(RGB& v) {
   return r;
 }
 
-// Octahedral unit-vector encoding, 16 bits per coordinate (~0.003 degrees):
-// normals are for display and filtering, not for shading.
-uint32_t encode_unit(vec3 n) {
-  float l1 = std::abs(n.x) + std::abs(n.y) + std::abs(n.z);
-  if (!(l1 > 0.0f)) return 0x7fff7fffu;
-  vec2 e(n.x / l1, n.y / l1);
-  if (n.z < 0.0f) e = vec2((1.0f - std::abs(e.y)) * (e.x >= 0.0f ? 1.0f : -1.0f),
-                           (1.0f - std::abs(e.x)) * (e.y >= 0.0f ? 1.0f : -1.0f));
-  auto q = [](float c) { return uint32_t(std::clamp(std::round((c * 0.5f + 0.5f) * 65535.0f), 0.0f, 65535.0f)); };
-  return q(e.x) | (q(e.y) << 16);
-}
-vec3 decode_unit(uint32_t v) {
-  vec2 e(float(v & 0xffffu) / 65535.0f * 2.0f - 1.0f, float(v >> 16) / 65535.0f * 2.0f - 1.0f);
-  vec3 n(e.x, e.y, 1.0f - std::abs(e.x) - std::abs(e.y));
-  if (n.z < 0.0f) {
-    float x = n.x;
-    n.x = (1.0f - std::abs(n.y)) * (x >= 0.0f ? 1.0f : -1.0f);
-    n.y = (1.0f - std::abs(x)) * (n.y >= 0.0f ? 1.0f : -1.0f);
-  }
-  return glm::normalize(n);
+// A guided vertex's BSDF and guide densities over its drawing density, as
+// two halves: ratios bounded by 1 / (the smaller share of the mixture), and
+// what they train (the selection probability's gradient) is noisy far beyond
+// 11 bits.
+uint32_t pack_ratios(float bsdf_ratio, float guide_ratio) {
+  auto finite = [](float r) { return std::isfinite(r) && r > 0.0f ? std::min(r, 65504.0f) : 0.0f; };
+  return glm::packHalf2x16(vec2(finite(bsdf_ratio), finite(guide_ratio)));
 }
 
 // em / tp per channel; a channel the path cannot carry (tp = 0) carries nothing.
@@ -93,7 +82,7 @@ struct alignas(64) RadianceRecorder::Vertex {
   vec3 p;                  // origin of the vertex's ray
   vec3 wi;                 // its direction
   RGB local;               // the scattering's own factor (N-th bounce debug buffer)
-  uint32_t n_oct;          // shading normal, octahedral
+  uint32_t mixture_ratios; // pack_ratios(bsdf_ratio, guide_ratio)
 };
 struct RadianceRecorder::Block {
   static_assert(sizeof(Vertex) == 128, "keep a path vertex at two cache lines (the README says so)");
@@ -320,7 +309,7 @@ uint32_t RadianceRecorder::vertex_created(uint32_t parent, const PathVertexInfo&
   v.wi = info.wi;
   v.em_indirect = v.em_direct = v.em_direct_unweighted = RGB(0.0f);
   v.local = info.local;
-  v.n_oct = encode_unit(info.n);
+  v.mixture_ratios = pack_ratios(info.bsdf_ratio, info.guide_ratio);
   v.pdf = info.pdf;
   v.camera_weight = info.camera_weight;
   v.pixel = info.pixel;
@@ -439,10 +428,13 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
   TrainingSample s;
   s.p = v.p;
   s.wi = v.wi;
-  s.n = decode_unit(v.n_oct);
   s.radiance = radiance;
   s.pdf = v.pdf;
   s.roughness = float(v.roughness) / 255.0f;
+  s.scattering_weight = luminance(v.local);
+  const vec2 ratios = glm::unpackHalf2x16(v.mixture_ratios);
+  s.bsdf_ratio = ratios.x;
+  s.guide_ratio = ratios.y;
   s.pixel = v.pixel;
   s.sample = v.sample;
   s.depth = v.depth;

@@ -63,9 +63,14 @@ TrainingMode parse_training_mode(const std::string& name);
 struct TrainingSample {
   vec3 p{0.0f};
   vec3 wi{0.0f};        // direction of the vertex's ray (incident radiance arrives from it)
-  vec3 n{0.0f};
   RGB radiance{0.0f};   // incident radiance along wi, per the mode
   float pdf = 0.0f;
+  // luminance(f |cos| / pdf) of the scattering, and the BSDF's and the guide's
+  // densities of wi over the density it was drawn with (both 0 unless the
+  // direction came from a guide-and-BSDF mixture): what learning the
+  // selection probability needs (PathVertexInfo::bsdf_ratio).
+  float scattering_weight = 0.0f;
+  float bsdf_ratio = 0.0f, guide_ratio = 0.0f;
   float roughness = 1.0f;
   uint32_t pixel = 0, sample = 0;
   uint16_t depth = 0;

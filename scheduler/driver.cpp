@@ -240,6 +240,7 @@ std::vector<int> iteration_sizes(const IterationConfig& config) {
   if (config.sample_begin >= config.sample_end || config.sample_end > uint32_t(config.total_spp))
     throw_error("--sample-range {}:{} is not within the frame's {} samples per pixel", config.sample_begin,
                 config.sample_end, config.total_spp);
+  if (config.part_learns) return make_schedule(config.schedule, int(config.sample_end - config.sample_begin));
   return clip_schedule(sizes, int(config.sample_begin), int(config.sample_end));
 }
 

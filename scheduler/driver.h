@@ -71,11 +71,16 @@ struct IterationConfig {
   // of every pixel, in the iterations of the whole frame's schedule clipped to
   // them (iteration_sizes); sample_end 0: the whole frame.
   uint32_t sample_begin = 0, sample_end = 0;
+  // The part learns on its own (guiding, cache points' visibility): it renders
+  // the schedule of a whole render of sample_end - sample_begin spp, so its
+  // first iterations are small ones that train, whatever samples precede it.
+  bool part_learns = false;
   bool keep_sums = false;  // IterationResult::sums (a part's mergeable film)
 };
 
 // The sizes of the iterations this config renders: the schedule for total_spp,
-// clipped to the sample range when there is one.
+// clipped to the sample range when there is one (a part that learns: the
+// schedule for the range's length).
 std::vector<int> iteration_sizes(const IterationConfig& config);
 
 struct IterationResult {

@@ -185,7 +185,7 @@ struct WavefrontEngine::Impl {
   bool survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local, float eta_scale,
                          double correction, float adjoint, float& survival) const;
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
-  void report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local, float survival);
+  void report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;
 

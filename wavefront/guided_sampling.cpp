@@ -37,6 +37,7 @@ std::optional<Continuation> sample_guided_ris(const BSDF& bsdf, const vec3& wo, 
     from_guide.g = gs.pdf;
   }
   weigh(from_guide);
+  if (!(from_guide.weight > 0.0f)) guide.count_failed_draw(region);
 
   const float sum = from_bsdf.weight + from_guide.weight;
   if (!(sum > 0.0f) || !std::isfinite(sum)) return std::nullopt;
@@ -48,6 +49,7 @@ std::optional<Continuation> sample_guided_ris(const BSDF& bsdf, const vec3& wo, 
   c.mis_pdf = guided_mis_pdf(bsdf_pdf, pick.g, kRISCandidateShare);
   c.roulette = double(c.bs.pdf) / double(bsdf_pdf);
   c.guide_pdf = pick.g;
+  c.bsdf_pdf = bsdf_pdf;
   return c;
 }
 
@@ -67,6 +69,7 @@ std::optional<Continuation> sample_guided_mis(const BSDF& bsdf, const vec3& wo, 
     const GuideSample gs = guide.sample(region, ud);
     guide_pdf = gs.pdf;
     if (gs.pdf > 0.0f) bs = bsdf_event(bsdf, wo, gs.wi);
+    if (!bs) guide.count_failed_draw(region);
   } else {
     ud.x = std::min((ud.x - selection) / (1.0f - selection), kOneMinusEpsilon);
     bs = bsdf_sample(bsdf, wo, u.u_lobe, ud);
@@ -75,7 +78,7 @@ std::optional<Continuation> sample_guided_mis(const BSDF& bsdf, const vec3& wo, 
   if (!bs) return std::nullopt;
   const float bsdf_pdf = bs->pdf;
   bs->pdf = guided_mis_pdf(bsdf_pdf, guide_pdf, selection);
-  return Continuation{*bs, bs->pdf, bsdf_pdf > 0.0f ? double(bs->pdf) / double(bsdf_pdf) : 1.0, guide_pdf};
+  return Continuation{*bs, bs->pdf, bsdf_pdf > 0.0f ? double(bs->pdf) / double(bsdf_pdf) : 1.0, guide_pdf, bsdf_pdf};
 }
 
 }  // namespace theia

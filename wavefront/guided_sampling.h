@@ -17,6 +17,7 @@ struct Continuation {
   float mis_pdf = 0.0f;   // what MIS against light sampling uses (RIS: the candidates' mixture)
   double roulette = 1.0;  // this vertex's roulette correction: bs.pdf / BSDF pdf (eq. 17)
   float guide_pdf = 0.0f; // the guide's density at the direction (adjoint-driven roulette)
+  float bsdf_pdf = 0.0f;  // the BSDF's own density at the direction
 };
 
 // The vertex's random numbers for its direction.

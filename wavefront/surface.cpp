@@ -57,7 +57,7 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
       !is_finite(beta) ||
       is_black(beta))
     return finish_path<kObserve>(slot, out);
-  if constexpr (kObserve) report_vertex(v, bs, local, survival);
+  if constexpr (kObserve) report_vertex(v, *c, local, survival);
 
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
@@ -223,10 +223,15 @@ float WavefrontEngine::Impl::adjoint_survival(const ShadingPoint& v, const Conti
 // Only survivors of roulette are reported, so the density of a reported
 // direction is the sampling pdf times the survival probability: training
 // with that pdf does not learn survival times radiance.
-void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const BSDFSample& bs, const RGB& local, float survival) {
+void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival) {
+  const BSDFSample& bs = c.bs;
   PathVertexInfo info = vertex_info(v, bs.wi, local, bs.pdf * survival);
   info.lobe_flags = bs.flags;
   info.roughness = bs.roughness;
+  if (v.guided() && opt.guiding.mixing == GuideMixing::OneSampleMIS) {
+    info.bsdf_ratio = c.bsdf_pdf / bs.pdf;
+    info.guide_ratio = c.guide_pdf / bs.pdf;
+  }
   uint32_t child = observer->vertex_created(v.ps.vertex, info);
   observer->vertex_done(v.ps.vertex);
   v.ps.vertex = child;

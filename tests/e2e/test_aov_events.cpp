@@ -186,7 +186,7 @@ AttributeEnd
 
 // Guided directions are labelled as BSDF sampling labels them: each layer's
 // mean, and its blocks, agree between unguided and guided renders (RIS and
-// one-sample MIS) within their noise.
+// one-sample MIS with a fixed and a learned share) within their noise.
 TEST(AovEvents, GuidingKeepsEachLayersMean) {
   const Scene scene = load_test_scene(three_kinds_room());
   const int spp = 128;
@@ -205,7 +205,7 @@ TEST(AovEvents, GuidingKeepsEachLayersMean) {
     return r.image;
   };
   const ImageBuffer plain = render(nullptr);
-  for (const char* sampling : {"ris", "mis"}) {
+  for (const char* sampling : {"ris", "mis", "mis-learned"}) {
     SCOPED_TRACE(sampling);
     const ImageBuffer guided = render(sampling);
     for (const char* l : {"emission", "diffuse", "glossy", "specular"}) {

@@ -128,21 +128,28 @@ TEST(MediaGuiding, FurnaceStaysOneWhenGuided) {
   }
 }
 
-// fog-cornell guided against unguided at equal spp: the channel means agree
-// and the 8x8-block error between them is within the noise two unguided
-// seeds show against each other.
+// fog-cornell guided against unguided at equal spp: the channel means agree,
+// and the 8x8-block error between them is what two unbiased renders show:
+// the sum of their variances, each estimated from two seeds of its own
+// (guiding in fog is noisier than unguided, so the unguided pair alone is
+// not the yardstick; a bias adds to the error and to neither pair).
 TEST(MediaGuiding, FogCornellAgreesWithUnguided) {
   Scene scene = fog_cornell(32);
   RenderConfig unguided = quick_config(256), other_seed = quick_config(256);
   unguided.schedule = other_seed.schedule = "guiding";
   other_seed.seed = 1;
+  RenderConfig guided_other = guided_config(256);
+  guided_other.seed = 1;
   const ImageBuffer a = render_scene(scene, unguided).image, b = render_scene(scene, other_seed).image;
   const ImageBuffer guided = render_scene(scene, guided_config(256)).image;
+  const ImageBuffer guided_b = render_scene(scene, guided_other).image;
   const RGB ma = image_mean(a), mg = image_mean(guided);
   for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(mg[ch], ma[ch], 0.015f * ma[ch]) << "channel " << ch;
-  const double noise = block_rel_mse(b, a, 8), err = block_rel_mse(guided, a, 8);
-  std::printf("fog-cornell 32x32 256 spp: block relMSE guided vs unguided %.3g, seed 1 vs seed 0 %.3g\n", err, noise);
-  EXPECT_LT(err, 3.0 * noise) << "guided vs unguided " << err << ", seed 1 vs seed 0 " << noise;
+  const double noise_unguided = block_rel_mse(b, a, 8), noise_guided = block_rel_mse(guided_b, guided, 8);
+  const double expected = 0.5 * (noise_unguided + noise_guided), err = block_rel_mse(guided, a, 8);
+  std::printf("fog-cornell 32x32 256 spp: block relMSE guided vs unguided %.3g; seed pairs: unguided %.3g, guided %.3g\n",
+              err, noise_unguided, noise_guided);
+  EXPECT_LT(err, 2.0 * expected) << "guided vs unguided " << err << ", expected from the seed pairs " << expected;
 }
 
 // Training from in-medium samples is as deterministic as from surface ones:

@@ -134,9 +134,10 @@ Scene mirror_scene() {
 }
 
 bool same_sample(const TrainingSample& a, const TrainingSample& b) {
-  return a.p == b.p && a.wi == b.wi && a.n == b.n && a.radiance == b.radiance && a.pdf == b.pdf &&
+  return a.p == b.p && a.wi == b.wi && a.radiance == b.radiance && a.pdf == b.pdf &&
          a.roughness == b.roughness && a.pixel == b.pixel && a.sample == b.sample && a.depth == b.depth &&
-         a.flags == b.flags;
+         a.flags == b.flags && a.scattering_weight == b.scattering_weight && a.bsdf_ratio == b.bsdf_ratio &&
+         a.guide_ratio == b.guide_ratio;
 }
 
 }  // namespace

@@ -8,6 +8,8 @@
 #include "render_helpers.h"
 #include "tests/test_util.h"
 
+#include "guiding/field_file.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -236,6 +238,57 @@ TEST(Resume, PathGuidingResumesExactly) {
                 .exit_code,
             0);
   EXPECT_GT(test::max_relative_difference(read_image_file(f.out("plain.exr")), ref), 1e-3);
+}
+
+// The learned selection probability (Adam's state per leaf) is part of the
+// field's checkpoint: stopped mid-training, the resumed render learns on as
+// the uninterrupted one did.
+TEST(Resume, LearnedSelectionResumesExactly) {
+  Fixture f("learnedselection", " --guiding --guiding-sampling mis-learned --guiding-training-spp 10 --spp 16");
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  const std::string ck = f.out("ck");
+  ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at 6:0.5").exit_code, kInterrupted);
+  RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --resume");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), read_image_file(f.out("ref.exr"))), 1e-5);
+}
+
+// --save-field's file after a resume is the file of the uninterrupted render:
+// its snapshots so far and what each leaf has seen are in the checkpoint.
+TEST(Resume, SavedFieldCountsEverySampleAfterResume) {
+  Fixture f("savedfield", " --guiding --guiding-training-spp 10 --spp 16 --save-field-every-iteration");
+  ASSERT_EQ(f.render("ref.exr", " --save-field " + f.out("ref.field")).exit_code, 0);
+  const std::string ck = f.out("ck");
+  ASSERT_EQ(f.render("out.exr", " --save-field " + f.out("out.field") + " --checkpoint-dir " + ck +
+                                    " --test-sigterm-at 5:0.5")
+                .exit_code,
+            kInterrupted);
+  RunResult r = f.render("out.exr", " --save-field " + f.out("out.field") + " --checkpoint-dir " + ck + " --resume");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const FieldFile ref = load_field(f.out("ref.field")), out = load_field(f.out("out.field"));
+  ASSERT_EQ(out.snapshots.size(), ref.snapshots.size());
+  const FieldSnapshot &a = ref.snapshots.back(), &b = out.snapshots.back();
+  EXPECT_EQ(a.columns, b.columns);
+  EXPECT_EQ(a.table, b.table) << "every leaf's statistics, counted over the whole render";
+  // Every snapshot, the memory the tree held aside ("bytes": vectors read
+  // back from a checkpoint have other capacities).
+  auto without_bytes = [](std::vector<std::pair<std::string, double>> summary) {
+    std::erase_if(summary, [](const auto& kv) { return kv.first == "bytes"; });
+    return summary;
+  };
+  for (size_t k = 0; k < ref.snapshots.size(); ++k) {
+    const FieldSnapshot &x = ref.snapshots[k], &y = out.snapshots[k];
+    EXPECT_EQ(x.iteration, y.iteration);
+    EXPECT_EQ(without_bytes(x.summary), without_bytes(y.summary)) << k;
+    EXPECT_EQ(x.table, y.table) << k;
+    ASSERT_EQ(x.leaves.size(), y.leaves.size()) << k;
+    for (size_t l = 0; l < x.leaves.size(); ++l) {
+      EXPECT_EQ(x.leaves[l].samples.size(), y.leaves[l].samples.size()) << k << " " << l;
+      for (size_t i = 0; i < std::min(x.leaves[l].samples.size(), y.leaves[l].samples.size()); ++i)
+        EXPECT_EQ(x.leaves[l].samples[i].value, y.leaves[l].samples[i].value) << k << " " << l << " " << i;
+      EXPECT_EQ(x.leaves[l].quadtree.size(), y.leaves[l].quadtree.size()) << k << " " << l;
+    }
+  }
 }
 
 // The caustic pass runs once an iteration's camera samples are all in, so an

@@ -2,6 +2,7 @@
 // the checks on a split frame's parts, frame patterns, the batch scripts.
 #include "farm/part.h"
 #include "farm/slurm.h"
+#include "scheduler/driver.h"
 #include "scheduler/schedule.h"
 
 #include <gtest/gtest.h>
@@ -57,6 +58,23 @@ TEST(FarmSampleRange, ClippedScheduleKeepsTheWholeRendersIterationsInTheRange) {
   EXPECT_EQ(clip_schedule(sizes, 100, 128), (std::vector<int>{28}));
 }
 
+// A part that learns renders the schedule of a whole render of its range's
+// length: its own small training iterations first, with the global sample
+// indices of its range.
+TEST(FarmSampleRange, LearningPartRendersItsOwnScheduleFromItsFirstSample) {
+  IterationConfig c;
+  c.schedule = guiding_schedule();
+  c.total_spp = 64;
+  c.sample_begin = 24;
+  c.sample_end = 48;
+  EXPECT_EQ(iteration_sizes(c), (std::vector<int>{14, 10}));  // the frame's [22, 38) and [38, 54), clipped
+  c.part_learns = true;
+  EXPECT_EQ(iteration_sizes(c), (std::vector<int>{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 2}));
+  EXPECT_EQ(iteration_sizes(c), make_schedule(guiding_schedule(), 24));
+  c.sample_end = 65;
+  expect_error([&] { iteration_sizes(c); }, "not within the frame's 64 samples per pixel");
+}
+
 TEST(FarmParts, TilingAndSameFrameChecks) {
   std::vector<Part> parts = {part("c", 10, 16), part("a", 0, 4), part("b", 4, 10)};
   EXPECT_EQ(check_parts(parts), (std::vector<size_t>{1, 2, 0}));
@@ -76,6 +94,17 @@ TEST(FarmParts, TilingAndSameFrameChecks) {
   scenes[1].info.scene_fingerprint = 9;
   expect_error([&] { check_parts(scenes); }, "different scenes");
   expect_error([&] { check_parts({}); }, "no parts");
+  // Parts that learned on their own merge with each other, not with parts that did not.
+  std::vector<Part> learning = {part("a", 0, 4), part("b", 4, 16)};
+  for (Part& p : learning) p.info.learns = {"guiding"};
+  EXPECT_EQ(check_parts(learning), (std::vector<size_t>{0, 1}));
+  learning[1].info.learns.clear();
+  learning[0].info.image_options = {{"guiding", true}};
+  learning[1].info.image_options = {{"guiding", false}};
+  learning[1].info.options_fingerprint = 3;
+  expect_error([&] { check_parts(learning); },
+               "a learned guiding on its own but b learned nothing: parts of one frame learn the same way (image "
+               "options that differ: guiding (true vs false))");
 }
 
 TEST(FarmParts, PartLogRoundTripsAndAWholeRenderLogIsRefused) {
@@ -86,6 +115,7 @@ TEST(FarmParts, PartLogRoundTripsAndAWholeRenderLogIsRefused) {
   p.options_fingerprint = 0xfedcba9876543210ull;
   p.seed = 5;
   p.image_options = {{"spp", 16}};
+  p.learns = {"guiding", "cachepoints"};
   nlohmann::json log = {{"part", part_json(p)}};
   PartInfo q = part_from_json(log, "x.json");
   EXPECT_EQ(q.range.begin, 4u);
@@ -93,6 +123,11 @@ TEST(FarmParts, PartLogRoundTripsAndAWholeRenderLogIsRefused) {
   EXPECT_EQ(q.scene_fingerprint, p.scene_fingerprint);
   EXPECT_EQ(q.options_fingerprint, p.options_fingerprint);
   EXPECT_EQ(q.seed, 5u);
+  EXPECT_EQ(q.learns, p.learns);
+  // A part written before parts could learn: nothing learned.
+  nlohmann::json older = log;
+  older["part"].erase("learns");
+  EXPECT_TRUE(part_from_json(older, "x.json").learns.empty());
   expect_error([] { part_from_json(nlohmann::json{{"options", {}}}, "w.json"); }, "w.json: not a part");
   log["part"]["sample_range"] = {4, 20};
   expect_error([&] { part_from_json(log, "x.json"); }, "not within its 16 spp");

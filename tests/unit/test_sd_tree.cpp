@@ -384,6 +384,7 @@ namespace {
 SDTree trained_for_serialisation() {
   SDTreeOptions o;
   o.spatial_threshold = 300.0;
+  o.learn_selection = true;  // the learners' state comes along too
   SDTree t(kUnitBox, o);
   for (int it = 0; it < 3; ++it) {
     for (int i = 0; i < 12'000; ++i) {
@@ -391,7 +392,8 @@ SDTree trained_for_serialisation() {
       vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
       vec3 p(a.x, a.y, b.x);
       vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
-      t.add_sample(p, w, field_two_lobes(w) * (0.5f + p.x), uniform_sphere_pdf(), key);
+      const float radiance = field_two_lobes(w) * (0.5f + p.x);
+      t.add_sample({p, w, radiance, uniform_sphere_pdf(), key, radiance, 0.5f + b.y, 1.5f - b.y});
     }
     t.add_sample(kCentre, vec3(0, 0, 1), std::nanf(""), 1.0f, 0);  // a dropped one
     if (it < 2) t.update();
@@ -614,13 +616,16 @@ TEST(SDTreeTiming, DISABLED_Throughput) {
 TEST(SDTreeParallel, AddSamplesEqualsAddSampleInARow) {
   SDTreeOptions o;
   o.spatial_threshold = 500.0;
+  o.learn_selection = true;
   std::vector<SDTreeSample> batch;
   for (int i = 0; i < 30'000; ++i) {
     uint64_t key = hash(uint64_t(i), 71);
     vec2 a = u2(hash(key, 1)), b = u2(hash(key, 2));
     vec3 w = sample_uniform_sphere(u2(hash(key, 3)));
     float pdf = i % 997 == 0 ? 0.0f : uniform_sphere_pdf();  // some dropped
-    batch.push_back({vec3(a.x, a.y, b.x), w, field_two_lobes(w), pdf, key});
+    // Every other sample carries mixture densities: the learners step in leaf order too.
+    const float ratio = i % 2 ? 0.5f + b.y : 0.0f;
+    batch.push_back({vec3(a.x, a.y, b.x), w, field_two_lobes(w), pdf, key, field_two_lobes(w), ratio, 2.0f - ratio});
   }
   auto train = [&](bool parallel, int threads) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
@@ -629,7 +634,7 @@ TEST(SDTreeParallel, AddSamplesEqualsAddSampleInARow) {
       if (parallel) {
         t.add_samples(batch.size(), [&](size_t i) { return batch[i]; });
       } else {
-        for (const SDTreeSample& s : batch) t.add_sample(s.p, s.wi, s.radiance, s.pdf, s.key);
+        for (const SDTreeSample& s : batch) t.add_sample(s);
       }
       if (it < 2) t.update();
     }
@@ -638,4 +643,87 @@ TEST(SDTreeParallel, AddSamplesEqualsAddSampleInARow) {
   const std::vector<uint8_t> serial = train(false, 1);
   EXPECT_EQ(train(true, 1), serial);
   EXPECT_EQ(train(true, 2), serial);
+}
+
+// The learned selection probability (seeds/001 10.5) on a direction domain of
+// two halves of equal measure, the BSDF uniform and the guide 1.6 / 0.4.
+// Adam with unbiased gradients settles where the regularised objective
+// KL(p || s g + (1 - s) p_bsdf) + 0.005 theta^2 is smallest (s = sigmoid(theta));
+// found here by a search over theta for three products: one the mixture
+// matches exactly at s = 1/3 (0.385 with the L2 term), one equal to the guide, one equal to the BSDF
+// (where the KL divergence flattens towards s = 1 and s = 0, so the L2 term
+// holds the share back).  Directions are drawn from the current mixture, as
+// rendering does, and the product's scale (x 50) must not matter.
+TEST(SDTreeSelection, AdamSettlesAtTheRegularisedKLOptimum) {
+  constexpr float kGuide[2] = {1.6f, 0.4f};
+  auto optimum = [&](float pa, float pb) {
+    double best = 0.0, best_j = 1e30;
+    for (double theta = -8.0; theta <= 8.0; theta += 1e-3) {
+      const double s = 1.0 / (1.0 + std::exp(-theta));
+      double j = 0.005 * theta * theta;
+      for (int h = 0; h < 2; ++h) {
+        const double p = h == 0 ? pa : pb, q = s * kGuide[h] + (1.0 - s);
+        j += 0.5 * p * std::log(p / q);
+      }
+      if (j < best_j) best_j = j, best = s;
+    }
+    return best;
+  };
+  auto learn = [&](float pa, float pb, float scale) {
+    SelectionLearner l;
+    for (int i = 0; i < 40'000; ++i) {
+      const float sel = learned_selection(l);
+      const uint64_t h = hash(uint64_t(i), 5);
+      const int half = to_unit_float(uint32_t(h)) < 0.5f * (sel * kGuide[0] + (1.0f - sel)) ? 0 : 1;
+      const float mixture = sel * kGuide[half] + (1.0f - sel);
+      SDTreeSample s;
+      s.product_weight = scale * (half == 0 ? pa : pb) / mixture;
+      s.bsdf_ratio = 1.0f / mixture;
+      s.guide_ratio = kGuide[half] / mixture;
+      learn_selection_step(l, s);
+    }
+    EXPECT_EQ(l.steps, 40'000u);
+    return double(learned_selection(l));
+  };
+  for (auto [pa, pb] : {std::pair{1.2f, 0.8f}, {1.6f, 0.4f}, {1.0f, 1.0f}}) {
+    const double want = optimum(pa, pb), got = learn(pa, pb, 1.0f), scaled = learn(pa, pb, 50.0f);
+    std::printf("product %.1f / %.1f: learned %.3f (x50: %.3f), regularised KL optimum %.3f\n", pa, pb, got, scaled,
+                want);
+    EXPECT_NEAR(got, want, 0.04);
+    EXPECT_NEAR(scaled, want, 0.04);
+  }
+  // The exact match sits at 1/3 without the L2 term; with it, 0.385.
+  EXPECT_GT(optimum(1.2f, 0.8f), 1.0 / 3.0);
+  EXPECT_LT(optimum(1.2f, 0.8f), 0.4);
+}
+
+// A tree that learns its selection starts every leaf at the option's value,
+// moves it only at update() (rendering reads what earlier iterations
+// learned), and hands it to both halves of a split.
+TEST(SDTreeSelection, LearnedShareIsReadAfterUpdateAndSurvivesSplits) {
+  SDTreeOptions o;
+  o.learn_selection = true;
+  o.selection_probability = 0.3f;
+  o.spatial_threshold = 1000.0;
+  SDTree t(kUnitBox, o);
+  for (int i = 0; i < 3000; ++i) {
+    const uint64_t key = hash(uint64_t(i), 9);
+    const vec3 w = sample_uniform_sphere(u2(hash(key, 1)));
+    const vec3 p(0.5f);
+    // The guide's density is always the larger: the product follows the guide.
+    t.add_sample({p, w, 1.0f, uniform_sphere_pdf(), key, 1.0f, 0.5f, 1.5f});
+  }
+  for (size_t l = 0; l < t.leaf_count(); ++l) EXPECT_FLOAT_EQ(t.leaf(uint32_t(l)).selection, 0.3f);
+  t.update();
+  ASSERT_GT(t.leaf_count(), 1u);
+  for (size_t l = 0; l < t.leaf_count(); ++l) {
+    EXPECT_GT(t.leaf(uint32_t(l)).selection, 0.6f) << l;
+    EXPECT_EQ(t.selection_probability(uint32_t(l)), t.leaf(uint32_t(l)).selection);
+  }
+  // Not learning: the option's value everywhere, whatever the samples say.
+  o.learn_selection = false;
+  SDTree fixed(kUnitBox, o);
+  fixed.add_sample({vec3(0.5f), vec3(0, 0, 1), 1.0f, 1.0f, 1, 1.0f, 0.5f, 1.5f});
+  fixed.update();
+  EXPECT_FLOAT_EQ(fixed.selection_probability(0), 0.3f);
 }

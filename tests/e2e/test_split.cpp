@@ -243,7 +243,7 @@ TEST(Split, GuidedPartIsDeterministicAndResumesExactly) {
     const nlohmann::json log = read_json(f.out("p.json"));
     EXPECT_GT(log["scheduler"]["resumed_at_iteration"].get<int>(), 0);
     EXPECT_EQ(log["guiding"]["updates"], 9);
-    EXPECT_LT(max_channel_difference(read_image_file(f.out("p.exr")), ref), 1e-5);
+    EXPECT_LT(test::max_channel_difference(read_image_file(f.out("p.exr")), ref), 1e-5);
   }
   // Guiding changed the part (the field was used, not only trained).
   ASSERT_EQ(f.render("plain.exr", "--spp 40 --threads 1 --sample-range 8:40").exit_code, 0);
@@ -304,5 +304,5 @@ TEST(Split, CachePointPartsLearnVisibilityOnTheirOwn) {
   render_split(g, {0, 24, 64}, "--spp 64 --light-sampler power");
   EXPECT_EQ(read_json(g.out("part1.json"))["part"]["learns"], nlohmann::json::array());
   EXPECT_TRUE(read_json(g.out("merged.json"))["equals_single_process_render"].get<bool>());
-  EXPECT_LT(max_channel_difference(read_image_file(g.out("merged.exr")), read_image_file(g.out("whole.exr"))), 1e-5);
+  EXPECT_LT(test::max_channel_difference(read_image_file(g.out("merged.exr")), read_image_file(g.out("whole.exr"))), 1e-5);
 }

@@ -330,6 +330,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--seed", {"1"}},
     {"--max-depth", {"3"}},
     {"--throughput-reset-bounce", {"1"}},
+    {"--aov-events", {}},
     {"--light-sampler", {"uniform"}},
     {"--schedule", {"guiding"}},
     {"--combine", {"inverse-variance"}},

@@ -77,6 +77,10 @@ void check_config(const RenderConfig& c) {
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
   if (RecorderFeature::debug_layers(c.recorder) && c.guiding.auto_off)
     throw_error("--recorder-debug cannot be combined with --guiding-auto: the recorder stops when guiding does");
+  if (c.aov_events && c.combine != "equal")
+    throw_error("--aov-events cannot be combined with --combine {}: the layers are equal-weight sums and would not "
+                "add up to a weighted beauty",
+                c.combine);
   if (!c.sample_range.empty()) check_split(c);
 }
 
@@ -305,6 +309,7 @@ static RenderResult make_result(IterationResult iterations, Features& features, 
   for (Feature* f : features.all()) f->write_log(log);
   if (!c.reference_path.empty()) log["reference"] = c.reference_path;
   log["dropped_samples"] = iterations.dropped_samples;
+  if (c.aov_events) log["aov_event_layers"] = event_layer_names();
   log["warnings"] = warning_count();
   return result;
 }
@@ -335,7 +340,8 @@ static void check_memory(const RenderConfig& c, const Scene& scene) {
   const double mb = 1e-6;
   const double scene_bytes = double(peak_rss_bytes());
   const double pixels = double(scene.film.width) * double(scene.film.height);
-  const double film_bytes = pixels * (2.0 * Film::kPlaneCount + 11.0) * sizeof(float);
+  const double planes = Film::kPlaneCount + (c.aov_events ? Film::kEventPlaneCount : 0);
+  const double film_bytes = pixels * (2.0 * planes + 11.0 + (c.aov_events ? Film::kEventPlaneCount : 0)) * sizeof(float);
   const int threads = c.threads > 0 ? c.threads : tbb::info::default_concurrency();
   const EngineSizes sizes = engine_sizes(engine_options(c, nullptr), uint64_t(pixels), threads);
   const double pool_bytes = double(sizes.max_paths) * kBytesPerPath;
@@ -360,7 +366,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   StopRequest own_stop;
   StopRequest* stop = c.stop ? c.stop : &own_stop;
   RenderableScene rs(scene, c.light_sampler);
-  Film film(scene.film.width, scene.film.height);
+  Film film(scene.film.width, scene.film.height, c.aov_events);
   IterationConfig ic = iteration_config(c, rs, stop, render_start);
   const std::vector<int> sizes = iteration_sizes(ic);
   Features features(c, rs, sizes, ic.sample_begin);
@@ -459,6 +465,7 @@ int run_render(const RenderConfig& in) {
   log_info("rendered {} spp{} in {:.2f} s ({:.2f} Mrays/s); wrote {}, {}, {}", samples, ended,
            log["time"]["render"].get<double>(), log["mrays_per_second"]["render"].get<double>(), config.output, png,
            config.log_path);
+  if (log.contains("aov_event_layers")) log_event_layers(config.output);
   if (limit["reached"].get<bool>() && spp["max"].get<uint32_t>() == 0)
     log_warning("--time-limit {} s was spent before the first sample: the image is black",
                 limit["seconds"].get<double>());

@@ -31,6 +31,9 @@ struct RenderOptions {
   // 10.5M triangles included (README, Performance).
   bool sort = false;
   int throughput_reset_bounce = -1;  // >= 0: the beauty is the "throughput reset at bounce N" image
+  // The beauty split by each path's first scattering event into EXR layers
+  // emission, diffuse, glossy, specular, volume (wavefront/film.h PathEvent).
+  bool aov_events = false;
   double memory_limit = 0.0;         // MB the scene, film and path pool may take; 0: the machine's memory
 };
 
@@ -45,6 +48,9 @@ void declare_options(V& v, RenderOptions& o) {
   v.order("sort", o.sort, "Sort rays and hits (--sort on|off, --no-sort)");
   v.image("throughput_reset_bounce", o.throughput_reset_bounce,
           "Render the 'throughput reset at bounce N' image as the beauty (default: off)");
+  v.image("aov_events", o.aov_events,
+          "Also write the beauty split by each path's first scattering event: EXR layers emission, diffuse, "
+          "glossy, specular, volume (they sum to R G B)");
   v.output("memory_limit", o.memory_limit,
            "MB the scene, film and path pool may take, checked before they are allocated (0: the machine's memory)");
 }

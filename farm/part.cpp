@@ -199,7 +199,7 @@ int run_merge(const std::vector<std::string>& paths, const std::string& output, 
   std::vector<Part> parts;
   for (const std::string& p : paths) parts.push_back(read_part(p));
   const std::vector<size_t> order = check_parts(parts);
-  Film film(parts[0].image.width, parts[0].image.height);
+  Film film(parts[0].image.width, parts[0].image.height, sums_have_aov_events(parts[0].image, kSumPrefix));
   merge_parts(parts, order, film);
   const ImageBuffer image = resolve_film(film);
   const std::string png = fs::path(output).replace_extension(".png").string();
@@ -220,12 +220,14 @@ int run_merge(const std::vector<std::string>& paths, const std::string& output, 
   log["scheduler"]["spp_per_pixel"] = {{"min", first.spp}, {"max", first.spp}};
   log["fingerprints"] = {{"scene", hex(first.scene_fingerprint)}, {"options", hex(first.options_fingerprint)}};
   log["dropped_samples"] = film.dropped.load();
+  if (film.aov_events()) log["aov_event_layers"] = event_layer_names();
   log["learned_per_part"] = first.learns;
   log["equals_single_process_render"] = first.learns.empty();
   log["time"] = {{"merge", seconds_since(t0)}};
   log["outputs"] = {output, png};
   write_text_atomically(log_path, log.dump(2) + "\n");
   log_info("merged {} parts ({} spp) into {}, {}, {}", parts.size(), first.spp, output, png, log_path);
+  if (film.aov_events()) log_event_layers(output);
   if (!first.learns.empty())
     log_info("each part learned {} on its own: the merged image is unbiased but is not the image one process "
              "renders (its later samples would use what all earlier ones taught)",

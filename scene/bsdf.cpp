@@ -389,7 +389,8 @@ std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo_world, con
 }
 
 bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness) {
-  if (bsdf.lobe_count == 0 || bsdf.kind == MaterialKind::CoatedDiffuse || bsdf.kind == MaterialKind::CoatedConductor)
+  // By the BxDF, not the material: a BSDF made by bsdf_from has no material kind.
+  if (bsdf.lobe_count == 0 || bsdf.bxdf.kind == BxDFKind::CoatedDiffuse || bsdf.bxdf.kind == BxDFKind::CoatedConductor)
     return false;
   // Hair: R, TT and TRT each span both hemispheres, not the split by hemisphere bsdf_event assumes.
   if (bsdf.bxdf.kind == BxDFKind::Hair) return false;
@@ -397,6 +398,10 @@ bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness) {
   for (int i = 0; i < bsdf.lobe_count; ++i)
     if (bsdf.lobes[i].roughness > min_roughness) return true;
   return false;
+}
+
+uint8_t bsdf_nondelta_kind(const BSDF& bsdf) {
+  return (bxdf_flags(bsdf.bxdf) & kLobeGlossy) ? kLobeGlossy : kLobeDiffuse;
 }
 
 RGB bsdf_albedo(const BSDF& bsdf) {

@@ -101,6 +101,15 @@ bool bsdf_is_caustic_receiver(const BSDF& bsdf);
 // Joint pdf of choosing `lobe` and sampling wi (the lobes' pdfs sum to
 // bsdf_pdf), for guiding's per-lobe decisions.
 float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);
+// The kind bit (kLobeGlossy or kLobeDiffuse) bsdf_sample reports for a
+// direction that no delta lobe made: what labels a direction chosen by light
+// sampling or a guide (seeds/000 ch. 1 section 6).  No BSDF has two
+// non-delta lobes of different kinds that share a direction: the
+// reflection/transmission pairs are one kind split by hemisphere, and the
+// layered kinds' walk reports every non-delta exit as glossy (pbrt-v4), so
+// the label is a function of the BSDF and eq. 24's stochastic choice
+// between lobes never has two kinds to choose from.
+uint8_t bsdf_nondelta_kind(const BSDF& bsdf);
 // Directional albedo estimate for the albedo AOV (reflectance of the material).
 RGB bsdf_albedo(const BSDF& bsdf);
 // True when every lobe is specular: no light sampling at this vertex.

@@ -89,8 +89,10 @@ struct ImageAccumulator {
   std::vector<WeightedRun> runs;   // inverse-variance only: the runs in the window, oldest first
   uint32_t skipped = 0;            // iterations left out of the weighting (no variance estimate)
 
-  ImageAccumulator(int width, int height, Combination c = Combination::Equal, uint32_t window_spp = 0)
-      : total(width, height), combination(c), window(window_spp) {}
+  // `aov_events`: the iterations' films have the event planes (Film::aov_events).
+  ImageAccumulator(int width, int height, Combination c = Combination::Equal, uint32_t window_spp = 0,
+                   bool aov_events = false)
+      : total(width, height, aov_events), combination(c), window(window_spp) {}
   // The iteration that rendered samples [spp_begin, spp_end) (all of them, or
   // the part a time limit left).
   void fold(const Film& iteration, uint32_t spp_begin, uint32_t spp_end);

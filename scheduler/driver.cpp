@@ -86,8 +86,8 @@ std::pair<uint32_t, uint32_t> spp_range(const Position& pos, const std::vector<i
 
 void put_planes(ImageBuffer& img, const std::string& prefix, const Film& f, std::vector<const float*>& src,
                 std::vector<size_t>& stride) {
-  for (size_t p = 0; p < Film::kPlaneCount; ++p) {
-    img.channels.push_back(prefix + Film::kPlaneNames[p]);
+  for (size_t p = 0; p < f.plane_count(); ++p) {
+    img.channels.push_back(prefix + Film::plane_name(p));
     src.push_back(f.plane(p)->data());
     stride.push_back(1);
   }
@@ -102,7 +102,7 @@ std::vector<float> channel(const ImageBuffer& img, const std::string& name, cons
 }
 
 void get_planes(const ImageBuffer& img, const std::string& prefix, Film& f, const std::string& what) {
-  for (size_t p = 0; p < Film::kPlaneCount; ++p) *f.plane(p) = channel(img, prefix + Film::kPlaneNames[p], what);
+  for (size_t p = 0; p < f.plane_count(); ++p) *f.plane(p) = channel(img, prefix + Film::plane_name(p), what);
 }
 
 Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& sizes, const Position& pos,
@@ -257,7 +257,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   if (cfg.resume && !checkpoints) throw_error("--resume needs --checkpoint-dir");
   if (cfg.time_limit > 0 && !cfg.stop) throw_error("internal: a time limit needs the engine's stop request");
 
-  ImageAccumulator acc(film.width, film.height, cfg.combination, cfg.combine_window);
+  ImageAccumulator acc(film.width, film.height, cfg.combination, cfg.combine_window, film.aov_events());
   Position pos;
   film.clear();
   bool resumed = false;

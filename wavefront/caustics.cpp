@@ -244,7 +244,8 @@ void CausticTracer::Pass::splat() {
         const size_t pixel = size_t(y) * size_t(width) + size_t(x);
         if (h == 0.0f || !rendered(pixel, sample)) continue;
         const float w = camera_filter_sample(tracer.filter_, samples.camera_seed, uint32_t(pixel), sample).weight;
-        film.splat(uint32_t(pixel), sample, c.value * (h * w * inv_integral));
+        // A directly seen caustic's camera path scatters first at its diffuse receiver.
+        film.splat(uint32_t(pixel), sample, c.value * (h * w * inv_integral), kEventDiffuse);
       }
   });
 }

@@ -57,6 +57,12 @@ struct ShadingPoint {
   bool guided() const { return guide_region != kNoGuideRegion; }
 };
 
+// The PathEvent of a surface event from its lobe flags (BSDFSample::flags).
+inline uint8_t event_of_lobe(uint8_t lobe_flags) {
+  if (lobe_flags & kLobeSpecular) return kEventSpecular;
+  return (lobe_flags & kLobeGlossy) ? kEventGlossy : kEventDiffuse;
+}
+
 // What a vertex, at a surface or in a medium, tells the observer about
 // itself: the path's fields, the throughput `beta` before it, its direction.
 inline PathVertexInfo path_vertex_info(const PathState& ps, const vec3& p, const RGB& beta, const vec3& wi,
@@ -207,9 +213,10 @@ struct WavefrontEngine::Impl {
     if (!pool.medium.empty()) pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
   }
   // Queues a shadow ray with the fields every NEE vertex fills (the
-  // observer's are the caller's).
+  // observer's are the caller's).  `event`: the path's PathEvent, its first
+  // scattering event's if this vertex is that event.
   void queue_shadow(ShadeOutput& out, const Ray& ray, const RGB& contribution, const PathState& ps,
-                    const SampledLight& chosen, const PrimRef& skip, int medium) const {
+                    const SampledLight& chosen, const PrimRef& skip, int medium, uint8_t event) const {
     ShadowQueue& q = out.shadows;
     q.rays.push_back(ray);
     q.contribution.push_back(contribution);
@@ -218,6 +225,7 @@ struct WavefrontEngine::Impl {
     if (!pool.curve_skip.empty()) q.skip.push_back(skip);
     if (light_sampler_learns) q.chosen.push_back(chosen);
     if (!pool.medium.empty()) q.medium.push_back(medium);
+    if (film.aov_events()) q.event.push_back(event);
   }
   void enqueue(const Ray& ray, uint32_t path);
   Batch take_spare();
@@ -254,7 +262,7 @@ void WavefrontEngine::Impl::add_emission(const PathState& ps, int light, const R
   if (!(ps.flags & kPathPrevSpecular))
     w = power_heuristic(1, ps.prev_pdf, 1, light_choice_pmf(previous_vertex(ps), light, primitive) * light_pdf());
   RGB contribution = ps.filter_weight * ps.beta * w * Le;
-  if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution);
+  if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution, path_event(ps.flags));
   if constexpr (kObserve) observer->emission_added(ps.vertex, ps.pixel, contribution, w);
 }
 

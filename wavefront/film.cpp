@@ -9,22 +9,43 @@ const char* const Film::kPlaneNames[Film::kPlaneCount] = {
     "R",    "G",    "B",    "weight", "alpha", "albedo.R", "albedo.G", "albedo.B", "N.X",
     "N.Y",  "N.Z",  "depth", "odd.R", "odd.G", "odd.B",    "odd.weight", "alpha_weight"};
 
+void log_event_layers(const std::string& exr_path) {
+  std::string names;
+  for (const char* n : kEventLayerNames) names += (names.empty() ? "" : ", ") + std::string(n);
+  log_info("{}: --aov-events layers {} (.R .G .B) beside the beauty", exr_path, names);
+}
+
+std::string Film::plane_name(size_t i) {
+  if (i < kPlaneCount) return kPlaneNames[i];
+  i -= kPlaneCount;
+  return std::string(kEventLayerNames[i / 3]) + "." + "RGB"[i % 3];
+}
+
 std::vector<float>* Film::plane(size_t i) {
   std::vector<float>* all[kPlaneCount] = {&r,         &g,         &b,         &weight,    &alpha,     &albedo[0],
                                               &albedo[1], &albedo[2], &normal[0], &normal[1], &normal[2], &depth,
                                               &r_odd,     &g_odd,     &b_odd,     &weight_odd, &alpha_weight};
-  return i < kPlaneCount ? all[i] : nullptr;
+  if (i < kPlaneCount) return all[i];
+  i -= kPlaneCount;
+  return i < kEventPlaneCount ? &events[i / 3][i % 3] : nullptr;
 }
 
-Film::Film(int w, int h) : width(w), height(h) { clear(); }
+Film::Film(int w, int h, bool aov_events) : width(w), height(h) {
+  // The event planes exist (are non-empty) exactly when enabled.
+  if (aov_events)
+    for (auto& e : events)
+      for (auto& c : e) c.resize(pixel_count());
+  clear();
+}
 
 void Film::clear() {
-  for (size_t i = 0; i < kPlaneCount; ++i) plane(i)->assign(pixel_count(), 0.0f);
+  for (size_t i = 0; i < plane_count(); ++i) plane(i)->assign(pixel_count(), 0.0f);
   dropped = 0;
 }
 
 void Film::add(const Film& o) {
-  for (size_t i = 0; i < kPlaneCount; ++i) {
+  if (o.plane_count() != plane_count()) throw_error("adding films with and without --aov-events layers");
+  for (size_t i = 0; i < plane_count(); ++i) {
     std::vector<float>* p = plane(i);
     const std::vector<float>& q = *o.plane(i);
     for (size_t k = 0; k < p->size(); ++k) (*p)[k] += q[k];
@@ -39,7 +60,7 @@ void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
 
 void Film::add_alpha_weight(uint32_t pixel, float w) { atomic_add(alpha_weight[pixel], w); }
 
-void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L) {
+void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L, uint8_t event) {
   if (!is_storable(L)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
     return;
@@ -47,6 +68,10 @@ void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L) {
   atomic_add(r[pixel], L.x);
   atomic_add(g[pixel], L.y);
   atomic_add(b[pixel], L.z);
+  if (aov_events()) {
+    std::vector<float>(&e)[3] = events[event < kEventCount ? event : uint8_t(kEventEmission)];
+    for (int c = 0; c < 3; ++c) atomic_add(e[c][pixel], L[c]);
+  }
   if (sample & 1) {
     atomic_add(r_odd[pixel], L.x);
     atomic_add(g_odd[pixel], L.y);
@@ -89,6 +114,18 @@ void append_film_layers(ImageBuffer& img, const std::vector<FilmLayer>& layers, 
   img.data.swap(data);
 }
 
+// The event planes as layers (interleaved RGB), resolved like the beauty.
+static std::vector<FilmLayer> event_layers(const Film& film) {
+  std::vector<FilmLayer> out(kEventCount);
+  for (size_t e = 0; e < kEventCount; ++e) {
+    out[e].name = kEventLayerNames[e];
+    out[e].rgb.resize(3 * film.pixel_count());
+    for (size_t i = 0; i < film.pixel_count(); ++i)
+      for (size_t c = 0; c < 3; ++c) out[e].rgb[3 * i + c] = film.events[e][c][i];
+  }
+  return out;
+}
+
 ImageBuffer resolve_film(const Film& film) {
   ImageBuffer img;
   img.width = film.width;
@@ -119,28 +156,37 @@ ImageBuffer resolve_film(const Film& film) {
       px[10] = resolve_sum(film.depth[i], a);
     }
   }
+  if (film.aov_events()) append_film_layers(img, event_layers(film), film.weight);
   if (!film.layers.empty()) append_film_layers(img, film.layers, film.weight);
   return img;
 }
 
 ImageBuffer film_sums_image(const Film& film, const std::string& prefix) {
+  const size_t np = film.plane_count();
   std::vector<std::string> names;
-  for (const char* n : Film::kPlaneNames) names.push_back(prefix + n);
+  for (size_t p = 0; p < np; ++p) names.push_back(prefix + Film::plane_name(p));
   ImageBuffer img(film.width, film.height, std::move(names));
-  for (size_t p = 0; p < Film::kPlaneCount; ++p) {
+  for (size_t p = 0; p < np; ++p) {
     const std::vector<float>& v = *film.plane(p);
-    for (size_t i = 0; i < v.size(); ++i) img.data[i * Film::kPlaneCount + p] = v[i];
+    for (size_t i = 0; i < v.size(); ++i) img.data[i * np + p] = v[i];
   }
   return img;
+}
+
+bool sums_have_aov_events(const ImageBuffer& image, const std::string& prefix) {
+  return image.channel_index(prefix + Film::plane_name(Film::kPlaneCount)) >= 0;
 }
 
 void add_film_sums(Film& film, const ImageBuffer& image, const std::string& prefix, const std::string& what) {
   if (image.width != film.width || image.height != film.height)
     throw_error("{}: the image is {}x{}, expected {}x{}", what, image.width, image.height, film.width, film.height);
   const size_t nc = image.channels.size();
-  for (size_t p = 0; p < Film::kPlaneCount; ++p) {
-    const int c = image.channel_index(prefix + Film::kPlaneNames[p]);
-    if (c < 0) throw_error("{}: no channel {}{} (not a film's sums)", what, prefix, Film::kPlaneNames[p]);
+  if (sums_have_aov_events(image, prefix) != film.aov_events())
+    throw_error("{}: the sums {} --aov-events layers, the film {}", what,
+                film.aov_events() ? "lack the" : "have", film.aov_events() ? "has them" : "has none");
+  for (size_t p = 0; p < film.plane_count(); ++p) {
+    const int c = image.channel_index(prefix + Film::plane_name(p));
+    if (c < 0) throw_error("{}: no channel {}{} (not a film's sums)", what, prefix, Film::plane_name(p));
     std::vector<float>& v = *film.plane(p);
     for (size_t i = 0; i < v.size(); ++i) v[i] += image.data[i * nc + size_t(c)];
   }

@@ -30,6 +30,18 @@ struct FilmLayer {
 
 inline constexpr float kMaxSampleValue = 1e30f;
 
+// The class of a camera path by its first scattering event (--aov-events):
+// light seen directly (or through pass-through surfaces and virtual lights)
+// is `emission`; otherwise the type of the first surface event as BSDF
+// sampling labels it (event_of_lobe in engine_impl.h), or `volume` for a real
+// scattering in a medium.  Every splat carries its path's class, so the layers sum to
+// the beauty.
+enum PathEvent : uint8_t { kEventEmission, kEventDiffuse, kEventGlossy, kEventSpecular, kEventVolume, kEventCount };
+inline constexpr const char* kEventLayerNames[kEventCount] = {"emission", "diffuse", "glossy", "specular", "volume"};
+inline std::vector<std::string> event_layer_names() { return {std::begin(kEventLayerNames), std::end(kEventLayerNames)}; }
+// Logs that `exr_path` has the event layers beside the beauty.
+void log_event_layers(const std::string& exr_path);
+
 // False for NaN, infinities and components beyond +-kMaxSampleValue.
 inline bool is_storable(const RGB& v) {
   return std::abs(v.x) <= kMaxSampleValue && std::abs(v.y) <= kMaxSampleValue && std::abs(v.z) <= kMaxSampleValue;
@@ -51,15 +63,23 @@ struct Film {
   std::vector<float> r_odd, g_odd, b_odd, weight_odd;
   std::atomic<uint64_t> dropped{0};  // non-finite or too large contributions discarded
   std::vector<FilmLayer> layers;     // extra layers, after the AOVs
+  // --aov-events: sums of w * L per path class (PathEvent), planar RGB;
+  // empty unless enabled, and then planes after the kPlaneCount fixed ones.
+  std::vector<float> events[kEventCount][3];
 
-  Film(int w, int h);
+  Film(int w, int h, bool aov_events = false);
   size_t pixel_count() const { return size_t(width) * size_t(height); }
-  size_t memory_bytes() const { return pixel_count() * kPlaneCount * sizeof(float); }
+  size_t memory_bytes() const { return pixel_count() * plane_count() * sizeof(float); }
+  bool aov_events() const { return !events[0][0].empty(); }
 
   // Every per-pixel plane, named, in a fixed order: for clearing, summing
-  // iterations and checkpoints.
+  // iterations and checkpoints.  The first kPlaneCount are always there,
+  // the event planes (plane_name) only with aov_events().
   static constexpr size_t kPlaneCount = 17;
+  static constexpr size_t kEventPlaneCount = 3 * kEventCount;
   static const char* const kPlaneNames[kPlaneCount];
+  size_t plane_count() const { return kPlaneCount + (aov_events() ? kEventPlaneCount : 0); }
+  static std::string plane_name(size_t i);  // kPlaneNames, then "diffuse.R" ... for the event planes
   std::vector<float>* plane(size_t i);
   const std::vector<float>* plane(size_t i) const { return const_cast<Film*>(this)->plane(i); }
   void clear();
@@ -68,7 +88,8 @@ struct Film {
 
   void add_weight(uint32_t pixel, uint32_t sample, float w);
   void add_alpha_weight(uint32_t pixel, float w);
-  void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L);
+  // `event`: the path's PathEvent, kept only with aov_events().
+  void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L, uint8_t event);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
 };
 
@@ -88,12 +109,17 @@ void append_film_layers(ImageBuffer& image, const std::vector<FilmLayer>& layers
 // plane (float32 EXR keeps them exactly), so that films rendered apart (a
 // frame's sample ranges) can be written, read and added.
 ImageBuffer film_sums_image(const Film& film, const std::string& prefix);
-// film += the planes of `image` named PREFIX + kPlaneNames[i]; throws
-// theia::Error naming `what` and the channel when one is missing or the size differs.
+// Whether film_sums_image(film, prefix) made `image` from a film with aov_events().
+bool sums_have_aov_events(const ImageBuffer& image, const std::string& prefix);
+// film += the planes of `image` named PREFIX + plane_name(i); throws
+// theia::Error naming `what` and the channel when one is missing, the size
+// differs, or one of them has the --aov-events planes and the other not.
 void add_film_sums(Film& film, const ImageBuffer& image, const std::string& prefix, const std::string& what);
 
 // Resolve to an image with channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z depth.Z,
-// then LAYER.R LAYER.G LAYER.B for each extra layer.
+// then EVENT.R EVENT.G EVENT.B per path class with aov_events() (divided by the
+// beauty's weight, so they sum to R G B), then LAYER.R LAYER.G LAYER.B for
+// each extra layer.
 ImageBuffer resolve_film(const Film& film);
 
 }  // namespace theia

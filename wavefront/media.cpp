@@ -90,7 +90,7 @@ bool WavefrontEngine::Impl::interact_in_medium(const Ray& ray, const Hit& hit, u
   // (not MIS-weighted: nothing samples a medium's emission directly).
   if (!is_black(ff.emitted) && int(ps.depth) < opt.max_depth) {
     const RGB contribution = ps.filter_weight * ff.emitted;
-    if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution);
+    if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution, path_event(ps.flags));
     if (observer) observer->emission_added(ps.vertex, ps.pixel, contribution, 1.0f);
   }
   switch (ff.event) {
@@ -156,7 +156,7 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
   ps.prev_pdf = c->mis_pdf;
-  ps.flags = 0;
+  ps.flags = first_event_bits(ps.flags, kEventVolume);
   ps.prev_p = v.si.p;
   ps.prev_ng = vec3(0.0f);
   queue_ray(slot, v.si, Ray{v.si.p, 0.0f, c->wi, kInfinity}, out);
@@ -206,7 +206,7 @@ void WavefrontEngine::Impl::sample_direct_light_in_medium(const MediumVertex& v,
   const RGB contribution = ps.filter_weight * v.beta * (phase * w / light_pdf) * ls->L;
   if (!is_finite(contribution) || is_black(contribution)) return;
   queue_shadow(out, spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light), contribution, ps, *sl, {},
-               medium);
+               medium, path_event(first_event_bits(ps.flags, kEventVolume)));
   if (observer) {
     out.shadows.mis_weight.push_back(w);
     PathVertexInfo info = medium_vertex_info(v, ls->wi, RGB(phase / light_pdf), light_pdf);

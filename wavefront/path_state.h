@@ -11,6 +11,7 @@
 
 #include "core/math.h"
 #include "scene/accel.h"
+#include "wavefront/film.h"
 
 #include <cstdint>
 #include <vector>
@@ -36,7 +37,17 @@ enum PathFlags : uint8_t {
   kPathPrevSpecular = 1 << 0,    // the ray's direction came from a specular lobe
   kPathCausticReceiver = 1 << 1, // the primary hit was a caustic receiver (wavefront/caustics.h)
   kPathCausticCaster = 1 << 2,   // ... and the ray leaves the caster after it
+  // Bits 3-5: the path's PathEvent (wavefront/film.h), the type of its first
+  // scattering event (kEventEmission before it): every splat of the path,
+  // and of its shadow rays, goes to that event's layer (--aov-events).
+  kPathEventBits = 7 << 3,
 };
+inline constexpr int kPathEventShift = 3;
+inline uint8_t path_event(uint8_t flags) { return uint8_t((flags & kPathEventBits) >> kPathEventShift); }
+// The event bits of a path that scatters now with `event`: its first event's, once it has one.
+inline uint8_t first_event_bits(uint8_t flags, uint8_t event) {
+  return (flags & kPathEventBits) ? uint8_t(flags & kPathEventBits) : uint8_t(event << kPathEventShift);
+}
 
 struct alignas(64) PathState {
 #define THEIA_DECLARE_FIELD(type, name) type name;

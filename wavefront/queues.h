@@ -62,7 +62,8 @@ namespace theia {
   F(float, mis_weight, "the MIS weight inside the contribution (only with an observer)")          \
   F(SampledLight, chosen, "the light sampler's choice (only when it learns from outcomes)")       \
   F(PrimRef, skip, "the curve segment the ray leaves (only in scenes with curves)")                   \
-  F(int32_t, medium, "the medium the ray starts in (only in scenes with media)")
+  F(int32_t, medium, "the medium the ray starts in (only in scenes with media)")                   \
+  F(uint8_t, event, "the path's PathEvent, its film layer (only with --aov-events)")
 
 // Rays that hit nothing: infinite lights see them (the escaped-ray stage).
 #define THEIA_ESCAPED_QUEUE_FIELDS(F)          \

@@ -40,7 +40,7 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (observer && i + kObserverPrefetch < n) observer->prefetch(s.vertex[i + kObserverPrefetch]);
-        if (!blocked[i]) film.splat(s.pixel[i], s.sample[i], s.contribution[i]);
+        if (!blocked[i]) film.splat(s.pixel[i], s.sample[i], s.contribution[i], s.event.empty() ? 0 : s.event[i]);
         if (!s.chosen.empty()) light_sampler.record_shadow(s.chosen[i], !blocked[i]);
         if (observer) {
           // An occluded NEE ray still finishes its vertex: a zero sample.

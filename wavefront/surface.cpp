@@ -63,7 +63,8 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   ps.depth = uint16_t(ps.depth + 1);
   ps.prev_pdf = c->mis_pdf;
   ps.eta_scale = eta_scale;
-  ps.flags = uint8_t((bs.is_specular() ? kPathPrevSpecular : 0) | v.caustic_flags);
+  ps.flags = uint8_t((bs.is_specular() ? kPathPrevSpecular : 0) | v.caustic_flags |
+                     first_event_bits(ps.flags, event_of_lobe(bs.flags)));
   ps.prev_p = si.p;
   ps.prev_ng = si.ng;
   queue_ray(slot, si, spawn_ray(si, bs.wi), out);
@@ -144,7 +145,9 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
 
   const Ray ray = spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light);
   const int medium = pool.medium.empty() ? -1 : medium_after(scene, v.si.shape, v.si.ng, ray.d, pool.medium[v.slot]);
-  queue_shadow(out, ray, contribution, ps, *sl, v.si.skip, medium);
+  // Labelled as a BSDF sample of ls->wi would be (no delta lobe makes it).
+  queue_shadow(out, ray, contribution, ps, *sl, v.si.skip, medium,
+               path_event(first_event_bits(ps.flags, event_of_lobe(bsdf_nondelta_kind(v.bsdf)))));
   ShadowQueue& q = out.shadows;
   if constexpr (kObserve) {
     q.mis_weight.push_back(w);

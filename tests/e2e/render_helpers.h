@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <string>
@@ -140,6 +141,17 @@ inline double max_relative_difference(const ImageBuffer& a, const ImageBuffer& b
         double va = pixel_channel(a, x, y, c), vb = pixel_channel(b, x, y, c);
         worst = std::max(worst, std::abs(va - vb) / std::max({std::abs(va), std::abs(vb), floor}));
       }
+  return worst;
+}
+
+// Largest |a - b| / max(|a|, |b|, floor) over every channel, matched by name.
+inline double max_channel_difference(const ImageBuffer& a, const ImageBuffer& b, double floor = 1e-3) {
+  EXPECT_EQ(a.channels, b.channels);
+  EXPECT_EQ(a.data.size(), b.data.size());
+  double worst = 0.0;
+  for (size_t i = 0; i < std::min(a.data.size(), b.data.size()); ++i)
+    worst = std::max(worst, std::abs(double(a.data[i]) - double(b.data[i])) /
+                                std::max({std::abs(double(a.data[i])), std::abs(double(b.data[i])), floor}));
   return worst;
 }
 

@@ -271,7 +271,7 @@ TEST(Filter, FilmSumsSignedWeightsAndLeavesCancelledPixelsBlack) {
   auto add = [&](uint32_t pixel, uint32_t sample, float w, RGB L) {
     film.add_weight(pixel, sample, w);
     film.add_alpha_weight(pixel, w);
-    film.splat(pixel, sample, w * L);
+    film.splat(pixel, sample, w * L, kEventEmission);
     film.splat_first_hit(pixel, w, true, RGB(0.5f), vec3(0, 0, 1), 2.0f);
   };
   add(0, 0, 2.0f, RGB(1.0f, 2.0f, 3.0f));
@@ -279,7 +279,7 @@ TEST(Filter, FilmSumsSignedWeightsAndLeavesCancelledPixelsBlack) {
   add(1, 0, 1.5f, RGB(1.0f));
   add(1, 1, -1.5f, RGB(3.0f));
   film.add_weight(2, 0, 1e-39f);  // denormal: 1 / it overflows
-  film.splat(2, 0, RGB(1.0f));
+  film.splat(2, 0, RGB(1.0f), kEventEmission);
   ImageBuffer img = resolve_film(film);
   const size_t nc = img.channels.size();
   RGB want = working_to_srgb((2.0f * RGB(1.0f, 2.0f, 3.0f) - 0.5f * RGB(4.0f)) / 1.5f);

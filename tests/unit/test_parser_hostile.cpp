@@ -160,11 +160,11 @@ TEST(ImageHostile, TexturesBeyondTheMemoryLeftAreRefusedWithTheirSceneLine) {
 
 TEST(FilmHostile, ValuesThatWouldOverflowItsSumsAreDroppedAndCounted) {
   Film film(2, 1);
-  film.splat(0, 0, RGB(3e38f, 1.0f, 1.0f));
-  film.splat(0, 1, RGB(3e38f, 1.0f, 1.0f));
-  film.splat(0, 2, RGB(1.0f, INFINITY, 1.0f));
-  film.splat(0, 3, RGB(1.0f, 1.0f, -2e30f));
-  film.splat(1, 0, RGB(1e30f, 2.0f, 3.0f));  // at the bound: kept
+  film.splat(0, 0, RGB(3e38f, 1.0f, 1.0f), kEventEmission);
+  film.splat(0, 1, RGB(3e38f, 1.0f, 1.0f), kEventEmission);
+  film.splat(0, 2, RGB(1.0f, INFINITY, 1.0f), kEventEmission);
+  film.splat(0, 3, RGB(1.0f, 1.0f, -2e30f), kEventEmission);
+  film.splat(1, 0, RGB(1e30f, 2.0f, 3.0f), kEventEmission);  // at the bound: kept
   EXPECT_EQ(film.dropped.load(), 4u);
   EXPECT_EQ(film.r[0], 0.0f);
   EXPECT_EQ(film.r[1], 1e30f);

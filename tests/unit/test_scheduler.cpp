@@ -91,7 +91,7 @@ void set_halves(Film& f, float even, float odd) {
   for (uint32_t s = 0; s < 2; ++s) {
     f.add_weight(0, s, 1.0f);
     float v = s ? odd : even;
-    f.splat(0, s, RGB(v));
+    f.splat(0, s, RGB(v), kEventEmission);
   }
 }
 
@@ -110,7 +110,7 @@ void synthetic_iteration(Film& f, uint32_t spp_begin, uint32_t n, float sigma, s
     for (uint32_t s = spp_begin; s < spp_begin + n; ++s) {
       float z = rng ? normal(*rng) : (s % 2 ? -1.0f : 1.0f);
       f.add_weight(p, s, 1.0f);
-      f.splat(p, s, RGB(kTruth + sigma * z));
+      f.splat(p, s, RGB(kTruth + sigma * z), kEventEmission);
     }
 }
 
@@ -283,7 +283,7 @@ TEST(Combination, InverseVarianceResolvesInTheOutputColourSpace) {
     it.clear();
     for (uint32_t s = 0; s < 2; ++s) {
       it.add_weight(0, s, 1.0f);
-      it.splat(0, s, colour * (s ? 1.2f : 0.8f));  // a known, non-zero variance
+      it.splat(0, s, colour * (s ? 1.2f : 0.8f), kEventEmission);  // a known, non-zero variance
     }
     acc.fold(it, uint32_t(2 * k), uint32_t(2 * k + 2));
   }

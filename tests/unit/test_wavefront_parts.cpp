@@ -102,7 +102,7 @@ TEST(Queues, BytesFollowTheTable) {
   EXPECT_EQ(RayQueue::kItemBytes, sizeof(Ray) + sizeof(uint32_t));
   EXPECT_EQ(ShadowQueue::kItemBytes,
             sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(SampledLight) + sizeof(PrimRef) +
-                sizeof(int32_t));
+                sizeof(int32_t) + sizeof(uint8_t));
   ShadowQueue q;
   q.rays.reserve(100);
   q.pixel.reserve(100);
@@ -167,10 +167,10 @@ TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {
   Film film(2, 1);
   film.add_weight(0, 0, 1.0f);
   film.add_weight(0, 1, 1.0f);
-  film.splat(0, 0, RGB(1, 2, 3));
-  film.splat(0, 1, RGB(3, 2, 1));
-  film.splat(0, 1, RGB(std::numeric_limits<float>::infinity(), 0, 0));
-  film.splat(1, 0, RGB(std::numeric_limits<float>::quiet_NaN()));
+  film.splat(0, 0, RGB(1, 2, 3), kEventEmission);
+  film.splat(0, 1, RGB(3, 2, 1), kEventEmission);
+  film.splat(0, 1, RGB(std::numeric_limits<float>::infinity(), 0, 0), kEventEmission);
+  film.splat(1, 0, RGB(std::numeric_limits<float>::quiet_NaN()), kEventEmission);
   EXPECT_EQ(film.dropped.load(), 2u);
   EXPECT_EQ(film.r[0], 4.0f);
   EXPECT_EQ(film.r_odd[0], 3.0f);  // sample 1 only

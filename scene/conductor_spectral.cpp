@@ -1,10 +1,13 @@
 #include "scene/conductor_spectral.h"
 
 #include "core/color.h"
+#include "core/memo.h"
 #include "scene/microfacet.h"
 
 #include <algorithm>
 #include <array>
+#include <bit>
+#include <cstdint>
 
 namespace theia {
 
@@ -73,13 +76,28 @@ RGB xyz_to_srgb(const dvec3& c) {
              float(0.0556434 * c.x - 0.2040259 * c.y + 1.0572252 * c.z));
 }
 
+// The 5 nm tables interpolated at every nanometre, once: the sigmoid fit
+// integrates thousands of spectra per colour (values as table_at gives them).
+struct NanometreTables {
+  static constexpr int kCount = kLambdaMax - kLambdaMin + 1;
+  double d65[kCount];
+  dvec3 xyz[kCount];
+  NanometreTables() {
+    for (int l = kLambdaMin; l <= kLambdaMax; ++l) {
+      d65[l - kLambdaMin] = table_at(kD65, l);
+      xyz[l - kLambdaMin] = dvec3(table_at(kCieX, l), table_at(kCieY, l), table_at(kCieZ, l));
+    }
+  }
+};
+
 // XYZ of r under D65, 1 nm trapezoid sums (pbrt-v4 integrates its 1 nm tables).
 dvec3 xyz_under_d65(const SpectrumFn& r) {
+  static const NanometreTables t;
   dvec3 sum(0.0);
   for (int l = kLambdaMin; l <= kLambdaMax; ++l) {
     double w = (l == kLambdaMin || l == kLambdaMax) ? 0.5 : 1.0;
-    double e = w * table_at(kD65, l) * r(l);
-    sum += e * dvec3(table_at(kCieX, l), table_at(kCieY, l), table_at(kCieZ, l));
+    double e = w * t.d65[l - kLambdaMin] * r(l);
+    sum += e * t.xyz[l - kLambdaMin];
   }
   return sum;
 }
@@ -136,7 +154,12 @@ SigmoidSpectrum rgb_unbounded_spectrum(const RGB& srgb) {
     return {0.0, 0.0, 0.0, scale};
   // A zero component has no sigmoid (S > 0): take it a hair above zero.
   target = glm::max(target, dvec3(1e-6));
-  std::array<double, 3> c = fit_sigmoid(target);
+  // The fit integrates thousands of spectra (milliseconds); a scene repeats its
+  // colours (every conductor of one metal), so fits are kept by the exact colour.
+  static BoundedMemo<std::array<uint32_t, 3>, std::array<double, 3>> fits(4096);
+  const std::array<uint32_t, 3> key = {std::bit_cast<uint32_t>(srgb.x), std::bit_cast<uint32_t>(srgb.y),
+                                       std::bit_cast<uint32_t>(srgb.z)};
+  std::array<double, 3> c = fits.get(key, [&] { return fit_sigmoid(target); });
   return {c[0], c[1], c[2], scale};
 }
 
@@ -145,13 +168,9 @@ RGB reflectance_srgb_under_d65(const SpectrumFn& r) {
   return xyz_to_srgb(xyz_under_d65(r)) / white;
 }
 
-std::vector<RGB> tabulate_conductor_fresnel(const SpectrumFn& eta, const SpectrumFn& k) {
-  // Sample eta and k once on the 1 nm grid the projection sums over.
-  std::vector<float> e, kk;
-  for (int l = kLambdaMin; l <= kLambdaMax; ++l) {
-    e.push_back(float(eta(l)));
-    kk.push_back(float(k(l)));
-  }
+namespace {
+
+std::vector<RGB> fresnel_table(const std::vector<float>& e, const std::vector<float>& kk) {
   std::vector<RGB> table(kConductorFresnelTableSize);
   for (int i = 0; i < kConductorFresnelTableSize; ++i) {
     double cos_i = double(i) / (kConductorFresnelTableSize - 1);
@@ -166,6 +185,25 @@ std::vector<RGB> tabulate_conductor_fresnel(const SpectrumFn& eta, const Spectru
     table[size_t(i)] = glm::clamp(srgb_to_working(c), RGB(0.0f), RGB(1.0f));
   }
   return table;
+}
+
+}  // namespace
+
+std::vector<RGB> tabulate_conductor_fresnel(const SpectrumFn& eta, const SpectrumFn& k) {
+  // Sample eta and k once on the 1 nm grid the projection sums over.
+  std::vector<float> e, kk;
+  for (int l = kLambdaMin; l <= kLambdaMax; ++l) {
+    e.push_back(float(eta(l)));
+    kk.push_back(float(k(l)));
+  }
+  // The table is a function of these samples alone (30,000 complex Fresnel
+  // terms), and a scene's conductors share a few metals: kept by the samples'
+  // bits (a NaN has no order).
+  std::vector<uint32_t> key;
+  for (const auto* v : {&e, &kk})
+    for (float x : *v) key.push_back(std::bit_cast<uint32_t>(x));
+  static BoundedMemo<std::vector<uint32_t>, std::vector<RGB>> tables(256);
+  return tables.get(key, [&] { return fresnel_table(e, kk); });
 }
 
 RGB lookup_conductor_fresnel(const RGB* table, float cos_theta) {

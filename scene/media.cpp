@@ -1,10 +1,12 @@
 #include "scene/media.h"
 
 #include "core/color.h"
+#include "core/memo.h"
 #include "scene/noise.h"
 #include "scene/spectrum.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace theia {
@@ -317,10 +319,16 @@ void build_blackbody_table(Medium& m) {
   for (float t : {*lo, *hi, 0.0f}) t_max = std::max(t_max, (t - m.temperature_offset) * m.temperature_scale);
   if (!(t_max > kMinEmittingKelvin)) return;
   m.blackbody_t_max = t_max;
-  m.blackbody_table.resize(kBlackbodyTableSize);
-  for (int i = 0; i < kBlackbodyTableSize; ++i)
-    m.blackbody_table[size_t(i)] =
-        normalized_blackbody(kMinEmittingKelvin + (t_max - kMinEmittingKelvin) * float(i) / float(kBlackbodyTableSize - 1));
+  // A quarter million Planck terms, the same for every medium of this hottest
+  // temperature (kept by its bits).
+  static BoundedMemo<uint32_t, std::vector<RGB>> tables(64);
+  m.blackbody_table = tables.get(std::bit_cast<uint32_t>(t_max), [&] {
+    std::vector<RGB> table(kBlackbodyTableSize);
+    for (int i = 0; i < kBlackbodyTableSize; ++i)
+      table[size_t(i)] = normalized_blackbody(kMinEmittingKelvin +
+                                              (t_max - kMinEmittingKelvin) * float(i) / float(kBlackbodyTableSize - 1));
+    return table;
+  });
 }
 
 float medium_majorant(const Medium& m) { return majorant_scale(m) * m.max_density; }

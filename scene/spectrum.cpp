@@ -180,12 +180,28 @@ const std::array<NamedSpectrum, 16> kNamedSpectra = {{
 
 }  // namespace
 
-vec3 cie_xyz_cmf(float l) {
+namespace {
+
+vec3 cie_xyz_cmf_fit(float l) {
   float x = 1.056f * piecewise_gaussian(l, 599.8f, 37.9f, 31.0f) + 0.362f * piecewise_gaussian(l, 442.0f, 16.0f, 26.7f) -
             0.065f * piecewise_gaussian(l, 501.1f, 20.4f, 26.2f);
   float y = 0.821f * piecewise_gaussian(l, 568.8f, 46.9f, 40.5f) + 0.286f * piecewise_gaussian(l, 530.9f, 16.3f, 31.1f);
   float z = 1.217f * piecewise_gaussian(l, 437.0f, 11.8f, 36.0f) + 0.681f * piecewise_gaussian(l, 459.0f, 26.0f, 13.8f);
   return {x, y, z};
+}
+
+}  // namespace
+
+vec3 cie_xyz_cmf(float l) {
+  // The whole nanometres every integral here sums over, evaluated once (seven
+  // exponentials each; a blackbody medium's table took a quarter million).
+  static const auto table = [] {
+    std::array<vec3, kLambdaMax - kLambdaMin + 1> t;
+    for (int i = kLambdaMin; i <= kLambdaMax; ++i) t[size_t(i - kLambdaMin)] = cie_xyz_cmf_fit(float(i));
+    return t;
+  }();
+  if (l >= float(kLambdaMin) && l <= float(kLambdaMax) && l == std::floor(l)) return table[size_t(int(l) - kLambdaMin)];
+  return cie_xyz_cmf_fit(l);
 }
 
 RGB xyz_to_linear_srgb(const vec3& c) {

@@ -161,3 +161,30 @@ TEST(SpectrumConductor, SpectraShorterThanTheVisibleRangeGiveAFiniteTable) {
       EXPECT_LE(c[i], 1.0f);
     }
 }
+
+// Fits and Fresnel tables are kept by their exact arguments (core/memo.h): a
+// second call returns the first's result bit for bit, and a call with other
+// arguments in between is not served another's result.
+TEST(SpectrumConductor, KeptFitsAndTablesBelongToTheirOwnArguments) {
+  const RGB a(0.2f, 0.9f, 1.1f), b(0.21f, 0.9f, 1.1f);
+  const SigmoidSpectrum fa = rgb_unbounded_spectrum(a), fb = rgb_unbounded_spectrum(b), fa2 = rgb_unbounded_spectrum(a);
+  EXPECT_EQ(fa.c0, fa2.c0);
+  EXPECT_EQ(fa.c1, fa2.c1);
+  EXPECT_EQ(fa.c2, fa2.c2);
+  EXPECT_NE(fa.c0, fb.c0);
+  const RGB back = reflectance_srgb_under_d65(fb);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(back[i], b[i], 1e-4f * fb.scale) << i;
+
+  const SpectrumFn eta = named("metal-Au-eta"), k1 = named("metal-Au-k");
+  const SpectrumFn k2 = [&](double l) { return 0.5 * k1(l); };
+  const std::vector<RGB> t1 = tabulate_conductor_fresnel(eta, k1), t2 = tabulate_conductor_fresnel(eta, k2),
+                         t1_again = tabulate_conductor_fresnel(eta, k1);
+  EXPECT_EQ(t1, t1_again);
+  ASSERT_EQ(t2.size(), size_t(kConductorFresnelTableSize));
+  // The half-k table is its own: it matches its spectral reflectance at normal incidence.
+  const RGB want = spectral_reflectance(eta, k2, 1.0);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(t2.back()[i], want[i], 5e-3f * want[i]) << i;
+    EXPECT_GT(std::abs(t1.back()[i] - t2.back()[i]), 0.01f) << i;
+  }
+}

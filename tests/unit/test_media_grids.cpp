@@ -225,6 +225,16 @@ TEST(MediaUniformGrid, LescaleGridAndTemperature) {
   // Colder than 100 K after the mapping: nothing; hotter is brighter.
   EXPECT_EQ(blackbody_emission(t, 140.0f), RGB(0.0f));
   EXPECT_LT(max_component(blackbody_emission(t, 1500.0f)), max_component(blackbody_emission(t, 2500.0f)));
+  // Tables are kept by the hottest temperature (core/memo.h): another range
+  // gets its own, the same range the same table again.
+  const Medium cooler = medium_of("MakeNamedMedium \"g\" \"string type\" \"uniformgrid\" \"float density\" [1] "
+                                  "\"float temperature\" [3000]");
+  const Medium again = medium_of("MakeNamedMedium \"g\" \"string type\" \"uniformgrid\" \"integer nx\" 2 "
+                                 "\"float density\" [1 1] \"float temperature\" [2000 6000]");
+  EXPECT_FLOAT_EQ(cooler.blackbody_t_max, 3000.0f);
+  EXPECT_EQ(again.blackbody_table, t.blackbody_table);
+  const RGB at_3000 = blackbody_emission(t, 1600.0f);  // (1600 - 100) * 2 K
+  expect_rgb_near(blackbody_emission(cooler, 3000.0f), at_3000, 1e-3f * max_component(at_3000), "3000 K, own table");
   EXPECT_NE(error_of("WorldBegin\nMakeNamedMedium \"g\" \"string type\" \"uniformgrid\" \"float density\" [1] "
                      "\"float temperature\" [1000] \"rgb Le\" [1 1 1]")
                 .find("both \"Le\" and \"temperature\""),

@@ -145,9 +145,11 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
 
   const Ray ray = spawn_ray_to(v.si, ls->p_light, ls->p_light_error, ls->n_light);
   const int medium = pool.medium.empty() ? -1 : medium_after(scene, v.si.shape, v.si.ng, ray.d, pool.medium[v.slot]);
-  // Labelled as a BSDF sample of ls->wi would be (no delta lobe makes it).
-  queue_shadow(out, ray, contribution, ps, *sl, v.si.skip, medium,
-               path_event(first_event_bits(ps.flags, event_of_lobe(bsdf_nondelta_kind(v.bsdf)))));
+  // Labelled as a BSDF sample of ls->wi would be (no delta lobe makes it);
+  // asked of the BSDF only when the film keeps event layers.
+  const uint8_t event =
+      film.aov_events() ? path_event(first_event_bits(ps.flags, event_of_lobe(bsdf_nondelta_kind(v.bsdf)))) : 0;
+  queue_shadow(out, ray, contribution, ps, *sl, v.si.skip, medium, event);
   ShadowQueue& q = out.shadows;
   if constexpr (kObserve) {
     q.mis_weight.push_back(w);

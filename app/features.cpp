@@ -146,6 +146,8 @@ void check(const GuidingOptions& o) {
     throw_error("--guiding-spatial-threshold must be positive, got {}", o.spatial_threshold);
   if (o.training_spp < 0)
     throw_error("--guiding-training-spp must be zero (learn from every sample) or positive, got {}", o.training_spp);
+  if (!(o.training_share > 0.0f && o.training_share <= 1.0f))
+    throw_error("--guiding-training-share must be in (0, 1], got {}", o.training_share);
 }
 
 namespace {
@@ -219,8 +221,9 @@ double GuidingVerdict::Round::variance_ratio() const {
 }
 
 GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
-                               const std::vector<int>& schedule, bool keep_recorder, uint32_t first_sample)
-    : options_(options), keep_recorder_(keep_recorder), first_sample_(first_sample) {
+                               const std::vector<int>& schedule, bool keep_recorder, uint32_t first_sample,
+                               double time_limit)
+    : options_(options), keep_recorder_(keep_recorder), first_sample_(first_sample), time_limit_(time_limit) {
   if (!options.enabled) return;
   SDTreeOptions tree = options;
   tree.learn_selection = options.sampling == "mis-learned";
@@ -259,8 +262,17 @@ void GuidingFeature::set_hooks(bool guide, bool record) {
   engine_->set_hooks(h);
 }
 
-bool GuidingFeature::trains(const IterationInfo& it) const {
-  return options_.training_spp == 0 || it.spp_begin - first_sample_ < uint32_t(options_.training_spp);
+bool GuidingFeature::trains(const IterationInfo& it) {
+  const bool budget_spent =
+      options_.training_spp != 0 && it.spp_begin - first_sample_ >= uint32_t(options_.training_spp);
+  const bool time_spent = time_limit_ > 0.0 && it.elapsed_seconds >= double(options_.training_share) * time_limit_;
+  if ((budget_spent || time_spent) && trained_spp_ < 0) {
+    trained_spp_ = it.spp_begin - first_sample_;
+    if (time_spent && !budget_spent)
+      log_info("guiding: training ends at {} spp, {:.3g} s into the render ({:.3g} of --time-limit)", trained_spp_,
+               it.elapsed_seconds, options_.training_share);
+  }
+  return trained_spp_ < 0;
 }
 
 GuidingVerdict::Round* GuidingFeature::round_of(const IterationInfo& it) {
@@ -332,7 +344,7 @@ void GuidingFeature::add_tasks(IterationTasks& tasks) {
 // interrupted one left it, so it guides the same.
 void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
   if (!tree_) return;
-  participants.push_back({"guiding", 4,
+  participants.push_back({"guiding", 5,
                           [this] {
                             ByteWriter w;
                             w.put_vector(tree_->serialize());
@@ -343,11 +355,12 @@ void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& partic
                               w.put(round->guided_variance);
                               w.put(round->guided_seconds_per_spp);
                             }
+                            w.put(trained_spp_);
                             return w.bytes;
                           },
                           [this](const CheckpointSection& section) {
-                            if (section.version != 4)
-                              throw_error("checkpoint section 'guiding' has version {}, this build reads 4",
+                            if (section.version != 5)
+                              throw_error("checkpoint section 'guiding' has version {}, this build reads 5",
                                           section.version);
                             ByteReader r(section.bytes, "checkpoint section 'guiding'");
                             std::vector<uint8_t> tree = r.get_vector<uint8_t>();
@@ -362,6 +375,7 @@ void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& partic
                               round->guided_variance = r.get<double>();
                               round->guided_seconds_per_spp = r.get<double>();
                             }
+                            trained_spp_ = r.get<int64_t>();
                           }});
 }
 
@@ -374,6 +388,8 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                     // The iterations that trained it (one update each) and the budget that ended training.
                     {"updates", gs.updates},
                     {"training_spp", options_.training_spp},
+                    // What it learned from (-1: training never ended).
+                    {"trained_spp", trained_spp_},
                     // Guide directions the BSDF did not scatter into (wasted draws).
                     {"draw_failures", gs.draw_failures}};
   if (tree_->options().learn_selection) {

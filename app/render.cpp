@@ -145,7 +145,8 @@ struct Features {
 
   Features(const RenderConfig& c, RenderableScene& rs, const std::vector<int>& schedule, uint32_t first_sample)
       : light_sampler(*rs.light_sampler),
-        guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder), first_sample),
+        guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder), first_sample,
+                c.time_limit),
         field(c, rs.scene, guiding),
         recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, field.sink()),
         caustics(c.caustics, caustics_conflict(c, rs.scene), c.seed, rs),

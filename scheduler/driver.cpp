@@ -337,6 +337,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     info.spp_begin = cfg.sample_begin + uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
     info.spp_end = cfg.sample_begin + uint32_t(cumulative[size_t(i)]);
     auto ti = std::chrono::steady_clock::now();
+    info.elapsed_seconds = seconds_since(cfg.clock_start);
     tasks.begin_iteration(info);
     auto progress = [&](double f) {
       if (cfg.progress) cfg.progress(i, f);

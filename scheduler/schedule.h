@@ -63,6 +63,9 @@ struct IterationInfo {
   // < 0: unknown, as for 1-spp iterations): what efficiency estimates need.
   double seconds = 0.0;
   double sample_variance = -1.0;
+  // Seconds since the render clock started (IterationConfig::clock_start),
+  // at the iteration's start: what a time-limited render plans by.
+  double elapsed_seconds = 0.0;
   bool last() const { return index + 1 == count; }
 };
 

@@ -76,6 +76,29 @@ TEST(Guiding, FieldFrozenAfterTrainingSamples) {
   EXPECT_GT(max_relative_difference(r.image, all.image), 1e-3);
 }
 
+// With --time-limit the field also stops learning once --guiding-training-share
+// of the limit has passed.  A limit of 1000 s is never reached here: a share of
+// 1e-9 (1 us, passed before the first iteration begins) means no training at
+// all, a share of 1 leaves --guiding-training-spp in charge.  The log says
+// what the field learned from.
+TEST(Guiding, TrainingEndsAtItsShareOfTheTimeLimit) {
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 32;
+  RenderConfig c = guided_config(24);
+  c.guiding.training_spp = 10;  // guiding schedule 1 x8, 2 | 4 8 2
+  c.time_limit = 1000.0;
+  c.guiding.training_share = 1e-9f;
+  RenderResult none = render_scene(scene, c);
+  EXPECT_EQ(none.log["guiding"]["trained_spp"].get<int64_t>(), 0);
+  EXPECT_EQ(none.log["guiding"]["updates"].get<int>(), 0);
+  EXPECT_FALSE(none.log.contains("recorder") && none.log["recorder"]["paths"].get<uint64_t>() > 0);
+  EXPECT_FALSE(none.log["scheduler"]["time_limit"]["reached"].get<bool>());
+  c.guiding.training_share = 1.0f;
+  RenderResult budget = render_scene(scene, c);
+  EXPECT_EQ(budget.log["guiding"]["trained_spp"].get<int64_t>(), 10);
+  EXPECT_EQ(budget.log["guiding"]["updates"].get<int>(), 9);
+}
+
 // --guiding-auto judges in two rounds (each an iteration held out, without
 // guide and recorder, against the next, guided without recording): a probe
 // once the field has learned from a quarter of the training budget, and, if

@@ -154,9 +154,9 @@ struct PointLists {
 
 // The emitters as arrays, index-aligned with the EmitterSet, for the loop
 // over all of them at every point (the build's cost): an area emitter's
-// estimate is emitter_sensors' arithmetic, operation for operation, in a loop
-// the compiler vectorises; the others (point-like, infinite, distant: few) go
-// through emitter_sensors itself.
+// estimate is emitter_sensors' arithmetic, operation for operation, in one
+// branch-free loop without calls; the others (point-like, infinite, distant:
+// few) go through emitter_sensors itself.
 struct EmitterArrays {
   std::vector<float> cx, cy, cz, nx, ny, nz, radius, power;  // power: radiance x area
   std::vector<uint32_t> one_sided, planar;                   // area emitters; planar: a nonzero normal

@@ -7,12 +7,14 @@
 #include "scene/shapes.h"
 
 #include <nanoflann.hpp>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numeric>
 
 namespace theia {
@@ -150,70 +152,189 @@ struct PointLists {
   std::vector<FarEntry> far;   // sorted by emitter
 };
 
-// Per bin, the largest values that carry `far_energy` of the bin's total
-// (min_far..max_far of them); the union over the bins, sorted by emitter.
-std::vector<FarEntry> select_far(std::vector<FarEntry> candidates, const CachePointParams& prm) {
-  std::vector<uint8_t> keep(candidates.size(), 0);
-  std::vector<std::pair<float, uint32_t>> order;
-  for (int b = 0; b < kSensorBins; ++b) {
-    order.clear();
-    double total = 0.0;
-    for (size_t i = 0; i < candidates.size(); ++i)
-      if (candidates[i].value[size_t(b)] > 0.0f) {
-        order.emplace_back(candidates[i].value[size_t(b)], uint32_t(i));
-        total += double(candidates[i].value[size_t(b)]);
-      }
-    if (order.empty()) continue;
-    // Largest first, ties by position: deterministic.
-    auto larger = [](const auto& a, const auto& c) { return a.first > c.first || (a.first == c.first && a.second < c.second); };
-    const size_t top = std::min(order.size(), size_t(prm.max_far));
-    std::nth_element(order.begin(), order.begin() + ptrdiff_t(top - 1), order.end(), larger);
-    std::sort(order.begin(), order.begin() + ptrdiff_t(top), larger);
-    double sum = 0.0;
-    for (size_t k = 0; k < top; ++k) {
-      if (k >= size_t(prm.min_far) && sum >= double(prm.far_energy) * total) break;
-      keep[order[k].second] = 1;
-      sum += double(order[k].first);
+// The emitters as arrays, index-aligned with the EmitterSet, for the loop
+// over all of them at every point (the build's cost): an area emitter's
+// estimate is emitter_sensors' arithmetic, operation for operation, in one
+// branch-free loop without calls; the others (point-like, infinite, distant:
+// few) go through emitter_sensors itself.
+struct EmitterArrays {
+  std::vector<float> cx, cy, cz, nx, ny, nz, radius, power;  // power: radiance x area
+  std::vector<uint32_t> one_sided, planar;                   // area emitters; planar: a nonzero normal
+  std::vector<uint32_t> other;                               // the emitters that are not Area
+
+  explicit EmitterArrays(const EmitterSet& set) {
+    const size_t n = set.size();
+    for (auto* v : {&cx, &cy, &cz, &nx, &ny, &nz, &radius, &power}) v->resize(n);
+    one_sided.resize(n);
+    planar.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      const Emitter& e = set.emitters[i];
+      if (e.kind != EmitterKind::Area) other.push_back(uint32_t(i));
+      cx[i] = e.center.x, cy[i] = e.center.y, cz[i] = e.center.z;
+      nx[i] = e.normal.x, ny[i] = e.normal.y, nz[i] = e.normal.z;
+      radius[i] = e.radius;
+      power[i] = e.radiance * e.area;
+      one_sided[i] = e.kind == EmitterKind::Area && !e.two_sided;
+      planar[i] = glm::dot(e.normal, e.normal) > 0.0f;
     }
   }
-  std::vector<FarEntry> out;
-  for (size_t i = 0; i < candidates.size(); ++i)
-    if (keep[i]) out.push_back(candidates[i]);
-  std::sort(out.begin(), out.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
-  return out;
+};
+
+// One build thread's buffers, sized once and reused from point to point.
+struct BuildScratch {
+  std::array<std::vector<float>, kSensorBins> value;  // per emitter at the current point
+  std::vector<float> d2;                              // per emitter: distance squared; infinite: never near
+  std::vector<std::pair<float, uint32_t>> near, top;
+  std::vector<uint32_t> chosen;
+  std::vector<FarEntry> weighted, merged;  // the blur
+  std::vector<int32_t> slot;               // per emitter: its place in `merged`, -1 none, -2 a near light
+
+  explicit BuildScratch(size_t emitters) : d2(emitters), slot(emitters, -1) {
+    for (auto& v : value) v.resize(emitters);
+  }
+};
+
+// cos(max(theta - alpha, 0)) as emitters.cpp's cos_bound, without a branch.
+inline float cos_bound_select(float c, float sin_a, float cos_a) {
+  const float bound = std::max(0.0f, c * cos_a + std::sqrt(std::max(0.0f, 1.0f - c * c)) * sin_a);
+  return c >= cos_a ? 1.0f : bound;
+}
+
+// The area emitters' part of evaluate_emitters, a loop without branches over
+// restrict-qualified arrays.  (It vectorises with -fno-math-errno
+// -fno-trapping-math, but then fuses multiply-adds unlike emitter_sensors.)
+void evaluate_area(size_t n, float px, float py, float pz, const float* __restrict cx, const float* __restrict cy,
+                   const float* __restrict cz, const float* __restrict nx, const float* __restrict ny,
+                   const float* __restrict nz, const float* __restrict radius, const float* __restrict power,
+                   const uint32_t* __restrict one_sided, const uint32_t* __restrict planar, float* __restrict o0,
+                   float* __restrict o1, float* __restrict o2, float* __restrict o3, float* __restrict o4,
+                   float* __restrict o5, float* __restrict o6, float* __restrict out_d2) {
+  constexpr float kNever = std::numeric_limits<float>::infinity();
+  // Everything computed, then selected.
+  for (size_t i = 0; i < n; ++i) {
+    const float dx = cx[i] - px, dy = cy[i] - py, dz = cz[i] - pz;
+    const vec3 d(dx, dy, dz), normal(nx[i], ny[i], nz[i]);
+    const float d2 = glm::dot(d, d);  // glm's, as emitters.cpp: the same fused multiply-adds
+    const float r = radius[i];
+    const float facing = glm::dot(normal, d);
+    const bool behind = (one_sided[i] != 0) & (facing > r);
+    const float dist = std::sqrt(d2);
+    const float qx = dx / dist, qy = dy / dist, qz = dz / dist;
+    const bool apart = dist > 0.0f;
+    const float wx = apart ? qx : 0.0f, wy = apart ? qy : 0.0f, wz = apart ? qz : 1.0f;
+    const float ratio = r / dist;
+    const float sin_a = dist > r ? ratio : 1.0f;
+    const float cos_a = std::sqrt(std::max(0.0f, 1.0f - sin_a * sin_a));
+    const float c = glm::dot(normal, -vec3(wx, wy, wz));
+    const float toward = cos_bound_select(one_sided[i] ? c : std::abs(c), sin_a, cos_a);
+    const float cos_e = planar[i] ? toward : 1.0f;
+    const float value = power[i] * cos_e / std::max(d2, r * r);
+    const bool keep = !behind & (value > 0.0f);
+    o0[i] = keep ? value * cos_bound_select(wx, sin_a, cos_a) : 0.0f;
+    o1[i] = keep ? value * cos_bound_select(-wx, sin_a, cos_a) : 0.0f;
+    o2[i] = keep ? value * cos_bound_select(wy, sin_a, cos_a) : 0.0f;
+    o3[i] = keep ? value * cos_bound_select(-wy, sin_a, cos_a) : 0.0f;
+    o4[i] = keep ? value * cos_bound_select(wz, sin_a, cos_a) : 0.0f;
+    o5[i] = keep ? value * cos_bound_select(-wz, sin_a, cos_a) : 0.0f;
+    o6[i] = keep ? value : 0.0f;
+    out_d2[i] = behind ? kNever : d2;
+  }
+}
+
+// Every emitter's seven sensor values at p (emitter_sensors), zero where its
+// fluence is not positive or p is behind its one-sided face by more than its
+// radius; and its distance squared for the near test.
+void evaluate_emitters(const LightSet& lights, const EmitterSet& set, const EmitterArrays& a, const vec3& p,
+                       BuildScratch& s) {
+  constexpr float kNever = std::numeric_limits<float>::infinity();
+  float* out_d2 = s.d2.data();
+  evaluate_area(set.size(), p.x, p.y, p.z, a.cx.data(), a.cy.data(), a.cz.data(), a.nx.data(), a.ny.data(),
+                a.nz.data(), a.radius.data(), a.power.data(), a.one_sided.data(), a.planar.data(), s.value[0].data(),
+                s.value[1].data(), s.value[2].data(), s.value[3].data(), s.value[4].data(), s.value[5].data(),
+                s.value[6].data(), out_d2);
+  for (uint32_t i : a.other) {
+    const Emitter& em = set.emitters[i];
+    const vec3 d = em.center - p;
+    const bool behind = em.kind == EmitterKind::Area && !em.two_sided && glm::dot(em.normal, d) > em.radius;
+    const SensorValues v = behind ? SensorValues{} : emitter_sensors(lights, em, p);
+    const bool keep = v[kFluenceBin] > 0.0f;
+    for (int b = 0; b < kSensorBins; ++b) s.value[size_t(b)][i] = keep ? v[size_t(b)] : 0.0f;
+    const bool finite = em.kind == EmitterKind::Area || em.kind == EmitterKind::PointLike;
+    out_d2[i] = finite && !behind ? glm::dot(d, d) : kNever;
+  }
+}
+
+// Per bin, the largest values (ties: the lower index first) that carry
+// `far_energy` of the bin's total, min_far..max_far of them: a heap of the
+// max_far largest, then the energy walk.  `s.chosen` gets the union over the
+// bins, sorted.  value(b, i) for i < n; only positive values count.
+template <class Value>
+void select_far(size_t n, Value&& value, const CachePointParams& prm, BuildScratch& s) {
+  using Ranked = std::pair<float, uint32_t>;
+  // Largest first, ties by index: a strict order, so the selection is deterministic.
+  auto larger = [](const Ranked& a, const Ranked& c) { return a.first > c.first || (a.first == c.first && a.second < c.second); };
+  // Summed in index order per bin, as the energy walk compares against them.
+  std::array<double, kSensorBins> total{};
+  for (size_t i = 0; i < n; ++i)
+    for (int b = 0; b < kSensorBins; ++b) {
+      const float v = value(b, i);
+      if (v > 0.0f) total[size_t(b)] += double(v);
+    }
+  s.chosen.clear();
+  const size_t cap = size_t(std::max(prm.max_far, 0));
+  for (int b = 0; b < kSensorBins && cap > 0; ++b) {
+    s.top.clear();  // a heap whose front is the smallest kept
+    for (size_t i = 0; i < n; ++i) {
+      const float v = value(b, i);
+      if (!(v > 0.0f)) continue;
+      if (s.top.size() < cap) {
+        s.top.emplace_back(v, uint32_t(i));
+        std::push_heap(s.top.begin(), s.top.end(), larger);
+      } else if (v > s.top.front().first) {  // a later index wins only by a larger value
+        std::pop_heap(s.top.begin(), s.top.end(), larger);
+        s.top.back() = {v, uint32_t(i)};
+        std::push_heap(s.top.begin(), s.top.end(), larger);
+      }
+    }
+    std::sort(s.top.begin(), s.top.end(), larger);
+    double sum = 0.0;
+    for (size_t k = 0; k < s.top.size(); ++k) {
+      if (k >= size_t(prm.min_far) && sum >= double(prm.far_energy) * total[size_t(b)]) break;
+      s.chosen.push_back(s.top[k].second);
+      sum += double(s.top[k].first);
+    }
+  }
+  std::sort(s.chosen.begin(), s.chosen.end());
+  s.chosen.erase(std::unique(s.chosen.begin(), s.chosen.end()), s.chosen.end());
 }
 
 // Section 3.1.3 at one point: the closest lights within near_radius are near
 // (at most max_near), every other one is estimated at the point's seven sensors.
-PointLists build_lists(const LightSet& lights, const EmitterSet& set, const vec3& p, float near_radius,
-                       const CachePointParams& prm) {
-  std::vector<std::pair<float, uint32_t>> near;
-  std::vector<FarEntry> far;
-  for (size_t e = 0; e < set.size(); ++e) {
-    const Emitter& em = set.emitters[e];
-    const bool finite = em.kind == EmitterKind::Area || em.kind == EmitterKind::PointLike;
-    const vec3 d = em.center - p;
-    // Behind a one-sided emitter by more than its radius: it sends nothing here.
-    if (em.kind == EmitterKind::Area && !em.two_sided && glm::dot(em.normal, d) > em.radius) continue;
-    const float d2 = glm::dot(d, d);
-    if (finite && d2 <= near_radius * near_radius) {
-      near.emplace_back(d2, uint32_t(e));
-      continue;
-    }
-    SensorValues v = emitter_sensors(lights, em, p);
-    if (v[kFluenceBin] > 0.0f) far.push_back({uint32_t(e), v});
-  }
-  std::sort(near.begin(), near.end());
-  for (size_t k = size_t(prm.max_near); k < near.size(); ++k) {
-    SensorValues v = emitter_sensors(lights, set.emitters[near[k].second], p);
-    if (v[kFluenceBin] > 0.0f) far.push_back({near[k].second, v});
-  }
-  if (near.size() > size_t(prm.max_near)) near.resize(size_t(prm.max_near));
+PointLists build_lists(const LightSet& lights, const EmitterSet& set, const EmitterArrays& arrays, const vec3& p,
+                       float near_radius, const CachePointParams& prm, BuildScratch& s) {
+  evaluate_emitters(lights, set, arrays, p, s);
+  const float r2 = near_radius * near_radius;
+  s.near.clear();
+  for (size_t e = 0; e < set.size(); ++e)
+    if (s.d2[e] <= r2) s.near.emplace_back(s.d2[e], uint32_t(e));
+  const size_t near_count = std::min(s.near.size(), size_t(std::max(prm.max_near, 0)));
+  if (near_count < s.near.size())
+    std::nth_element(s.near.begin(), s.near.begin() + ptrdiff_t(near_count), s.near.end());
   PointLists lists;
-  for (const auto& n : near) lists.near.push_back(n.second);
+  lists.near.reserve(near_count);
+  for (size_t k = 0; k < near_count; ++k) {
+    const uint32_t e = s.near[k].second;
+    lists.near.push_back(e);
+    for (auto& v : s.value) v[e] = 0.0f;  // near: evaluated at the vertex, not a far candidate
+  }
   std::sort(lists.near.begin(), lists.near.end());
-  std::sort(far.begin(), far.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
-  lists.far = select_far(std::move(far), prm);
+  select_far(set.size(), [&](int b, size_t i) { return s.value[size_t(b)][i]; }, prm, s);
+  lists.far.reserve(s.chosen.size());
+  for (uint32_t e : s.chosen) {
+    FarEntry f{e, {}};
+    for (int b = 0; b < kSensorBins; ++b) f.value[size_t(b)] = s.value[size_t(b)][e];
+    lists.far.push_back(f);
+  }
   return lists;
 }
 
@@ -258,27 +379,38 @@ Neighbours blur_neighbours(const PointTree& tree, int count) {
 
 // Section 3.1.5: the far values of a point and its neighbours, weighted;
 // minus the point's near lights; then selected again (4..256 per bin, 97%),
-// so that lists stay bounded.
+// so that lists stay bounded.  An emitter's weighted values are summed in
+// neighbour order.
 std::vector<FarEntry> blurred_far(const std::vector<PointLists>& lists, const Neighbours& nb, size_t i,
-                                  const CachePointParams& prm) {
-  std::vector<FarEntry> all;
+                                  const CachePointParams& prm, BuildScratch& s) {
+  // Weighted first, summed after: a product stored is not fused into the sum.
+  s.weighted.clear();
   for (uint32_t k = nb.begin[i]; k < nb.begin[i + 1]; ++k)
     for (FarEntry f : lists[nb.index[k]].far) {
       for (float& v : f.value) v *= nb.weight[k];
-      all.push_back(f);
+      s.weighted.push_back(f);
     }
-  std::stable_sort(all.begin(), all.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
-  std::vector<FarEntry> merged;
   const std::vector<uint32_t>& near = lists[i].near;
-  for (const FarEntry& f : all) {
-    if (std::binary_search(near.begin(), near.end(), f.emitter)) continue;
-    if (!merged.empty() && merged.back().emitter == f.emitter) {
-      for (int b = 0; b < kSensorBins; ++b) merged.back().value[size_t(b)] += f.value[size_t(b)];
+  for (uint32_t e : near) s.slot[e] = -2;
+  s.merged.clear();
+  for (const FarEntry& f : s.weighted) {
+    int32_t& at = s.slot[f.emitter];
+    if (at == -2) continue;
+    if (at < 0) {
+      at = int32_t(s.merged.size());
+      s.merged.push_back(f);
     } else {
-      merged.push_back(f);
+      for (int b = 0; b < kSensorBins; ++b) s.merged[size_t(at)].value[size_t(b)] += f.value[size_t(b)];
     }
   }
-  return select_far(std::move(merged), prm);
+  for (const FarEntry& f : s.merged) s.slot[f.emitter] = -1;
+  for (uint32_t e : near) s.slot[e] = -1;
+  std::sort(s.merged.begin(), s.merged.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
+  select_far(s.merged.size(), [&](int b, size_t j) { return s.merged[j].value[size_t(b)]; }, prm, s);
+  std::vector<FarEntry> out;
+  out.reserve(s.chosen.size());
+  for (uint32_t j : s.chosen) out.push_back(s.merged[j]);
+  return out;
 }
 
 // Bins weighted by a unit normal's similarity to their directions; the
@@ -406,6 +538,8 @@ void CachePointSampler::Impl::build(const Accel& accel) {
   tree = std::make_unique<PointTree>(std::move(points));
   const size_t n = tree->points.size();
   // A point's radius: the distance to its radius_neighbours-th neighbour.
+  const EmitterArrays arrays(set);
+  tbb::enumerable_thread_specific<BuildScratch> scratch([&] { return BuildScratch(set.size()); });
   std::vector<PointLists> lists(n);
   tbb::parallel_for(size_t(0), n, [&](size_t i) {
     const size_t k = size_t(prm.radius_neighbours) + 1;
@@ -413,18 +547,25 @@ void CachePointSampler::Impl::build(const Accel& accel) {
     std::vector<float> d2(k);
     size_t found = tree->knn(tree->points[i], k, index.data(), d2.data());
     float radius = found > 0 ? std::sqrt(d2[found - 1]) : 0.0f;
-    lists[i] = build_lists(lights, set, tree->points[i], prm.near_factor * radius, prm);
+    lists[i] = build_lists(lights, set, arrays, tree->points[i], prm.near_factor * radius, prm, scratch.local());
   });
   neighbours = blur_neighbours(*tree, prm.blur_neighbours);
   std::vector<std::vector<FarEntry>> blurred(n);
-  tbb::parallel_for(size_t(0), n, [&](size_t i) { blurred[i] = blurred_far(lists, neighbours, i, prm); });
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { blurred[i] = blurred_far(lists, neighbours, i, prm, scratch.local()); });
+  scratch.clear();
   for (size_t i = 0; i < n; ++i) lists[i].far = std::move(blurred[i]);
   store(std::move(lists));
   build_seconds = seconds_since(start);
 }
 
 void CachePointSampler::Impl::store(std::vector<PointLists>&& lists) {
-  for (const PointLists& l : lists) {
+  size_t total = 0;
+  for (const PointLists& l : lists) total += l.near.size() + l.far.size();
+  entry_emitter.reserve(total);  // exactly: a growing table would briefly hold twice itself
+  entry_value.reserve(total);
+  begin.reserve(lists.size() + 1);
+  mid.reserve(lists.size());
+  for (PointLists& l : lists) {
     begin.push_back(uint32_t(entry_emitter.size()));
     for (uint32_t e : l.near) {
       entry_emitter.push_back(e);
@@ -435,6 +576,7 @@ void CachePointSampler::Impl::store(std::vector<PointLists>&& lists) {
       entry_emitter.push_back(f.emitter);
       entry_value.push_back(f.value);
     }
+    l = PointLists{};  // copied: its memory can go
   }
   begin.push_back(uint32_t(entry_emitter.size()));
   entry_visibility.assign(entries(), 1.0f);
@@ -607,7 +749,21 @@ std::vector<std::pair<std::string, double>> CachePointSampler::statistics() cons
                               m.points() * (sizeof(vec3) + 2 * sizeof(uint32_t)) +
                               m.neighbours.index.size() * (sizeof(uint32_t) + sizeof(float)) +
                               emitters_.size() * sizeof(Emitter));
+  // The built tables' checksum (48 bits, exact in a double): equal builds, equal checksums.
+  uint64_t sum = 1469598103934665603ull;
+  auto mix = [&](const void* data, size_t words) {  // FNV-1a over 32-bit words
+    for (size_t i = 0; i < words; ++i) {
+      uint32_t w;
+      std::memcpy(&w, static_cast<const uint8_t*>(data) + 4 * i, 4);
+      sum = (sum ^ w) * 1099511628211ull;
+    }
+  };
+  mix(m.begin.data(), m.begin.size());
+  mix(m.mid.data(), m.mid.size());
+  mix(m.entry_emitter.data(), m.entry_emitter.size());
+  mix(m.entry_value.data(), m.entry_value.size() * kSensorBins);
   return {{"build_seconds", m.build_seconds},
+          {"tables_checksum", double(sum >> 16)},
           {"emitters", double(emitters_.size())},
           {"candidates_in_objects", double(m.object_count)},
           {"candidates_on_pilot_paths", double(m.pilot_count)},

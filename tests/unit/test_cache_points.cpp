@@ -1,8 +1,9 @@
 // Cache points (cachepoints/cache_points.h): the pmf is a distribution over
 // every emitter (a mesh light's triangles each one), sample() draws from it
 // (chi-square over emitters), learned visibility lowers occluded lights and is
-// a pure function of the counts (thread count, checkpoint round trip), and
-// degenerate light sets build and sample.
+// a pure function of the counts (thread count, checkpoint round trip), the
+// build's tables do not depend on the thread count, and degenerate light sets
+// build and sample.
 #include "cachepoints/cache_points.h"
 #include "cachepoints/light_sampler.h"
 #include "chi2.h"
@@ -144,6 +145,23 @@ TEST(CachePoints, LearnedVisibilityLowersOccludedLightsAndIsDeterministic) {
     for (const Emitter& e : one->emitters().emitters)
       ASSERT_EQ(restored.pmf_primitive(c, e.light, e.primitive), one->pmf_primitive(c, e.light, e.primitive));
   EXPECT_THROW(restored.restore(std::vector<uint8_t>(5, 0)), Error);
+}
+
+// The build's tables (points, lists, far values) do not depend on the thread
+// count: 1,025 emitters, so that the 256-per-bin cap and the energy rule both cut.
+TEST(CachePoints, BuildIsDeterministicAcrossThreadCounts) {
+  LightFixture f(street_scene(16, varied, true));
+  auto checksum = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    CachePointSampler s(f.lights, f.accel);
+    for (const auto& [key, value] : s.statistics())
+      if (key == "tables_checksum") return value;
+    return -1.0;
+  };
+  const double one = checksum(1);
+  EXPECT_GT(one, 0.0);
+  EXPECT_EQ(one, checksum(2));
+  EXPECT_EQ(one, checksum(4));
 }
 
 TEST(CachePoints, DegenerateLightSets) {

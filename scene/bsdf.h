@@ -118,8 +118,10 @@ uint8_t bsdf_nondelta_kind(const BSDF& bsdf);
 // (diffuse 1, specular 0).  Alphas beyond 1 (pbrt-v4 lets roughness exceed
 // 1) are left as they are: eq. 25 would make them smoother.
 inline float regularized_roughness(float alpha, float gamma, float prev) {
-  if (!(alpha < 1.0f)) return alpha;
-  return 1.0f - (1.0f - std::max(alpha, 0.0f)) * (1.0f - gamma * prev);
+  const float g = gamma * prev;
+  if (!(alpha < 1.0f) || !(g > 0.0f)) return alpha;
+  // max: the float product must not round a hair below alpha.
+  return std::max(alpha, 1.0f - (1.0f - std::max(alpha, 0.0f)) * (1.0f - g));
 }
 // Roughens every microfacet and specular interface of the BSDF per eq. 25
 // and refreshes its lobes, so that evaluation, sampling, pdfs and NEE all see

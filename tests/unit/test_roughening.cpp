@@ -22,18 +22,21 @@ BSDF roughened(const BxDF& b, float gamma, float prev) {
   return bsdf;
 }
 
+// Eq. 25 in float: 1 - (1 - alpha)(1 - gamma alpha') cancels, ~1e-8 off the exact value.
+constexpr float kTol = 1e-6f;
+
 }  // namespace
 
 // alpha' = 1 - (1 - alpha) (1 - gamma alpha'_prev), worked by hand.
 TEST(Roughening, Eq25OnWorkedNumbers) {
-  EXPECT_FLOAT_EQ(regularized_roughness(0.0f, 0.01f, 1.0f), 0.01f);    // a mirror after a diffuse bounce
-  EXPECT_FLOAT_EQ(regularized_roughness(0.2f, 0.01f, 1.0f), 0.208f);   // 1 - 0.8 * 0.99
-  EXPECT_FLOAT_EQ(regularized_roughness(0.3f, 0.5f, 0.4f), 0.44f);     // 1 - 0.7 * 0.8
-  EXPECT_FLOAT_EQ(regularized_roughness(0.0f, 1.0f, 0.25f), 0.25f);    // full strength passes alpha' on
-  EXPECT_FLOAT_EQ(regularized_roughness(0.3f, 0.0f, 1.0f), 0.3f);      // gamma 0: off
-  EXPECT_FLOAT_EQ(regularized_roughness(0.3f, 0.5f, 0.0f), 0.3f);      // after a delta lobe: nothing
-  EXPECT_FLOAT_EQ(regularized_roughness(1.0f, 0.5f, 1.0f), 1.0f);      // diffuse stays diffuse
-  EXPECT_FLOAT_EQ(regularized_roughness(1.7f, 0.5f, 1.0f), 1.7f);      // never smoother than the scene's
+  EXPECT_NEAR(regularized_roughness(0.0f, 0.01f, 1.0f), 0.01f, kTol);    // a mirror after a diffuse bounce
+  EXPECT_NEAR(regularized_roughness(0.2f, 0.01f, 1.0f), 0.208f, kTol);   // 1 - 0.8 * 0.99
+  EXPECT_NEAR(regularized_roughness(0.3f, 0.5f, 0.4f), 0.44f, kTol);     // 1 - 0.7 * 0.8
+  EXPECT_NEAR(regularized_roughness(0.0f, 1.0f, 0.25f), 0.25f, kTol);    // full strength passes alpha' on
+  EXPECT_NEAR(regularized_roughness(0.3f, 0.0f, 1.0f), 0.3f, kTol);      // gamma 0: off
+  EXPECT_NEAR(regularized_roughness(0.3f, 0.5f, 0.0f), 0.3f, kTol);      // after a delta lobe: nothing
+  EXPECT_NEAR(regularized_roughness(1.0f, 0.5f, 1.0f), 1.0f, kTol);      // diffuse stays diffuse
+  EXPECT_NEAR(regularized_roughness(1.7f, 0.5f, 1.0f), 1.7f, kTol);      // never smoother than the scene's
   // Never below alpha, never above 1 for alpha <= 1.
   for (float a : {0.0f, 0.05f, 0.5f, 0.99f})
     for (float g : {0.0f, 0.01f, 0.3f, 1.0f})
@@ -64,37 +67,37 @@ TEST(Roughening, SampledRoughnessIsTheSamplingLobes) {
   EXPECT_EQ(sampled_roughness(*m), 0.0f);
   auto g = bsdf_sample(in_z_frame(conductor(0.3f, 0.3f)), wo, 0.3f, vec2(0.4f, 0.6f));
   ASSERT_TRUE(g);
-  EXPECT_FLOAT_EQ(sampled_roughness(*g), 0.3f);
+  EXPECT_NEAR(sampled_roughness(*g), 0.3f, kTol);
   // The roughened BSDF's sample hands on the roughened alpha.
   auto r = bsdf_sample(roughened(conductor(0.0f, 0.0f), 0.1f, 1.0f), wo, 0.3f, vec2(0.4f, 0.6f));
   ASSERT_TRUE(r);
-  EXPECT_FLOAT_EQ(sampled_roughness(*r), 0.1f);
+  EXPECT_NEAR(sampled_roughness(*r), 0.1f, kTol);
 }
 
 // Every microfacet and delta interface is roughened, each axis on its own;
 // a delta lobe becomes a glossy one; diffuse, thin dielectric and hair stay.
 TEST(Roughening, RoughensEveryInterfaceAndRefreshesTheLobes) {
   BSDF glass = roughened(dielectric(0.0f, 1.5f), 0.01f, 1.0f);
-  EXPECT_FLOAT_EQ(glass.bxdf.dielectric.distrib.alpha_x, 0.01f);
-  EXPECT_FLOAT_EQ(glass.bxdf.dielectric.distrib.alpha_y, 0.01f);
+  EXPECT_NEAR(glass.bxdf.dielectric.distrib.alpha_x, 0.01f, kTol);
+  EXPECT_NEAR(glass.bxdf.dielectric.distrib.alpha_y, 0.01f, kTol);
   ASSERT_EQ(glass.lobe_count, 2);
   for (int i = 0; i < 2; ++i) {
     EXPECT_TRUE(glass.lobes[i].flags & kLobeGlossy) << i;
     EXPECT_FALSE(glass.lobes[i].flags & kLobeSpecular) << i;
-    EXPECT_FLOAT_EQ(glass.lobes[i].roughness, 0.01f) << i;
+    EXPECT_NEAR(glass.lobes[i].roughness, 0.01f, kTol) << i;
   }
   EXPECT_FALSE(bsdf_is_specular(glass));  // NEE now runs at the glass
 
   BSDF aniso = roughened(conductor(0.1f, 0.5f), 0.5f, 0.4f);
-  EXPECT_FLOAT_EQ(aniso.bxdf.conductor.distrib.alpha_x, 1.0f - 0.9f * 0.8f);
-  EXPECT_FLOAT_EQ(aniso.bxdf.conductor.distrib.alpha_y, 1.0f - 0.5f * 0.8f);
-  EXPECT_FLOAT_EQ(aniso.lobes[0].roughness, 0.6f);
+  EXPECT_NEAR(aniso.bxdf.conductor.distrib.alpha_x, 1.0f - 0.9f * 0.8f, kTol);
+  EXPECT_NEAR(aniso.bxdf.conductor.distrib.alpha_y, 1.0f - 0.5f * 0.8f, kTol);
+  EXPECT_NEAR(aniso.lobes[0].roughness, 0.6f, kTol);
 
   BSDF cc = roughened(coated_conductor(0.0f, 0.2f), 0.1f, 1.0f);
-  EXPECT_FLOAT_EQ(cc.bxdf.coated_conductor.top.distrib.alpha_x, 0.1f);
-  EXPECT_FLOAT_EQ(cc.bxdf.coated_conductor.base.distrib.alpha_x, 1.0f - 0.8f * 0.9f);
+  EXPECT_NEAR(cc.bxdf.coated_conductor.top.distrib.alpha_x, 0.1f, kTol);
+  EXPECT_NEAR(cc.bxdf.coated_conductor.base.distrib.alpha_x, 1.0f - 0.8f * 0.9f, kTol);
   BSDF cd = roughened(coated_diffuse(0.0f, RGB(0.5f)), 0.1f, 1.0f);
-  EXPECT_FLOAT_EQ(cd.bxdf.coated_diffuse.top.distrib.alpha_x, 0.1f);
+  EXPECT_NEAR(cd.bxdf.coated_diffuse.top.distrib.alpha_x, 0.1f, kTol);
   EXPECT_FALSE(bxdf_flags(cd.bxdf) & kBxDFSpecular);
 
   // A weak roughening that stays under the smooth threshold keeps a delta lobe (and its sampling).
@@ -141,6 +144,19 @@ TEST(Roughening, RoughenedLobesSampleTheirPdf) {
         [&](vec3 wi) { return bsdf_pdf(b, c.wo, wi); }, 30'000, 16, 32, 0.01, int(cases.size()), c.name);
     EXPECT_TRUE(r.passed) << r.report;
   }
+  // The same test rejects the scene's own pdf for the roughened lobe (what
+  // NEE's MIS would use if it saw the BSDF unroughened).
+  const BxDF glass = dielectric(0.2f, 1.33f);
+  const BSDF b = roughened(glass, 0.1f, 1.0f), plain = in_z_frame(glass);
+  const vec3 wo = dir_at(1.1f);
+  auto wrong = chi2_test_sphere(
+      [&](vec2 u, float u1) -> std::optional<vec3> {
+        auto s = bsdf_sample(b, wo, u1, u);
+        if (!s) return std::nullopt;
+        return glm::normalize(s->wi);
+      },
+      [&](vec3 wi) { return bsdf_pdf(plain, wo, wi); }, 30'000, 16, 32, 0.01, int(cases.size()), "unroughened pdf");
+  EXPECT_FALSE(wrong.passed) << wrong.report;
 }
 
 // Roughening creates no energy: lossless interfaces (a perfect mirror, a
@@ -173,7 +189,9 @@ TEST(Roughening, WhiteFurnaceAlbedoAtMostOne) {
         for (int ch = 0; ch < 3; ++ch) {
           EXPECT_LE(e.mean[ch], 1.0f + 4.0f * e.stderr_max + 1e-4f) << what;
           // A slight roughening of a lossless interface loses almost nothing.
-          if (c.lossless && gamma == 0.01f) EXPECT_GT(e.mean[ch], 0.97f) << what;
+          if (c.lossless && gamma == 0.01f) {
+            EXPECT_GT(e.mean[ch], 0.97f) << what;
+          }
         }
       }
 }

@@ -72,6 +72,20 @@ TEST(Roughening, SampledRoughnessIsTheSamplingLobes) {
   auto r = bsdf_sample(roughened(conductor(0.0f, 0.0f), 0.1f, 1.0f), wo, 0.3f, vec2(0.4f, 0.6f));
   ASSERT_TRUE(r);
   EXPECT_NEAR(sampled_roughness(*r), 0.1f, kTol);
+  // A guided direction hands on what a BSDF sample of it would (bsdf_event's
+  // lobe, eq. 24): reflection and refraction of a roughened glass alike.
+  const BSDF glass = roughened(dielectric(0.05f, 1.5f), 0.2f, 1.0f);
+  int seen_transmission = 0;
+  for (float uc = 0.05f; uc < 1.0f; uc += 0.1f) {
+    auto s = bsdf_sample(glass, wo, uc, vec2(0.3f, 0.7f));
+    ASSERT_TRUE(s);
+    auto e = bsdf_event(glass, wo, s->wi);
+    ASSERT_TRUE(e);
+    EXPECT_EQ(sampled_roughness(*e), sampled_roughness(*s));
+    EXPECT_EQ(e->flags, s->flags);
+    seen_transmission += s->is_transmission();
+  }
+  EXPECT_GT(seen_transmission, 0);
 }
 
 // Every microfacet and delta interface is roughened, each axis on its own;

@@ -42,6 +42,8 @@ void check(const RenderOptions& c) {
   if (!(c.memory_limit >= 0.0 && std::isfinite(c.memory_limit)))
     throw_error("--memory-limit must be zero (the machine's memory) or a positive number of MB, got {}",
                 c.memory_limit);
+  if (!(c.roughening >= 0.0f && c.roughening <= 1.0f))
+    throw_error("--roughening must be a number in [0, 1], got {}", c.roughening);
   if (c.throughput_reset_bounce < -1)
     throw_error("--throughput-reset-bounce must be zero or positive, got {}", c.throughput_reset_bounce);
 }
@@ -167,6 +169,7 @@ static EngineOptions engine_options(const RenderConfig& c, const StopRequest* st
   o.stop = stop;
   o.abandon_after_seconds = c.abandon_after_seconds;
   o.footprint_spp = c.spp;
+  o.roughening = c.roughening;
   return o;
 }
 

@@ -35,6 +35,7 @@ struct RenderOptions {
   // emission, diffuse, glossy, specular, volume (wavefront/film.h PathEvent).
   bool aov_events = false;
   double memory_limit = 0.0;         // MB the scene, film and path pool may take; 0: the machine's memory
+  float roughening = 0.0f;           // path-space regularisation gamma in [0, 1] (EngineOptions::roughening); 0: off
 };
 
 template <class V>
@@ -51,6 +52,10 @@ void declare_options(V& v, RenderOptions& o) {
   v.image("aov_events", o.aov_events,
           "Also write the beauty split by each path's first scattering event: EXR layers emission, diffuse, "
           "glossy, specular, volume (they sum to R G B)");
+  v.image("roughening", o.roughening,
+          "Path-space regularisation strength gamma in [0, 1]: each bounce roughens the next vertex's glossy and "
+          "specular lobes by the roughness of the lobe that sampled it (0: off; 0.01 blurs caustics a little and "
+          "finds them sooner; biased)");
   v.output("memory_limit", o.memory_limit,
            "MB the scene, film and path pool may take, checked before they are allocated (0: the machine's memory)");
 }

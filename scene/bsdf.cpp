@@ -307,6 +307,29 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
   return bsdf;
 }
 
+// pbrt-v4's roughness parameters reach the distribution already as alphas
+// (remaproughness true: alpha = sqrt(roughness), else alpha = roughness), so
+// eq. 25 applies to alpha_x and alpha_y, each on its own.
+static void roughen(TrowbridgeReitz& d, float gamma, float prev) {
+  d.alpha_x = regularized_roughness(d.alpha_x, gamma, prev);
+  d.alpha_y = regularized_roughness(d.alpha_y, gamma, prev);
+}
+
+void bsdf_roughen(BSDF& bsdf, float gamma, float prev) {
+  BxDF& x = bsdf.bxdf;
+  switch (x.kind) {
+    case BxDFKind::Conductor: roughen(x.conductor.distrib, gamma, prev); break;
+    case BxDFKind::Dielectric: roughen(x.dielectric.distrib, gamma, prev); break;
+    case BxDFKind::CoatedDiffuse: roughen(x.coated_diffuse.top.distrib, gamma, prev); break;
+    case BxDFKind::CoatedConductor:
+      roughen(x.coated_conductor.top.distrib, gamma, prev);
+      roughen(x.coated_conductor.base.distrib, gamma, prev);
+      break;
+    default: return;  // diffuse lobes are as rough as eq. 25 goes; thin dielectric and hair stay (bsdf.h)
+  }
+  set_lobes(bsdf);
+}
+
 // Which lobe (see BSDF) a pair of local directions belongs to.
 static int lobe_of(const BSDF& bsdf, const vec3& wo, const vec3& wi) {
   return (bsdf.lobe_count == 2 && !same_hemisphere(wo, wi)) ? 1 : 0;

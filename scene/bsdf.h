@@ -13,6 +13,7 @@
 #include "scene/shapes.h"
 #include "scene/texture.h"
 
+#include <algorithm>
 #include <optional>
 
 namespace theia {
@@ -110,6 +111,35 @@ float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);
 // the label is a function of the BSDF and eq. 24's stochastic choice
 // between lobes never has two kinds to choose from.
 uint8_t bsdf_nondelta_kind(const BSDF& bsdf);
+// Path-space regularisation (OPSR, simplified as in seeds/000 ch. 1 section
+// 7, eq. 25): the roughness a lobe of roughness `alpha` has at a vertex whose
+// incoming direction was sampled by a lobe of regularised roughness `prev`,
+// with strength `gamma` in [0, 1].  Roughness is the Trowbridge-Reitz alpha
+// (diffuse 1, specular 0).  Alphas beyond 1 (pbrt-v4 lets roughness exceed
+// 1) are left as they are: eq. 25 would make them smoother.
+inline float regularized_roughness(float alpha, float gamma, float prev) {
+  const float g = gamma * prev;
+  if (!(alpha < 1.0f) || !(g > 0.0f)) return alpha;
+  // max: the float product must not round a hair below alpha.
+  return std::max(alpha, 1.0f - (1.0f - std::max(alpha, 0.0f)) * (1.0f - g));
+}
+// Roughens every microfacet and specular interface of the BSDF per eq. 25
+// and refreshes its lobes, so that evaluation, sampling, pdfs and NEE all see
+// the one roughened BSDF: a delta lobe whose alpha rises past the smooth
+// threshold (1e-3) becomes a rough microfacet lobe.  The layered kinds
+// roughen their coat and a conductor base (their walk uses those BxDFs).
+// The thin dielectric (pbrt-v4 has no rough one) and hair (its beta_m is a
+// longitudinal width, not an alpha) are left unchanged.
+void bsdf_roughen(BSDF& bsdf, float gamma, float prev);
+// The regularised roughness a sampled direction hands to the next vertex:
+// that of the lobe that sampled it (not the BSDF's average), 0 for a delta
+// lobe, clamped to [0, 1].  A direction chosen by a guide takes the lobe
+// bsdf_event assigns it, which is eq. 24's stochastic choice: no BSDF has two
+// lobes whose densities share a direction (lobes split by hemisphere), so
+// that choice is certain.
+inline float sampled_roughness(const BSDFSample& s) {
+  return s.is_specular() ? 0.0f : std::clamp(s.roughness, 0.0f, 1.0f);
+}
 // Directional albedo estimate for the albedo AOV (reflectance of the material).
 RGB bsdf_albedo(const BSDF& bsdf);
 // True when every lobe is specular: no light sampling at this vertex.

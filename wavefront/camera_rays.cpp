@@ -83,6 +83,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
       if (!pool.roulette_correction.empty()) pool.roulette_correction[slots[i]] = 1.0;
       if (!pool.pixel_estimate.empty()) pool.pixel_estimate[slots[i]] = 0.0f;
       if (!pool.medium.empty()) pool.medium[slots[i]] = scene.camera_medium, pool.flight_depth[slots[i]] = 0;
+      if (!pool.roughness.empty()) pool.roughness[slots[i]] = 0.0f;
       batch_of(i).rays[i % batch] = ray;
     }
   });

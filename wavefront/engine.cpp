@@ -60,7 +60,8 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
       pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty(),
                                          .guiding = h.guide != nullptr && o.guiding.roulette_correction,
                                          .adjoint_roulette = h.guide != nullptr && o.guiding.adjoint_roulette,
-                                         .media = rs.scene.has_media()}) {
+                                         .media = rs.scene.has_media(),
+                                         .roughening = o.roughening > 0.0f}) {
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     bounds_min = b.min;

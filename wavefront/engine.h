@@ -61,6 +61,9 @@ struct EngineOptions {
   // Samples per pixel of the whole render: sets pbrt-v4's texture-footprint
   // scale max(1/8, 1/sqrt(spp)) for trilinear imagemaps (scene/camera.h).
   int footprint_spp = 1;
+  // Path-space regularisation strength gamma in [0, 1] (seeds/000 ch. 1
+  // eq. 25, scene/bsdf.h bsdf_roughen): 0 is off and costs nothing.
+  float roughening = 0.0f;
   // Path guiding (EngineHooks::guide): how guided vertices sample.
   GuidedSampling guiding;
   // Benchmarks only: when set, every traced ray is appended here in the order

@@ -63,7 +63,8 @@ static_assert(sizeof(PathState) == 64, "a path's state should stay within one ca
   F(double, roulette_correction, guiding, "product of guided pdf / BSDF pdf (seeds/000 ch. 1 eq. 18), in double") \
   F(float, pixel_estimate, adjoint_roulette, "the field's estimate of the path's pixel value (0: none yet)") \
   F(int32_t, medium, media, "the medium the path's queued ray travels in (Scene::media index, -1 vacuum)") \
-  F(uint16_t, flight_depth, media, "depth + 1 of the last free flight that drew the stratified medium_flight")
+  F(uint16_t, flight_depth, media, "depth + 1 of the last free flight that drew the stratified medium_flight") \
+  F(float, roughness, roughening, "regularised roughness of the lobe that sampled the path's ray (0: camera ray)")
 
 // Which features are on, so the cold tables know which fields to allocate.
 struct PathFeatures {
@@ -71,6 +72,7 @@ struct PathFeatures {
   bool guiding = false;  // with the roulette correction
   bool adjoint_roulette = false;
   bool media = false;    // Scene::has_media
+  bool roughening = false;  // EngineOptions::roughening > 0
 };
 
 struct PathStatePool {

@@ -31,6 +31,11 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   v.dims = bounce_dims(ps.depth);
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ps.beta;
   v.caustic_flags = caustic_flags(ps, v.bsdf);
+  // Roughened after the caustic flags, so that camera paths leave the caustic
+  // pass the paths they leave it without roughening (its light paths see the
+  // scene's own BSDFs).  A camera ray's alpha' is 0: nothing changes at depth 0.
+  if (!pool.roughness.empty() && pool.roughness[slot] > 0.0f)
+    bsdf_roughen(v.bsdf, opt.roughening, pool.roughness[slot]);
   // Only a guide or the recorder (which trains only where guiding applies) asks.
   v.guidable = (kObserve || hooks.guide) && bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness);
   if (hooks.guide && v.guidable) {
@@ -67,6 +72,7 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
                      first_event_bits(ps.flags, event_of_lobe(bs.flags)));
   ps.prev_p = si.p;
   ps.prev_ng = si.ng;
+  if (!pool.roughness.empty()) pool.roughness[slot] = sampled_roughness(bs);
   queue_ray(slot, si, spawn_ray(si, bs.wi), out);
 }
 

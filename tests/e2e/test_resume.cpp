@@ -331,6 +331,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--max-depth", {"3"}},
     {"--throughput-reset-bounce", {"1"}},
     {"--aov-events", {}},
+    {"--roughening", {"0.01"}},
     {"--light-sampler", {"uniform"}},
     {"--schedule", {"guiding"}},
     {"--combine", {"inverse-variance"}},

@@ -114,8 +114,99 @@ void sort_exr_channels(std::vector<ExrChannel>& chans) {
   }
 }
 
+// Bytes OpenEXR 3.1 reads for an attribute value of a fixed-size type,
+// whatever the size the file declares (0: it reads the declared size).
+uint64_t exr_fixed_value_bytes(const std::string& type) {
+  static constexpr std::pair<std::string_view, uint64_t> sizes[] = {
+      {"box2i", 16}, {"box2f", 16}, {"chromaticities", 32}, {"compression", 1}, {"deepImageState", 1},
+      {"double", 8}, {"envmap", 1},  {"float", 4},           {"int", 4},         {"keycode", 28},
+      {"lineOrder", 1}, {"m33f", 36}, {"m33d", 72},          {"m44f", 64},       {"m44d", 128},
+      {"rational", 8}, {"tiledesc", 9}, {"timecode", 8},     {"v2i", 8},         {"v2f", 8},
+      {"v2d", 16},     {"v3i", 12},     {"v3f", 12},         {"v3d", 24}};
+  for (const auto& [name, bytes] : sizes)
+    if (type == name) return bytes;
+  return 0;
+}
+
+// Why an OpenEXR header asks for more than its file holds, or "" (OpenEXR
+// judges the rest).  OpenEXR 3.1 allocates what a header declares before it
+// reads it: an attribute's value (a 138-byte file claiming a 1.8 GB string
+// was found by fuzzing), a preview image, and line buffers sized by the data
+// window (a 424-byte file took minutes).  Each header (one, or a list in a
+// multi-part file) is a sequence of name, type name, 4-byte little-endian
+// size and value, ended by an empty name; values are walked as OpenEXR reads
+// them (a channel list up to its empty name, fixed-size types by their type).
+std::string exr_header_refusal(const std::string& path, uint64_t file_bytes) {
+  std::ifstream f(path, std::ios::binary);
+  char start[8];
+  if (!f.read(start, 8)) return "";
+  const bool multipart = (uint8_t(start[5]) & 0x10) != 0;  // version flags, bit 12
+  auto read_name = [&](std::string& name) {
+    name.clear();
+    for (char c; f.get(c);) {
+      if (c == '\0') return true;
+      if (name.size() == 255) return false;
+      name += c;
+    }
+    return false;
+  };
+  auto read_u32 = [&](uint32_t& v) {
+    unsigned char b[4];
+    if (!f.read(reinterpret_cast<char*>(b), 4)) return false;
+    v = uint32_t(b[0]) | uint32_t(b[1]) << 8 | uint32_t(b[2]) << 16 | uint32_t(b[3]) << 24;
+    return true;
+  };
+  auto left = [&] { return file_bytes - std::min(uint64_t(f.tellg()), file_bytes); };
+  auto too_big = [&](const std::string& name, uint64_t bytes) {
+    return fmt::format("header attribute \"{}\" claims {} bytes, more than the file's {} (truncated or corrupt)", name,
+                       bytes, file_bytes);
+  };
+  for (std::string name, type;;) {
+    if (!read_name(name)) return "";
+    if (name.empty()) {  // the end of a header; in a multi-part file, an empty header ends the list
+      if (!multipart || f.peek() == 0 || f.peek() == EOF) return "";
+      continue;
+    }
+    uint32_t size = 0;
+    if (!read_name(type) || !read_u32(size)) return "";
+    if (int32_t(size) < 0 || size > left()) return too_big(name, size);
+    if (type == "chlist") {
+      for (std::string channel; read_name(channel) && !channel.empty();)
+        if (!f.seekg(16, std::ios::cur)) return "";
+    } else if (type == "preview") {
+      uint32_t w = 0, h = 0;
+      if (!read_u32(w) || !read_u32(h)) return "";
+      if (uint64_t(w) * h * 4 > left()) return too_big(name, uint64_t(w) * h * 4);
+      f.seekg(std::streamoff(uint64_t(w) * h * 4), std::ios::cur);
+    } else if (type == "stringvector") {
+      for (uint64_t read = 0; read < size;) {
+        uint32_t n = 0;
+        if (!read_u32(n)) return "";
+        if (n > left()) return too_big(name, n);
+        f.seekg(n, std::ios::cur);
+        read += 4 + uint64_t(n);
+      }
+    } else if (name == "dataWindow" && type == "box2i") {
+      int32_t box[4];
+      if (!f.read(reinterpret_cast<char*>(box), 16)) return "";
+      const int64_t w = int64_t(box[2]) - box[0] + 1, h = int64_t(box[3]) - box[1] + 1;
+      if (w > 0 && h > 0 && !image_size_fits(uint64_t(w), uint64_t(h), 1, file_bytes))
+        return image_size_error(uint64_t(w), uint64_t(h), 1, file_bytes);
+    } else {
+      const uint64_t fixed = exr_fixed_value_bytes(type);
+      f.seekg(std::streamoff(fixed ? fixed : size), std::ios::cur);
+    }
+    if (!f) return "";
+  }
+}
+
 // The first part of a scanline or tiled file, every channel as float.
 ImageBuffer read_exr(const std::string& path, ImageFileInfo* info, const ImageReserve& reserve) {
+  std::error_code ec;
+  const uintmax_t file_bytes = fs::file_size(path, ec);
+  if (ec) throw_error("{}: cannot read image ({})", path, ec.message());
+  if (std::string why = exr_header_refusal(path, file_bytes); !why.empty())
+    throw_error("{}: cannot read image ({})", path, why);
   start_exr_threads();
   Imf::InputFile file(path.c_str());
   const Imf::Header& header = file.header();
@@ -144,9 +235,6 @@ ImageBuffer read_exr(const std::string& path, ImageFileInfo* info, const ImageRe
   }
   sort_exr_channels(chans);
 
-  std::error_code ec;
-  const uintmax_t file_bytes = fs::file_size(path, ec);
-  if (ec) throw_error("{}: cannot read image ({})", path, ec.message());
   const std::string refused =
       image_size_refusal(uint64_t(width), uint64_t(height), chans.size(), uint64_t(file_bytes), reserve);
   if (!refused.empty()) throw_error("{}: cannot read image ({})", path, refused);

@@ -20,13 +20,9 @@ for t in $targets; do
   cp -n "$here"/corpus/$t/* "$corpus"/ 2>/dev/null || true
   # 2 GB RSS and 10 s per input: an allocation the header checks missed, or a hang, is a finding.
   timeout=${FUZZ_TIMEOUT:-10}
-  # Image loading: stacks at allocations unwound through OpenImageIO (built
-  # without frame pointers), so the suppression sees the library that leaked
-  # (lsan.supp, 4 frames deep), but only 8 frames of them (unwinding was half
-  # the target's time); elsewhere the fast unwinder (several times the executions).
-  unwind=fast_unwind_on_malloc=1
-  [ "$t" = image ] && unwind=fast_unwind_on_malloc=0:malloc_context_size=8
-  ASAN_OPTIONS=$unwind LSAN_OPTIONS=suppressions="$here"/lsan.supp "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout="$timeout" \
+  # The fast unwinder (frame pointers) for the stacks ASan keeps at every allocation:
+  # the slow one through OpenImageIO was half the image target's time.
+  ASAN_OPTIONS=fast_unwind_on_malloc=1 "$bin"/fuzz_$t "$corpus" -dict="$here"/pbrt.dict -max_total_time="$seconds" -rss_limit_mb=2048 -timeout="$timeout" \
     -artifact_prefix="$crashes"/ -print_final_stats=1 2>"$bin"/fuzz-$t.log || status=1
   grep -E "stat::number_of_executed_units|SUMMARY|ERROR" "$bin"/fuzz-$t.log | sed "s/^/$t: /"
 done

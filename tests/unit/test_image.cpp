@@ -11,7 +11,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
+#include <utility>
 #include <unistd.h>
 
 namespace theia {
@@ -315,6 +317,101 @@ TEST_F(ImageFiles, TextureFormatsReadWithoutOpenImageIOAsOpenImageIOReadsThem) {
     }
   }
   expect_read_as_openimageio_reads(file("grey.pfm"));
+}
+
+// OpenImageIO's formats are read by the reader the extension names when the
+// file's first bytes agree, and a misnamed file by the reader its first bytes
+// name: each as OpenImageIO's open (which tries every plugin) reads it.
+TEST_F(ImageFiles, OpenImageIOFormatsAreReadByTheirExtensionOrFirstBytes) {
+  write_with_openimageio(file("img.png"), 4, OIIO::TypeDesc::UINT8);
+  write_with_openimageio(file("img.jpg"), 3, OIIO::TypeDesc::UINT8);
+  write_with_openimageio(file("img.tif"), 3, OIIO::TypeDesc::UINT16);
+  for (const char* name : {"img.png", "img.jpg", "img.tif"}) expect_read_as_openimageio_reads(file(name));
+  const std::pair<const char*, const char*> misnamed[] = {{"img.jpg", "jpeg.png"},  {"img.png", "png.jpg"},
+                                                          {"img.tif", "tiff.exr"},  {"img.png", "png.hdr"},
+                                                          {"img.jpg", "jpeg.texture"}, {"img.png", "png"}};
+  for (const auto& [from, to] : misnamed) {
+    SCOPED_TRACE(to);
+    fs::copy_file(file(from), file(to));
+    expect_read_as_openimageio_reads(file(to));
+  }
+}
+
+// A corrupt file is answered by its format's reader, one line naming the file;
+// bytes no reader recognises are refused without trying every plugin.
+TEST_F(ImageFiles, CorruptOrUnknownFilesGetOneErrorNamingTheFile) {
+  write_with_openimageio(file("img.png"), 3, OIIO::TypeDesc::UINT8);
+  std::ifstream in(file("img.png"), std::ios::binary);
+  std::string png((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(file("truncated.png"), std::ios::binary) << png.substr(0, png.size() / 2);
+  // The signature and IHDR, whole: libpng reads past the end for the next chunk
+  // (where OpenImageIO 2.4's PNG reader would leak its message).
+  const size_t ihdr_end = 8 + 12 + 13;
+  std::ofstream(file("ihdr-only.png"), std::ios::binary) << png.substr(0, ihdr_end);
+  std::string garbled = png;
+  for (size_t i = 16; i < garbled.size(); i += 3) garbled[i] = char(garbled[i] ^ 0x5a);
+  std::ofstream(file("garbled.png"), std::ios::binary) << garbled;
+  std::ofstream(file("text.png")) << "this is not a png";
+  std::ofstream(file("text.xyz")) << "nor any other format";
+  const std::pair<const char*, const char*> cases[] = {{"truncated.png", "truncated: a chunk at byte"},
+                                                       {"ihdr-only.png", "truncated: the file ends inside"},
+                                                       {"garbled.png", ""},
+                                                       {"text.png", "not a png file"},
+                                                       {"text.xyz", "unknown image format"}};
+  for (const auto& [name, says] : cases) {
+    SCOPED_TRACE(name);
+    try {
+      read_image_file(file(name));
+      FAIL() << "expected theia::Error";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.rfind(file(name) + ": cannot read image (", 0), 0u) << what;
+      EXPECT_NE(what.find(says), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
+}
+
+// OpenEXR allocates what a header declares before reading it: an attribute
+// claiming 1.8 GB (found by fuzzing) or a data window of 16000x16000 over a
+// small file is refused first, naming the file.
+TEST_F(ImageFiles, ExrHeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeOpenEXRReadsThem) {
+  const std::string magic_and_version("\x76\x2f\x31\x01\x02\0\0\0", 8);
+  const std::string huge_size("\x14\x4e\x49\x6e", 4);  // 1,850,297,876 bytes, little-endian
+  std::ofstream(file("huge-attribute.exr"), std::ios::binary)
+      << magic_and_version << std::string("comments\0string\0", 16) << huge_size << std::string(100, 'x');
+  ImageBuffer img(4, 3, {"R", "G", "B"});
+  write_exr(file("window.exr"), img);
+  std::ifstream in(file("window.exr"), std::ios::binary);
+  std::string exr((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key("dataWindow\0box2i\0\x10\0\0\0", 21);
+  const size_t box = exr.find(key);
+  ASSERT_NE(box, std::string::npos);
+  const int32_t max_corner = 15999;
+  exr.replace(box + key.size() + 8, 4, reinterpret_cast<const char*>(&max_corner), 4);
+  exr.replace(box + key.size() + 12, 4, reinterpret_cast<const char*>(&max_corner), 4);
+  std::ofstream(file("huge-window.exr"), std::ios::binary) << exr;
+  // OpenEXR reads a channel list up to its empty name whatever size it declares
+  // (a fuzzed file hid its data window so): the check reads it the same way.
+  const std::string chlist("channels\0chlist\0", 16);
+  const size_t sizes = exr.find(chlist) + chlist.size();
+  ASSERT_EQ(exr.find(chlist), exr.find("channels"));
+  exr[sizes] = char(exr[sizes] + 20);
+  std::ofstream(file("huge-window-behind-chlist.exr"), std::ios::binary) << exr;
+  const std::pair<const char*, const char*> cases[] = {{"huge-attribute.exr", "\"comments\" claims 1850297876 bytes"},
+                                                       {"huge-window.exr", "16000x16000x1 values"},
+                                                       {"huge-window-behind-chlist.exr", "16000x16000x1 values"}};
+  for (const auto& [name, says] : cases) {
+    SCOPED_TRACE(name);
+    try {
+      read_image_file(file(name));
+      FAIL() << "expected theia::Error";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.rfind(file(name) + ": cannot read image (", 0), 0u) << what;
+      EXPECT_NE(what.find(says), std::string::npos) << what;
+    }
+  }
 }
 
 // A header that claims more pixels than its file can hold is refused before

@@ -263,6 +263,8 @@ void GuidingFeature::set_hooks(bool guide, bool record) {
 }
 
 bool GuidingFeature::trains(const IterationInfo& it) {
+  // --guiding-auto turned guiding off: nothing learns from here on.
+  if (verdict_.state == GuidingVerdict::Off && trained_spp_ < 0) trained_spp_ = it.spp_begin - first_sample_;
   const bool budget_spent =
       options_.training_spp != 0 && it.spp_begin - first_sample_ >= uint32_t(options_.training_spp);
   const bool time_spent = time_limit_ > 0.0 && it.elapsed_seconds >= double(options_.training_share) * time_limit_;

@@ -31,6 +31,19 @@ class ImageFiles : public theia::test::TempDirTest {
     std::sort(names.begin(), names.end());
     return names;
   }
+  // Reading `name` fails with one line that names the file and says `says`.
+  void expect_refused(const std::string& name, const std::string& says) {
+    SCOPED_TRACE(name);
+    try {
+      theia::read_image_file(file(name));
+      FAIL() << "expected theia::Error";
+    } catch (const theia::Error& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.rfind(file(name) + ": cannot read image (", 0), 0u) << what;
+      EXPECT_NE(what.find(says), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
 };
 
 // A little-endian RGB PFM by hand (OpenImageIO 2.4 reads PFM but cannot
@@ -358,18 +371,7 @@ TEST_F(ImageFiles, CorruptOrUnknownFilesGetOneErrorNamingTheFile) {
                                                        {"garbled.png", ""},
                                                        {"text.png", "not a png file"},
                                                        {"text.xyz", "unknown image format"}};
-  for (const auto& [name, says] : cases) {
-    SCOPED_TRACE(name);
-    try {
-      read_image_file(file(name));
-      FAIL() << "expected theia::Error";
-    } catch (const Error& e) {
-      const std::string what = e.what();
-      EXPECT_EQ(what.rfind(file(name) + ": cannot read image (", 0), 0u) << what;
-      EXPECT_NE(what.find(says), std::string::npos) << what;
-      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
-    }
-  }
+  for (const auto& [name, says] : cases) expect_refused(name, says);
 }
 
 // OpenEXR allocates what a header declares before reading it: an attribute
@@ -401,17 +403,7 @@ TEST_F(ImageFiles, ExrHeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeOpenEXR
   const std::pair<const char*, const char*> cases[] = {{"huge-attribute.exr", "\"comments\" claims 1850297876 bytes"},
                                                        {"huge-window.exr", "16000x16000x1 values"},
                                                        {"huge-window-behind-chlist.exr", "16000x16000x1 values"}};
-  for (const auto& [name, says] : cases) {
-    SCOPED_TRACE(name);
-    try {
-      read_image_file(file(name));
-      FAIL() << "expected theia::Error";
-    } catch (const Error& e) {
-      const std::string what = e.what();
-      EXPECT_EQ(what.rfind(file(name) + ": cannot read image (", 0), 0u) << what;
-      EXPECT_NE(what.find(says), std::string::npos) << what;
-    }
-  }
+  for (const auto& [name, says] : cases) expect_refused(name, says);
 }
 
 // A header that claims more pixels than its file can hold is refused before

@@ -414,48 +414,18 @@ static void check_output_path(const std::string& flag, const std::string& path) 
   if (::access(dir.c_str(), W_OK) != 0) throw_error("{} {}: the directory {} is not writable", flag, path, dir.string());
 }
 
-int run_render(const RenderConfig& in) {
-  RenderConfig config = in;
-  check_config(config);
-  if (!config.sample_range.empty() && !config.log_path.empty())
-    throw_error("--sample-range cannot be combined with --log: a part's log is PART.json beside PART.exr, where the "
-                "merge reads it");
-  auto t0 = std::chrono::steady_clock::now();
-  if (!config.wall_start) config.wall_start = t0;
-  Scene scene = load_scene(config.scene_path);
-  load_images(scene, image_bytes_left(config));
-  double load_seconds = seconds_since(t0);
-  log_info("loaded {} in {:.2f} s: {} shapes, {} lights, {}x{}", config.scene_path, load_seconds, scene.shapes.size(),
-           scene.lights.size(), scene.film.width, scene.film.height);
-  if (scene.lights.empty())
-    log_warning("{}: the scene has no light source (LightSource, or AreaLightSource before a Shape); the image "
-                "will be black", config.scene_path);
-
+// The outputs default to the scene's film name; each is checked before rendering.
+static void resolve_output_paths(RenderConfig& config, const Scene& scene) {
   if (config.output.empty()) config.output = fs::path(scene.film.filename).replace_extension(".exr").string();
   if (fs::path(config.output).extension() != ".exr") throw_error("-o {}: the output must be an .exr file", config.output);
   if (config.log_path.empty()) config.log_path = fs::path(config.output).replace_extension(".json").string();
   check_output_path("-o", config.output);
   check_output_path("--log", config.log_path);
   if (!config.save_field.empty()) check_output_path("--save-field", config.save_field);
+}
 
-  RenderResult result = render_scene(scene, config);
-  if (result.interrupted) {
-    if (config.checkpoint.dir.empty())
-      log_warning("stopped before the end; without --checkpoint-dir nothing was kept");
-    else
-      log_info("stopped before the end; state saved in {}; run the same command to resume", config.checkpoint.dir);
-    return kExitInterrupted;
-  }
-  std::string png = fs::path(config.output).replace_extension(".png").string();
-  write_exr(config.output, config.sample_range.empty() ? result.image : part_image(result.image, result.sums));
-  write_png_srgb(png, result.image, 0, 1, 2);
-
-  result.log["time"]["load"] = load_seconds;
-  result.log["time"]["total"] = seconds_since(t0);
-  result.log["outputs"] = {config.output, png};
-  write_text_atomically(config.log_path, result.log.dump(2) + "\n");
-
-  const auto& log = result.log;
+// What was rendered, where it went, and what the user must know about it.
+static void log_summary(const nlohmann::json& log, const RenderConfig& config, const std::string& png) {
   const nlohmann::json& spp = log["scheduler"]["spp_per_pixel"];
   const std::string samples = spp["min"] == spp["max"] ? fmt::format("{}", spp["min"].get<uint32_t>())
                                                        : fmt::format("{}-{}", spp["min"].get<uint32_t>(),
@@ -475,6 +445,45 @@ int run_render(const RenderConfig& in) {
                 limit["seconds"].get<double>());
   if (log["dropped_samples"].get<uint64_t>() > 0)
     log_warning("{} non-finite or overflowing (beyond 1e30) samples were dropped", log["dropped_samples"].get<uint64_t>());
+}
+
+int run_render(const RenderConfig& in) {
+  RenderConfig config = in;
+  check_config(config);
+  if (!config.sample_range.empty() && !config.log_path.empty())
+    throw_error("--sample-range cannot be combined with --log: a part's log is PART.json beside PART.exr, where the "
+                "merge reads it");
+  auto t0 = std::chrono::steady_clock::now();
+  if (!config.wall_start) config.wall_start = t0;
+  Scene scene = load_scene(config.scene_path);
+  load_images(scene, image_bytes_left(config));
+  double load_seconds = seconds_since(t0);
+  log_info("loaded {} in {:.2f} s: {} shapes, {} lights, {}x{}", config.scene_path, load_seconds, scene.shapes.size(),
+           scene.lights.size(), scene.film.width, scene.film.height);
+  if (scene.lights.empty())
+    log_warning("{}: the scene has no light source (LightSource, or AreaLightSource before a Shape); the image "
+                "will be black", config.scene_path);
+
+  resolve_output_paths(config, scene);
+
+  RenderResult result = render_scene(scene, config);
+  if (result.interrupted) {
+    if (config.checkpoint.dir.empty())
+      log_warning("stopped before the end; without --checkpoint-dir nothing was kept");
+    else
+      log_info("stopped before the end; state saved in {}; run the same command to resume", config.checkpoint.dir);
+    return kExitInterrupted;
+  }
+  std::string png = fs::path(config.output).replace_extension(".png").string();
+  write_exr(config.output, config.sample_range.empty() ? result.image : part_image(result.image, result.sums));
+  write_png_srgb(png, result.image, 0, 1, 2);
+
+  result.log["time"]["load"] = load_seconds;
+  result.log["time"]["total"] = seconds_since(t0);
+  result.log["outputs"] = {config.output, png};
+  write_text_atomically(config.log_path, result.log.dump(2) + "\n");
+
+  log_summary(result.log, config, png);
   return 0;
 }
 

@@ -30,6 +30,30 @@ PixelSample camera_sample(uint64_t g, const SampleRanges* ranges, uint32_t sampl
 
 }  // namespace
 
+// A camera path's state at its first vertex; the cold tables of the
+// features that are on start afresh too.
+void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only,
+                                       float filter_weight, const vec3& origin) {
+  PathState& ps = pool[slot];
+  ps.beta = RGB(1.0f);
+  ps.prev_p = origin;
+  ps.prev_ng = vec3(0.0f);
+  ps.pixel = pixel;
+  ps.sample = sample;
+  ps.vertex = observer ? observer->path_started(pixel, sample) : kNoVertex;
+  ps.filter_weight = filter_weight;
+  ps.prev_pdf = 0.0f;
+  ps.eta_scale = 1.0f;
+  ps.depth = 0;
+  ps.flags = kPathPrevSpecular;
+  ps.alpha_only = alpha_only ? 1 : 0;
+  if (!pool.curve_skip.empty()) pool.curve_skip[slot] = PrimRef{};
+  if (!pool.roulette_correction.empty()) pool.roulette_correction[slot] = 1.0;
+  if (!pool.pixel_estimate.empty()) pool.pixel_estimate[slot] = 0.0f;
+  if (!pool.medium.empty()) pool.medium[slot] = scene.camera_medium, pool.flight_depth[slot] = 0;
+  if (!pool.roughness.empty()) pool.roughness[slot] = 0.0f;
+}
+
 void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   ScopedTimer timer(stats.phases[Phase::Generate]);
   count = std::min<uint64_t>({count, camera_end - next_camera, pool.free_slots.size()});
@@ -66,24 +90,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
       ray.d = cam.d;
       if (!s.alpha_only) film.add_weight(s.pixel, s.sample, fs.weight);
       if (counts_for_alpha(s.sample)) film.add_alpha_weight(s.pixel, fs.weight);
-      PathState& ps = pool[slots[i]];
-      ps.beta = RGB(1.0f);
-      ps.prev_p = ray.o;
-      ps.prev_ng = vec3(0.0f);
-      ps.pixel = s.pixel;
-      ps.sample = s.sample;
-      ps.vertex = observer ? observer->path_started(s.pixel, s.sample) : kNoVertex;
-      ps.filter_weight = fs.weight;
-      ps.prev_pdf = 0.0f;
-      ps.eta_scale = 1.0f;
-      ps.depth = 0;
-      ps.flags = kPathPrevSpecular;
-      ps.alpha_only = s.alpha_only ? 1 : 0;
-      if (!pool.curve_skip.empty()) pool.curve_skip[slots[i]] = PrimRef{};
-      if (!pool.roulette_correction.empty()) pool.roulette_correction[slots[i]] = 1.0;
-      if (!pool.pixel_estimate.empty()) pool.pixel_estimate[slots[i]] = 0.0f;
-      if (!pool.medium.empty()) pool.medium[slots[i]] = scene.camera_medium, pool.flight_depth[slots[i]] = 0;
-      if (!pool.roughness.empty()) pool.roughness[slots[i]] = 0.0f;
+      start_path(slots[i], s.pixel, s.sample, s.alpha_only, fs.weight, ray.o);
       batch_of(i).rays[i % batch] = ray;
     }
   });

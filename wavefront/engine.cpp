@@ -77,8 +77,22 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
 // ---------------------------------------------------------------- the loop
 
 uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera,
-                                       const std::function<void(double)>& progress) {
+                                       const std::function<void(double)>& on_progress) {
   auto t0 = std::chrono::steady_clock::now();
+  progress = &on_progress;
+  begin_iteration(s_begin, s_end, first_camera);
+  while (advance()) {
+  }
+  // The iteration's camera samples are all in: the caustic pass adds its
+  // estimate for the same samples (an interrupted iteration runs it when resumed).
+  if (next_camera == camera_end && !abandoned) trace_caustics();
+  report_progress();
+  progress = nullptr;
+  stats.render_seconds += seconds_since(t0);
+  return next_camera;
+}
+
+void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera) {
   sample_begin = s_begin;
   sample_count = s_end > s_begin ? s_end - s_begin : 0;
   // Per iteration: the caustic pass may have switched itself off after the last one.
@@ -89,70 +103,74 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
                  : nullptr;
   camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
   next_camera = std::min(first_camera, camera_end);
-  // Once stopped, no camera ray is generated: the paths in flight finish,
-  // so exactly the pixel-samples [first_camera, next_camera) are complete.
-  auto stopped = [&] { return opt.stop && opt.stop->raised(); };
-  auto report = [&] {
-    if (progress) progress(camera_end ? double(next_camera) / double(camera_end) : 1.0);
-  };
-  auto can_generate = [&] { return next_camera < camera_end && !pool.free_slots.empty() && !stopped(); };
-  const size_t refill_below = size_t(opt.occupancy_threshold * float(pool.capacity()));
-  // A signal bounds the time left to the paths in flight; each turn of the
-  // loop is one batch (one bounce of at most batch_size rays), so this is
-  // checked every few milliseconds however long the paths are.
-  std::optional<std::chrono::steady_clock::time_point> signal_seen;
-  auto out_of_time = [&] {
-    if (!opt.stop || opt.stop->reason() != StopReason::Signal) return false;
-    if (!signal_seen) signal_seen = std::chrono::steady_clock::now();
-    return seconds_since(*signal_seen) >= opt.abandon_after_seconds;
-  };
+  refill_below = size_t(opt.occupancy_threshold * float(pool.capacity()));
+  signal_seen.reset();
   abandoned = false;
+}
 
-  while (true) {
-    if (out_of_time()) {
-      abandon_paths_in_flight();
-      break;
-    }
-    if (pool.live() <= refill_below && can_generate()) {
-      generate_camera_rays(pool.capacity() - pool.live());
-      report();
-    }
-    if (shadows.size() >= sizes.batch_size) trace_shadow_rays();
-    if (!full.empty()) {
-      Batch b = std::move(full.back());
-      full.pop_back();
-      process_batch(b);
-      spare.push_back(std::move(b));
-      continue;
-    }
-    if (can_generate()) {
-      generate_camera_rays(pool.capacity() - pool.live());
-      report();
-      continue;
-    }
-    // Nothing full and nothing left to generate: flush the fullest partial batch.
-    Batch* fullest = nullptr;
-    for (Batch& b : filling)
-      if (b.size() > 0 && (!fullest || b.size() > fullest->size())) fullest = &b;
-    if (fullest) {
-      Batch b = std::move(*fullest);
-      *fullest = take_spare();
-      process_batch(b);
-      spare.push_back(std::move(b));
-      continue;
-    }
-    if (shadows.size() > 0) {
-      trace_shadow_rays();
-      continue;
-    }
-    break;
+// One turn of the loop: a batch (one bounce of at most batch_size rays), a
+// refill of camera rays or a flush of shadow rays.  False once nothing is
+// left, or when a signal's time for the paths in flight is up (checked every
+// few milliseconds however long the paths are).
+bool WavefrontEngine::Impl::advance() {
+  if (out_of_time()) {
+    abandon_paths_in_flight();
+    return false;
   }
-  // The iteration's camera samples are all in: the caustic pass adds its
-  // estimate for the same samples (an interrupted iteration runs it when resumed).
-  if (next_camera == camera_end && !abandoned) trace_caustics();
-  report();
-  stats.render_seconds += seconds_since(t0);
-  return next_camera;
+  if (pool.live() <= refill_below && can_generate()) generate_camera_rays_and_report();
+  if (shadows.size() >= sizes.batch_size) trace_shadow_rays();
+  if (!full.empty()) {
+    Batch b = std::move(full.back());
+    full.pop_back();
+    process_and_recycle(b);
+    return true;
+  }
+  if (can_generate()) {
+    generate_camera_rays_and_report();
+    return true;
+  }
+  // Nothing full and nothing left to generate: flush the fullest partial batch.
+  Batch* fullest = nullptr;
+  for (Batch& b : filling)
+    if (b.size() > 0 && (!fullest || b.size() > fullest->size())) fullest = &b;
+  if (fullest) {
+    Batch b = std::move(*fullest);
+    *fullest = take_spare();
+    process_and_recycle(b);
+    return true;
+  }
+  if (shadows.size() > 0) {
+    trace_shadow_rays();
+    return true;
+  }
+  return false;
+}
+
+// Once stopped, no camera ray is generated: the paths in flight finish,
+// so exactly the pixel-samples [first_camera, next_camera) are complete.
+bool WavefrontEngine::Impl::can_generate() const {
+  return next_camera < camera_end && !pool.free_slots.empty() && !(opt.stop && opt.stop->raised());
+}
+
+// A signal (not the time limit) bounds the time left to the paths in flight.
+bool WavefrontEngine::Impl::out_of_time() {
+  if (!opt.stop || opt.stop->reason() != StopReason::Signal) return false;
+  if (!signal_seen) signal_seen = std::chrono::steady_clock::now();
+  return seconds_since(*signal_seen) >= opt.abandon_after_seconds;
+}
+
+void WavefrontEngine::Impl::generate_camera_rays_and_report() {
+  generate_camera_rays(pool.capacity() - pool.live());
+  report_progress();
+}
+
+void WavefrontEngine::Impl::report_progress() const {
+  if (progress && *progress) (*progress)(camera_end ? double(next_camera) / double(camera_end) : 1.0);
+}
+
+void WavefrontEngine::Impl::process_and_recycle(Batch& b) {
+  process_batch(b);
+  spare.push_back(std::move(b));
 }
 
 void WavefrontEngine::Impl::trace_caustics() {

@@ -24,6 +24,9 @@
 #include <tbb/enumerable_thread_specific.h>
 
 #include <array>
+#include <chrono>
+#include <functional>
+#include <optional>
 
 namespace theia {
 
@@ -145,14 +148,26 @@ struct WavefrontEngine::Impl {
   uint64_t next_camera = 0, camera_end = 0;
   uint32_t sample_begin = 0, sample_count = 0;
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
+  const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
+  size_t refill_below = 0;  // camera rays refill the pool below this many live paths
+  std::optional<std::chrono::steady_clock::time_point> signal_seen;
 
   Impl(const RenderableScene& rs, Film& film, const EngineOptions& options, const EngineHooks& hooks);
 
   // ---- the loop and its stages
   uint64_t render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const std::function<void(double)>& progress);
+  void begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera);
+  bool advance();  // one turn of the loop; false once the iteration is done
+  bool can_generate() const;
+  bool out_of_time();
+  void generate_camera_rays_and_report();
+  void report_progress() const;
+  void process_and_recycle(Batch& b);
   void process_batch(Batch& b);
   void trace_caustics();                    // the caustic pass over this iteration's samples
   void generate_camera_rays(size_t count);  // camera_rays.cpp
+  void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
+                  const vec3& origin);
   void sort_rays(Batch& b);
   void trace_closest(const Batch& b);
   void sort_hits(const Batch& b);           // shading order into `keys`, misses into `escaped`

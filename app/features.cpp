@@ -251,10 +251,10 @@ int GuidingVerdict::Round::side_of(int index) const {
   return k < length ? 0 : k < 2 * length ? 1 : -1;
 }
 
-bool guiding_pays(const GuidingVerdict::Round& round, double threshold) {
+bool guiding_pays(const GuidingVerdict::Round& round, const GuidingRule& rule) {
   for (bool full : {false, true}) {
     const double e = round.efficiency_ratio(full);
-    if (e != 0.0 && !(e > threshold)) return false;
+    if ((!full || rule.full) && e != 0.0 && !(e > rule.threshold)) return false;
   }
   return true;
 }
@@ -341,14 +341,14 @@ void GuidingFeature::plan_final_round(const IterationInfo& it) {
       guiding_final_iteration(schedule_, trained_spp_, int(it.spp_begin - first_sample_));
 }
 
-double GuidingFeature::round_threshold(const GuidingVerdict::Round& round) const {
-  return &round == &verdict_.probe ? kProbeThreshold : &round == &verdict_.recheck ? kRecheckThreshold : kFinalMargin;
+const GuidingRule& GuidingFeature::rule_of(const GuidingVerdict::Round& round) const {
+  return &round == &verdict_.probe ? kProbeRule : &round == &verdict_.recheck ? kRecheckRule : kFinalRule;
 }
 
 void GuidingFeature::judge(GuidingVerdict::Round& round) {
   const bool is_final = &round == &verdict_.final;
   const char* name = &round == &verdict_.probe ? "probe" : is_final ? "final" : "recheck";
-  const bool pays = guiding_pays(round, round_threshold(round));
+  const bool pays = guiding_pays(round, rule_of(round));
   verdict_.state = !pays ? GuidingVerdict::Off : is_final ? GuidingVerdict::On : GuidingVerdict::Provisional;
   static const char* kSays[] = {"", "guiding stays on", "guiding off for the rest of the render",
                                 "guiding and training go on, to be judged again once training ends"};
@@ -489,19 +489,21 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                             {"wall_seconds_per_spp", s.spp > 0 ? s.wall_seconds / double(s.spp) : 0.0}};
     };
     auto round_log = [&](const GuidingVerdict::Round& r) {
-      const double threshold = round_threshold(r);
+      const GuidingRule& rule = rule_of(r);
       return nlohmann::json{{"unguided_iteration", r.unguided_iteration},
                             {"length", r.length},
                             {"measured", r.measured()},
                             {"unguided", side_log(r.unguided)},
                             {"guided", side_log(r.guided)},
-                            // Guided / unguided; guiding pays if both exceed the threshold.
+                            // Guided / unguided; guiding pays if the robust figure, and with
+                            // the rule's "full" the full one too, exceed the threshold.
                             {"efficiency_ratio", r.efficiency_ratio(false)},
                             {"efficiency_ratio_full", r.efficiency_ratio(true)},
                             {"variance_ratio", r.variance_ratio(false)},
                             {"variance_ratio_full", r.variance_ratio(true)},
-                            {"threshold", threshold},
-                            {"pays", r.measured() && guiding_pays(r, threshold)}};
+                            {"threshold", rule.threshold},
+                            {"full", rule.full},
+                            {"pays", r.measured() && guiding_pays(r, rule)}};
     };
     log["guiding"]["auto"] = {{"verdict", kStates[verdict_.state]},
                               {"probe", round_log(verdict_.probe)},

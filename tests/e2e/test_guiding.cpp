@@ -185,7 +185,7 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   const nlohmann::json b = render_scene(scene, c).log["guiding"]["auto"];
   std::printf("guiding-auto on cornell-box 48x48, training 128 spp: %s\n", b.dump().c_str());
   EXPECT_EQ(b["recheck"]["unguided_iteration"].get<int>(), 12);
-  EXPECT_EQ(b["recheck"]["threshold"].get<double>(), kRecheckThreshold);
+  EXPECT_EQ(b["recheck"]["threshold"].get<double>(), kRecheckRule.threshold);
   EXPECT_EQ(b["recheck"]["measured"].get<bool>(), b["probe"]["pays"].get<bool>());
   const bool recheck_passed = b["recheck"]["pays"].get<bool>();
   EXPECT_EQ(b["final"]["measured"].get<bool>(), recheck_passed);
@@ -193,10 +193,12 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   EXPECT_EQ(b["verdict"].get<std::string>(), recheck_passed && b["final"]["pays"].get<bool>() ? "on" : "off");
 }
 
-// The verdict needs guiding to pay by both variance figures: a guided side
-// with half the robust variance but fireflies (full variance 3x) does not
-// pass, however cheap; a figure that is unknown (0) does not count against it.
-TEST(Guiding, AutoVerdictNeedsBothFiguresToPay) {
+// The final round needs guiding to pay by both variance figures: a guided
+// side with half the robust variance but fireflies (full variance 3x) does
+// not pass, however cheap; the early rounds judge by the robust figure alone
+// (one pair's full figure swings with a single firefly).  A figure that is
+// unknown (0) does not count against guiding.
+TEST(Guiding, AutoVerdictNeedsBothFiguresToPayInTheFinalRound) {
   GuidingVerdict::Round round;
   round.unguided_iteration = 5;
   round.length = 2;
@@ -218,14 +220,18 @@ TEST(Guiding, AutoVerdictNeedsBothFiguresToPay) {
   EXPECT_TRUE(round.measured());
   EXPECT_DOUBLE_EQ(round.efficiency_ratio(false), 2.0);
   EXPECT_NEAR(round.efficiency_ratio(true), 1.0 / 3.0, 1e-12);
-  EXPECT_FALSE(guiding_pays(round, kFinalMargin));
+  EXPECT_FALSE(guiding_pays(round, kFinalRule));
+  EXPECT_TRUE(guiding_pays(round, kProbeRule));  // robust alone
+  EXPECT_TRUE(guiding_pays(round, kRecheckRule));
   round.guided = side(0.5, 0.75, 3.2);  // no fireflies
-  EXPECT_TRUE(guiding_pays(round, kFinalMargin));
+  EXPECT_TRUE(guiding_pays(round, kFinalRule));
   round.guided = side(0.5, 0.75, 6.4);  // twice the time per sample: no gain
-  EXPECT_FALSE(guiding_pays(round, kFinalMargin));
-  EXPECT_TRUE(guiding_pays(round, kProbeThreshold));  // the probe is lenient: 1.0 passes it
+  EXPECT_FALSE(guiding_pays(round, kFinalRule));
+  EXPECT_TRUE(guiding_pays(round, kProbeRule));  // the probe is lenient: 1.0 passes it
+  round.guided = side(0.5, 0.75, 9.6);           // 2/3: the probe asks for more
+  EXPECT_FALSE(guiding_pays(round, kProbeRule));
   round.guided = side(0.0, 0.0, 6.4);  // a noiseless image: nothing says it loses
-  EXPECT_TRUE(guiding_pays(round, kFinalMargin));
+  EXPECT_TRUE(guiding_pays(round, kFinalRule));
 }
 
 // One-sample MIS with the selection probability learned per leaf (seeds/001

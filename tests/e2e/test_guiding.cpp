@@ -189,7 +189,9 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   EXPECT_EQ(b["recheck"]["measured"].get<bool>(), b["probe"]["pays"].get<bool>());
   const bool recheck_passed = b["recheck"]["pays"].get<bool>();
   EXPECT_EQ(b["final"]["measured"].get<bool>(), recheck_passed);
-  if (recheck_passed) EXPECT_EQ(b["final"]["unguided_iteration"].get<int>(), 18);  // from 134 spp
+  if (recheck_passed) {
+    EXPECT_EQ(b["final"]["unguided_iteration"].get<int>(), 18);  // from 134 spp
+  }
   EXPECT_EQ(b["verdict"].get<std::string>(), recheck_passed && b["final"]["pays"].get<bool>() ? "on" : "off");
 }
 

@@ -114,7 +114,8 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   EXPECT_EQ(guiding_holdout_iteration({8, 4, 1}, 8), -1);                       // successor of 1 spp
   EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 1}, 0, 2), -1);                 // two pairs need 4 iterations
   EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 0, 2), 0);
-  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 1, 2), -1);
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 1, 2), 1);   // 4 4 held out, 2 2 judged
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 9, 2), -1);  // from 12: too few left
   // Training 256 spp: the probe from 16 spp (iteration 11 starts at 22).
   EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 256), 11);
   // The final round from where training ended, two pairs.

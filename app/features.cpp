@@ -4,7 +4,9 @@
 #include "core/hash.h"
 #include "core/log.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace theia {
 
@@ -189,10 +191,15 @@ SDTreeSample sd_tree_sample(const TrainingSample& s) {
           s.guide_ratio};
 }
 
-int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp) {
+int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp, int length) {
+  const size_t n = size_t(2 * length);
   int begin = 0;
-  for (size_t i = 0; i + 1 < schedule.size(); begin += schedule[i], ++i)
-    if (begin >= from_spp && schedule[i] >= 4 && schedule[i + 1] >= 2) return int(i);
+  for (size_t i = 0; i + n <= schedule.size(); begin += schedule[i], ++i) {
+    if (begin < from_spp || schedule[i] < 4) continue;
+    bool fits = true;
+    for (size_t k = 1; k < n; ++k) fits = fits && schedule[i + k] >= 2;
+    if (fits) return int(i);
+  }
   return -1;
 }
 
@@ -200,24 +207,56 @@ int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp) {
 static int judged_training_spp(int training_spp) { return training_spp > 0 ? training_spp : 256; }
 
 int guiding_probe_iteration(const std::vector<int>& schedule, int training_spp) {
-  return guiding_holdout_iteration(schedule, std::clamp(judged_training_spp(training_spp) / 4, 8, 64));
+  return guiding_holdout_iteration(schedule, std::clamp(judged_training_spp(training_spp) / 16, 8, 16),
+                                   kProbeLength);
 }
 
-int guiding_final_iteration(const std::vector<int>& schedule, int training_spp) {
+int guiding_recheck_iteration(const std::vector<int>& schedule, int training_spp) {
   const int probe = guiding_probe_iteration(schedule, training_spp);
   if (probe < 0) return -1;
   int after_probe = 0;  // where the probe's pair ends
-  for (int i = 0; i <= probe + 1; ++i) after_probe += schedule[size_t(i)];
-  return guiding_holdout_iteration(schedule, std::max(judged_training_spp(training_spp), after_probe));
+  for (int i = 0; i < probe + 2 * kProbeLength; ++i) after_probe += schedule[size_t(i)];
+  return guiding_holdout_iteration(schedule, after_probe + std::max(judged_training_spp(training_spp) / 8, 16), 1);
 }
 
-double GuidingVerdict::Round::efficiency_ratio() const {
-  const double u = unguided_variance * unguided_seconds_per_spp, g = guided_variance * guided_seconds_per_spp;
+int guiding_final_iteration(const std::vector<int>& schedule, int64_t trained_spp, int now_spp) {
+  const int64_t from = std::max<int64_t>(trained_spp >= 0 ? trained_spp : judged_training_spp(0), now_spp);
+  return from > std::numeric_limits<int>::max() ? -1 : guiding_holdout_iteration(schedule, int(from), kFinalLength);
+}
+
+void GuidingVerdict::Side::add(const IterationInfo& it) {
+  const int64_t n = int64_t(it.spp_end - it.spp_begin);
+  ++iterations;
+  spp += n;
+  cpu_seconds += it.cpu_seconds;
+  wall_seconds += it.seconds;
+  variance += std::max(it.sample_variance, 0.0) * double(n);
+  variance_full += std::max(it.sample_variance_full, 0.0) * double(n);
+}
+
+double GuidingVerdict::Round::efficiency_ratio(bool full) const {
+  const double u = unguided.per_sample(full) * unguided.cpu_seconds_per_spp();
+  const double g = guided.per_sample(full) * guided.cpu_seconds_per_spp();
   return u > 0.0 && g > 0.0 ? u / g : 0.0;
 }
 
-double GuidingVerdict::Round::variance_ratio() const {
-  return unguided_variance > 0.0 && guided_variance > 0.0 ? guided_variance / unguided_variance : 0.0;
+double GuidingVerdict::Round::variance_ratio(bool full) const {
+  const double u = unguided.per_sample(full), g = guided.per_sample(full);
+  return u > 0.0 && g > 0.0 ? g / u : 0.0;
+}
+
+int GuidingVerdict::Round::side_of(int index) const {
+  if (unguided_iteration < 0 || index < unguided_iteration) return -1;
+  const int k = index - unguided_iteration;
+  return k < length ? 0 : k < 2 * length ? 1 : -1;
+}
+
+bool guiding_pays(const GuidingVerdict::Round& round, const GuidingRule& rule) {
+  for (bool full : {false, true}) {
+    const double e = round.efficiency_ratio(full);
+    if ((!full || rule.full) && e != 0.0 && !(e > rule.threshold)) return false;
+  }
+  return true;
 }
 
 GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& scene_bounds,
@@ -230,8 +269,11 @@ GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& sce
   tree_ = std::make_unique<SDTree>(scene_bounds, tree);
   trainer_ = std::make_unique<SDTreeTrainer>(*tree_, training_);
   if (options.auto_off) {
+    schedule_ = schedule;
+    verdict_.probe.length = kProbeLength;
+    verdict_.final.length = kFinalLength;
     verdict_.probe.unguided_iteration = guiding_probe_iteration(schedule, options.training_spp);
-    verdict_.final.unguided_iteration = guiding_final_iteration(schedule, options.training_spp);
+    verdict_.recheck.unguided_iteration = guiding_recheck_iteration(schedule, options.training_spp);
   }
 }
 
@@ -278,63 +320,70 @@ bool GuidingFeature::trains(const IterationInfo& it) {
 }
 
 GuidingVerdict::Round* GuidingFeature::round_of(const IterationInfo& it) {
-  for (GuidingVerdict::Round* r : {&verdict_.probe, &verdict_.final}) {
+  for (GuidingVerdict::Round* r : {&verdict_.probe, &verdict_.recheck, &verdict_.final}) {
     const bool deciding = r == &verdict_.probe ? verdict_.state == GuidingVerdict::Undecided
                                                : verdict_.state == GuidingVerdict::Provisional;
-    if (deciding && r->unguided_iteration >= 0 &&
-        (it.index == r->unguided_iteration || it.index == r->unguided_iteration + 1))
-      return r;
+    if (deciding && !r->measured() && r->side_of(it.index) >= 0) return r;
   }
   return nullptr;
 }
 
-// Guided at least this much more efficient in the final round (living-room at 30 s: 1.06, kept on
-// without the margin, 1.08x the unguided relMSE; guiding-panel: 2.0).
-constexpr double kFinalMargin = 1.1;
-
-void GuidingFeature::judge(GuidingVerdict::Round& round, const IterationInfo& it) {
-  const double spp = double(it.spp_end - it.spp_begin);
-  const double variance = std::max(it.sample_variance, 0.0), seconds_per_spp = it.seconds / spp;
-  if (it.index == round.unguided_iteration) {
-    round.unguided_variance = variance;
-    round.unguided_seconds_per_spp = seconds_per_spp;
-    return;
+void GuidingFeature::plan_final_round(const IterationInfo& it) {
+  if (verdict_.state != GuidingVerdict::Provisional || verdict_.final.unguided_iteration >= 0) return;
+  // Training that still goes on (budget and time left) is judged once it ends.
+  if (trained_spp_ < 0 && options_.training_spp != 0) return;
+  GuidingVerdict::Round& recheck = verdict_.recheck;
+  if (recheck.unguided_iteration >= 0 && !recheck.measured()) {
+    if (recheck.unguided.iterations > 0) return;  // under way: the final round comes after it
+    recheck.unguided_iteration = -1;              // not begun: the final round judges now
   }
-  round.guided_variance = variance;
-  round.guided_seconds_per_spp = seconds_per_spp;
-  const bool is_probe = &round == &verdict_.probe;
-  const double efficiency = round.efficiency_ratio();
-  // Unknown either way (a noiseless image): nothing says guiding loses.
-  // The final verdict holds for the rest of the render and rests on one
-  // pair of iterations timed on a possibly busy machine: it asks for a margin.
-  const bool pays = efficiency == 0.0 || efficiency > (is_probe ? 1.0 : kFinalMargin);
-  const bool final_to_come = is_probe && verdict_.final.unguided_iteration >= 0;
-  verdict_.state = !pays ? GuidingVerdict::Off : final_to_come ? GuidingVerdict::Provisional : GuidingVerdict::On;
+  verdict_.final.unguided_iteration =
+      guiding_final_iteration(schedule_, trained_spp_, int(it.spp_begin - first_sample_));
+}
+
+const GuidingRule& GuidingFeature::rule_of(const GuidingVerdict::Round& round) const {
+  return &round == &verdict_.probe ? kProbeRule : &round == &verdict_.recheck ? kRecheckRule : kFinalRule;
+}
+
+void GuidingFeature::judge(GuidingVerdict::Round& round) {
+  const bool is_final = &round == &verdict_.final;
+  const char* name = &round == &verdict_.probe ? "probe" : is_final ? "final" : "recheck";
+  const bool pays = guiding_pays(round, rule_of(round));
+  verdict_.state = !pays ? GuidingVerdict::Off : is_final ? GuidingVerdict::On : GuidingVerdict::Provisional;
   static const char* kSays[] = {"", "guiding stays on", "guiding off for the rest of the render",
                                 "guiding and training go on, to be judged again once training ends"};
-  log_info("guiding ({} round): guided / unguided efficiency {:.3g} (per-sample variance {:.3g}): {}",
-           is_probe ? "probe" : "final", efficiency, round.variance_ratio(), kSays[verdict_.state]);
+  log_info("guiding ({} round): guided / unguided efficiency {:.3g} robust, {:.3g} full (per-sample variance {:.3g}, "
+           "{:.3g}; CPU s/spp {:.3g}): {}",
+           name, round.efficiency_ratio(false), round.efficiency_ratio(true),
+           round.variance_ratio(false), round.variance_ratio(true),
+           round.guided.cpu_seconds_per_spp() / std::max(round.unguided.cpu_seconds_per_spp(), 1e-300),
+           kSays[verdict_.state]);
 }
 
 // The field learns from each training iteration's samples (handed over by
 // the recorder at the iteration's end); the next iteration samples it.  With
-// --guiding-auto each round's held-out iteration (no guide, no recorder) is
-// judged against the one after it, guided as the render after training will
-// be: by the field without recording, unless training never ends.
+// --guiding-auto each round's held-out iterations (no guide, no recorder) are
+// judged against the ones after them, guided as the render after training
+// will be: by the field without recording, unless training never ends.
 void GuidingFeature::add_tasks(IterationTasks& tasks) {
   if (!tree_) return;
   const bool judging = options_.auto_off && verdict_.probe.unguided_iteration >= 0;
   if (judging) tasks.measure_variance();
   tasks.on_begin([this](const IterationInfo& it) {
+    const bool train = trains(it);
+    plan_final_round(it);
     const GuidingVerdict::Round* round = round_of(it);
-    const bool held_out = round && it.index == round->unguided_iteration;
-    const bool judged = round && !held_out;
-    const bool guide = verdict_.state != GuidingVerdict::Off && !held_out;
-    set_hooks(guide, trains(it) && !held_out && !(judged && options_.training_spp != 0));
+    const int side = round ? round->side_of(it.index) : -1;  // 0 held out, 1 judged
+    const bool guide = verdict_.state != GuidingVerdict::Off && side != 0;
+    set_hooks(guide, train && side != 0 && !(side == 1 && options_.training_spp != 0));
   });
   if (judging) {
     tasks.on_end([this](const IterationInfo& it) {
-      if (GuidingVerdict::Round* round = round_of(it)) judge(*round, it);
+      GuidingVerdict::Round* round = round_of(it);
+      if (!round) return;
+      const int side = round->side_of(it.index);
+      (side == 0 ? round->unguided : round->guided).add(it);
+      if (round->measured()) judge(*round);
     });
   }
   tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) {
@@ -342,27 +391,50 @@ void GuidingFeature::add_tasks(IterationTasks& tasks) {
   });
 }
 
-// A resumed render continues the field (and guiding-auto's verdict) where the
-// interrupted one left it, so it guides the same.
+namespace {
+
+void put_side(ByteWriter& w, const GuidingVerdict::Side& s) {
+  w.put(int32_t(s.iterations));
+  w.put(s.spp);
+  w.put(s.cpu_seconds);
+  w.put(s.wall_seconds);
+  w.put(s.variance);
+  w.put(s.variance_full);
+}
+
+void get_side(ByteReader& r, GuidingVerdict::Side& s) {
+  s.iterations = r.get<int32_t>();
+  s.spp = r.get<int64_t>();
+  s.cpu_seconds = r.get<double>();
+  s.wall_seconds = r.get<double>();
+  s.variance = r.get<double>();
+  s.variance_full = r.get<double>();
+}
+
+}  // namespace
+
+// A resumed render continues the field (and guiding-auto's verdict, with a
+// round's partial sums and the final round's plan) where the interrupted one
+// left it, so it guides the same.
 void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& participants) {
   if (!tree_) return;
-  participants.push_back({"guiding", 5,
+  participants.push_back({"guiding", 6,
                           [this] {
                             ByteWriter w;
                             w.put_vector(tree_->serialize());
                             w.put(int32_t(verdict_.state));
-                            for (const GuidingVerdict::Round* round : {&verdict_.probe, &verdict_.final}) {
-                              w.put(round->unguided_variance);
-                              w.put(round->unguided_seconds_per_spp);
-                              w.put(round->guided_variance);
-                              w.put(round->guided_seconds_per_spp);
+                            for (const GuidingVerdict::Round* round :
+                                 {&verdict_.probe, &verdict_.recheck, &verdict_.final}) {
+                              w.put(int32_t(round->unguided_iteration));
+                              put_side(w, round->unguided);
+                              put_side(w, round->guided);
                             }
                             w.put(trained_spp_);
                             return w.bytes;
                           },
                           [this](const CheckpointSection& section) {
-                            if (section.version != 5)
-                              throw_error("checkpoint section 'guiding' has version {}, this build reads 5",
+                            if (section.version != 6)
+                              throw_error("checkpoint section 'guiding' has version {}, this build reads 6",
                                           section.version);
                             ByteReader r(section.bytes, "checkpoint section 'guiding'");
                             std::vector<uint8_t> tree = r.get_vector<uint8_t>();
@@ -371,11 +443,11 @@ void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& partic
                             if (state < GuidingVerdict::Undecided || state > GuidingVerdict::Provisional)
                               throw_error("checkpoint section 'guiding': verdict {} is not one of 0 .. 3", state);
                             verdict_.state = GuidingVerdict::State(state);
-                            for (GuidingVerdict::Round* round : {&verdict_.probe, &verdict_.final}) {
-                              round->unguided_variance = r.get<double>();
-                              round->unguided_seconds_per_spp = r.get<double>();
-                              round->guided_variance = r.get<double>();
-                              round->guided_seconds_per_spp = r.get<double>();
+                            for (GuidingVerdict::Round* round :
+                                 {&verdict_.probe, &verdict_.recheck, &verdict_.final}) {
+                              round->unguided_iteration = r.get<int32_t>();
+                              get_side(r, round->unguided);
+                              get_side(r, round->guided);
                             }
                             trained_spp_ = r.get<int64_t>();
                           }});
@@ -408,18 +480,34 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
   }
   if (options_.auto_off) {
     static const char* kStates[] = {"undecided", "on", "off", "provisional"};
-    auto round_log = [](const GuidingVerdict::Round& r) {
+    auto side_log = [](const GuidingVerdict::Side& s) {
+      return nlohmann::json{{"iterations", s.iterations},
+                            {"spp", s.spp},
+                            {"variance", s.per_sample(false)},
+                            {"variance_full", s.per_sample(true)},
+                            {"cpu_seconds_per_spp", s.cpu_seconds_per_spp()},
+                            {"wall_seconds_per_spp", s.spp > 0 ? s.wall_seconds / double(s.spp) : 0.0}};
+    };
+    auto round_log = [&](const GuidingVerdict::Round& r) {
+      const GuidingRule& rule = rule_of(r);
       return nlohmann::json{{"unguided_iteration", r.unguided_iteration},
+                            {"length", r.length},
                             {"measured", r.measured()},
-                            {"unguided_variance", r.unguided_variance},
-                            {"unguided_seconds_per_spp", r.unguided_seconds_per_spp},
-                            {"guided_variance", r.guided_variance},
-                            {"guided_seconds_per_spp", r.guided_seconds_per_spp},
-                            {"efficiency_ratio", r.efficiency_ratio()},
-                            {"variance_ratio", r.variance_ratio()}};
+                            {"unguided", side_log(r.unguided)},
+                            {"guided", side_log(r.guided)},
+                            // Guided / unguided; guiding pays if the robust figure, and with
+                            // the rule's "full" the full one too, exceed the threshold.
+                            {"efficiency_ratio", r.efficiency_ratio(false)},
+                            {"efficiency_ratio_full", r.efficiency_ratio(true)},
+                            {"variance_ratio", r.variance_ratio(false)},
+                            {"variance_ratio_full", r.variance_ratio(true)},
+                            {"threshold", rule.threshold},
+                            {"full", rule.full},
+                            {"pays", r.measured() && guiding_pays(r, rule)}};
     };
     log["guiding"]["auto"] = {{"verdict", kStates[verdict_.state]},
                               {"probe", round_log(verdict_.probe)},
+                              {"recheck", round_log(verdict_.recheck)},
                               {"final", round_log(verdict_.final)}};
   }
   log["memory"]["guiding"] = tree_->memory_bytes();

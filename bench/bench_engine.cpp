@@ -25,8 +25,6 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -154,15 +152,6 @@ size_t traced_triangles(const Scene& s) {
   for (const Instance& inst : s.instances)
     for (int shape : s.prototypes[size_t(inst.prototype)].shapes) n += shape_tris(shape);
   return n;
-}
-
-// CPU seconds (user + system) this process has used so far: on a shared
-// machine a render's CPU time varies less than its wall time.
-double process_cpu_seconds() {
-  rusage ru{};
-  getrusage(RUSAGE_SELF, &ru);
-  auto s = [](const timeval& t) { return double(t.tv_sec) + 1e-6 * double(t.tv_usec); };
-  return s(ru.ru_utime) + s(ru.ru_stime);
 }
 
 struct Measurement {

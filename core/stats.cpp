@@ -2,10 +2,19 @@
 
 #include <fmt/core.h>
 
+#include <sys/resource.h>
+
 #include <cstdio>
 #include <cstring>
 
 namespace theia {
+
+double process_cpu_seconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  auto s = [](const timeval& t) { return double(t.tv_sec) + 1e-6 * double(t.tv_usec); };
+  return s(ru.ru_utime) + s(ru.ru_stime);
+}
 
 static size_t read_status_kb(const char* key) {
   FILE* f = std::fopen("/proc/self/status", "r");

@@ -33,6 +33,11 @@ inline double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// CPU seconds (user + system, every thread) this process has used so far:
+// on a shared machine the CPU time of a piece of work varies far less than
+// its wall time, which grows with whatever else the cores run.
+double process_cpu_seconds();
+
 // Peak and current resident set size of this process, from /proc/self/status.
 size_t peak_rss_bytes();
 size_t current_rss_bytes();

@@ -34,21 +34,29 @@ std::vector<float> half_buffer_variance(const Film& f) {
   return var;
 }
 
-double robust_relative_variance(const Film& it, const std::vector<float>& var) {
+RelativeVariance relative_variance(const Film& it, const std::vector<float>& var, const Film* prior) {
+  auto pixel_mean = [](const Film& f, size_t i) {
+    return (double(f.r[i]) + double(f.g[i]) + double(f.b[i])) / (3.0 * double(f.weight[i]));
+  };
   std::vector<double> rel;
   size_t sampled = 0;
   for (size_t i = 0; i < var.size(); ++i) {
     if (it.weight[i] > 0.0f) ++sampled;
     if (!(var[i] >= 0.0f)) continue;
-    const double mean = (double(it.r[i]) + double(it.g[i]) + double(it.b[i])) / (3.0 * double(it.weight[i]));
+    const double mean = prior && prior->weight[i] > 0.0f ? pixel_mean(*prior, i) : pixel_mean(it, i);
     rel.push_back(double(var[i]) * double(it.weight[i]) / (mean * mean + 0.01));
   }
-  if (rel.empty() || rel.size() * 2 < sampled) return -1.0;
+  if (rel.empty() || rel.size() * 2 < sampled) return {};
+  RelativeVariance out;
+  double sum = 0.0;
+  for (double r : rel) sum += r;
+  out.full = sum / double(rel.size());
   const size_t keep = rel.size() - rel.size() / 100;
   std::nth_element(rel.begin(), rel.begin() + std::ptrdiff_t(keep - 1), rel.end());
-  double sum = 0.0;
+  sum = 0.0;
   for (size_t i = 0; i < keep; ++i) sum += rel[i];
-  return sum / double(keep);
+  out.robust = sum / double(keep);
+  return out;
 }
 
 nlohmann::json CombinationChoice::log() const {

@@ -55,11 +55,22 @@ std::vector<float> half_buffer_variance(const Film& film);
 // half-buffer estimate `var` (Var[pixel estimate] * W); < 0 when too few
 // pixels have one (1-spp iterations).
 double per_sample_variance(const Film& iteration, const std::vector<float>& var);
-// The per-sample relative variance (Var * W / (mean^2 + 0.01), weighted as
-// relMSE weighs errors) averaged over the pixels, the 1% most variable left
-// out: a figure for comparing the noise of two iterations (an efficiency
-// estimate) that one firefly in either does not decide.  < 0: unknown.
-double robust_relative_variance(const Film& iteration, const std::vector<float>& var);
+// The per-sample relative variance of an iteration, Var * W / (mean^2 +
+// 0.01) per pixel (weighted as relMSE weighs errors), averaged over the
+// pixels: what an efficiency estimate compares between two iterations.
+// `mean` is the pixel's value in `prior` (the iterations before, a stabler
+// estimate) where it has samples, else the iteration's own; the iteration's
+// own mean would hide a firefly (one sample of value V among n makes mean
+// ~ V / n, so the pixel's figure stays near n however large V is).
+struct RelativeVariance {
+  // The 1% most variable pixels left out: one firefly does not decide it.
+  double robust = -1.0;
+  // Every pixel: what relMSE sees, fireflies included (noisier).
+  double full = -1.0;
+  bool known() const { return robust >= 0.0 && full >= 0.0; }
+};
+// Unknown (both < 0) when too few pixels have a half-buffer estimate.
+RelativeVariance relative_variance(const Film& iteration, const std::vector<float>& var, const Film* prior = nullptr);
 
 // Consecutive iterations [spp_begin, spp_end), summed with their weights:
 // what the inverse-variance image needs of them.

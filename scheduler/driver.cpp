@@ -337,6 +337,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     info.spp_begin = cfg.sample_begin + uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
     info.spp_end = cfg.sample_begin + uint32_t(cumulative[size_t(i)]);
     auto ti = std::chrono::steady_clock::now();
+    const double cpu0 = process_cpu_seconds();
     info.elapsed_seconds = seconds_since(cfg.clock_start);
     tasks.begin_iteration(info);
     auto progress = [&](double f) {
@@ -390,7 +391,12 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       break;
     }
     info.seconds = seconds_since(ti);
-    if (tasks.measures_variance()) info.sample_variance = robust_relative_variance(film, half_buffer_variance(film));
+    info.cpu_seconds = process_cpu_seconds() - cpu0;
+    if (tasks.measures_variance()) {
+      const RelativeVariance v = relative_variance(film, half_buffer_variance(film), &acc.total);
+      info.sample_variance = v.robust;
+      info.sample_variance_full = v.full;
+    }
     acc.fold(film, info.spp_begin, info.spp_end);
     film.clear();
     pos.iteration = i + 1;
@@ -401,6 +407,8 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     tasks.end_iteration(info);
     iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
                           {"seconds", seconds_since(ti)},
+                          // The between-iteration tasks included, as in "seconds".
+                          {"cpu_seconds", process_cpu_seconds() - cpu0},
                           {"checkpoint", wrote_this_iteration},
                           {"checkpoint_seconds", checkpoint_seconds - before}});
     if (evaluation.is_object()) iterations.back().update(evaluation);

@@ -57,12 +57,16 @@ struct IterationInfo {
   int count = 0;            // iterations in the schedule
   uint32_t spp_begin = 0;   // samples [spp_begin, spp_end) of every pixel
   uint32_t spp_end = 0;
-  // Set for the end-of-iteration tasks: the iteration's wall seconds (the
-  // render alone) and, when a task asked for it (IterationTasks::
-  // measure_variance), its robust per-sample relative variance (combine.h;
-  // < 0: unknown, as for 1-spp iterations): what efficiency estimates need.
+  // Set for the end-of-iteration tasks: the iteration's wall and CPU
+  // seconds (the render alone; CPU: every thread of the process, which
+  // another process on the machine does not inflate) and, when a task asked
+  // for it (IterationTasks::measure_variance), its per-sample relative
+  // variance, robust and full (combine.h: relative_variance; < 0: unknown,
+  // as for 1-spp iterations): what efficiency estimates need.
   double seconds = 0.0;
+  double cpu_seconds = 0.0;
   double sample_variance = -1.0;
+  double sample_variance_full = -1.0;
   // Seconds since the render clock started (IterationConfig::clock_start),
   // at the iteration's start: what a time-limited render plans by.
   double elapsed_seconds = 0.0;

@@ -356,7 +356,9 @@ def log_statistics(log):
             "spp_min": spp.get("min"), "spp_max": spp.get("max"),
             "path_length": log.get("paths", {}).get("average_length"),
             "leaves": log.get("guiding", {}).get("spatial_leaves"),
-            "guide_failure_rate": find_key(log, GUIDE_FAILURE_KEYS)}
+            "guide_failure_rate": find_key(log, GUIDE_FAILURE_KEYS),
+            # --guiding-auto's verdict (on / off / provisional ...), None without auto.
+            "verdict": log.get("guiding", {}).get("auto", {}).get("verdict")}
 
 
 EQUAL_TIME_METRICS = ("rel_mse", "mape", "seconds_per_spp", "spp_min", "spp_max", "path_length", "leaves",
@@ -376,6 +378,8 @@ def aggregate(rows):
         for m in EQUAL_TIME_METRICS:
             values = [r[m] for r in rs if r.get(m) is not None]
             g[m] = float(np.median(values)) if values else None
+        verdicts = [r["verdict"] for r in rs if r.get("verdict")]
+        g["verdicts"] = ", ".join(verdicts) if verdicts else None  # seed by seed
         out.append(g)
     return out
 
@@ -390,8 +394,8 @@ def equal_time_table(groups, baseline):
 
     lines = ["| scene | configuration | budget [s] | seeds | spp (min-max) | relMSE | relMSE / "
              f"{baseline} | MAPE | variance across seeds | time per spp [s] | path length | leaves | "
-             "guide-draw failures |",
-             "|---" * 13 + "|"]
+             "guide-draw failures | auto verdicts |",
+             "|---" * 14 + "|"]
     for g in groups:
         b = base.get((g["scene"], g["budget"]))
         ratio = g["rel_mse"] / b["rel_mse"] if b and g["rel_mse"] is not None and b["rel_mse"] else None
@@ -399,7 +403,8 @@ def equal_time_table(groups, baseline):
         lines.append(f"| {g['scene']} | {g['configuration']} | {g['budget']:g} | {g['seeds']} | {spp} | "
                      f"{num(g['rel_mse'])} | {num(ratio, '{:.3f}')} | {num(g['mape'])} | {num(g['seed_variance'])} | "
                      f"{num(g['seconds_per_spp'], '{:.4f}')} | {num(g['path_length'], '{:.2f}')} | "
-                     f"{num(g['leaves'], '{:.0f}')} | {num(g['guide_failure_rate'], '{:.1%}')} |")
+                     f"{num(g['leaves'], '{:.0f}')} | {num(g['guide_failure_rate'], '{:.1%}')} | "
+                     f"{g.get('verdicts') or '-'} |")
     return lines
 
 

@@ -99,7 +99,8 @@ class EqualTime(unittest.TestCase):
                                      "rel_mse": scale * x / budget, "mape": 0.1 * x, "seconds_per_spp": 0.01 * x,
                                      "spp_min": 10 * x, "spp_max": 11 * x, "path_length": 3.0 + x,
                                      "leaves": 40.0 + x if config == "guided" else None,
-                                     "guide_failure_rate": None, "seed_variance": 0.5})
+                                     "guide_failure_rate": None, "seed_variance": 0.5,
+                                     "verdict": ("on", "off", "on")[seed] if config == "guided" else None})
         return rows
 
     def test_median_over_seeds_per_scene_configuration_and_budget(self):
@@ -114,12 +115,14 @@ class EqualTime(unittest.TestCase):
         self.assertAlmostEqual(g["leaves"], 42.0)
         self.assertIsNone(groups[0]["leaves"])          # no seed has it
         self.assertIsNone(g["guide_failure_rate"])
+        self.assertEqual(g["verdicts"], "on, off, on")  # seed by seed, not a median
+        self.assertIsNone(groups[0]["verdicts"])
 
     def test_table_has_one_row_per_group_ratios_to_the_baseline_and_dashes_where_absent(self):
         lines = er.equal_time_table(er.aggregate(self.rows()), "unguided")
         self.assertEqual(len(lines), 2 + 8)
         header = [c.strip() for c in lines[0].strip("|").split("|")]
-        self.assertEqual(len(header), 13)
+        self.assertEqual(len(header), 14)
         self.assertIn("relMSE / unguided", header)
         for line in lines[2:]:
             cells = [c.strip() for c in line.strip("|").split("|")]
@@ -129,6 +132,7 @@ class EqualTime(unittest.TestCase):
             self.assertEqual(row["guide-draw failures"], "-")
             self.assertEqual(row["leaves"], "42" if row["configuration"] == "guided" else "-")
             self.assertEqual(row["spp (min-max)"], "20-22")
+            self.assertEqual(row["auto verdicts"], "on, off, on" if row["configuration"] == "guided" else "-")
 
     def test_log_statistics_read_what_the_log_has(self):
         log = {"resolution": [10, 10], "rays": {"camera": 400}, "time": {"render": 2.0},
@@ -138,6 +142,8 @@ class EqualTime(unittest.TestCase):
         self.assertAlmostEqual(s["seconds_per_spp"], 0.5)  # 2 s over 4 spp
         self.assertEqual((s["spp_min"], s["spp_max"], s["leaves"]), (3, 5, 82))
         self.assertAlmostEqual(s["guide_failure_rate"], 0.1)
+        self.assertIsNone(s["verdict"])
+        self.assertEqual(er.log_statistics({"guiding": {"auto": {"verdict": "off"}}})["verdict"], "off")
         bare = er.log_statistics({"resolution": [10, 10]})
         self.assertTrue(all(v is None for v in bare.values()))
 

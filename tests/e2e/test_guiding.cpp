@@ -99,52 +99,142 @@ TEST(Guiding, TrainingEndsAtItsShareOfTheTimeLimit) {
   EXPECT_EQ(budget.log["guiding"]["updates"].get<int>(), 9);
 }
 
-// --guiding-auto judges in two rounds (each an iteration held out, without
-// guide and recorder, against the next, guided without recording): a probe
-// once the field has learned from a quarter of the training budget, and, if
-// guiding paid there, a final round once training has ended.  Whichever way
-// it goes (it is a measurement of time), the image stays unbiased.
-TEST(Guiding, AutoJudgesInTwoRoundsAndStaysUnbiased) {
+// --guiding-auto judges in rounds (held-out iterations, without guide and
+// recorder, against as many after them, guided without recording): a
+// one-pair probe once the field has learned from a sixteenth of the training
+// budget; if guiding came close to paying there, a one-pair recheck after an
+// eighth more of training (skipped when training ends first) and a two-pair
+// final round from where training ends.  Whichever way it goes (it is a
+// measurement of time), the image stays unbiased.
+TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   const std::vector<int> guiding_schedule{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16};
   EXPECT_EQ(guiding_holdout_iteration(guiding_schedule, 8), 9);  // 4 spp from 10 spp on
   EXPECT_EQ(guiding_holdout_iteration({16, 16, 32}, 8), 1);      // from 16 spp
   EXPECT_EQ(guiding_holdout_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4}, 8), -1);  // no successor
   EXPECT_EQ(guiding_holdout_iteration({8, 4, 1}, 8), -1);                       // successor of 1 spp
-  // Training 256 spp: the probe from 64 spp (iteration 14 starts at 70), the final round from 256.
-  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 256), 14);
-  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 256), -1);  // the schedule ends at 198 spp
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 1}, 0, 2), -1);                 // two pairs need 4 iterations
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 0, 2), 0);
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 1, 2), 1);   // 4 4 held out, 2 2 judged
+  EXPECT_EQ(guiding_holdout_iteration({8, 4, 4, 2, 2}, 9, 2), -1);  // from 12: too few left
+  // Training 256 spp: the probe from 16 spp (iteration 11 starts at 22).
+  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 256), 11);
+  // The final round from where training ended, two pairs.
   std::vector<int> longer = guiding_schedule;
   longer.resize(40, 16);
-  EXPECT_EQ(guiding_final_iteration(longer, 256), 26);  // iteration 26 starts at 262
-  // A small budget: the probe from 8 spp, the final round after the probe's pair.
+  EXPECT_EQ(guiding_final_iteration(longer, 262, 262), 26);  // iteration 26 starts at 262
+  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 262, 262), -1);  // the schedule ends at 198 spp
+  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 118, 118), 17);  // training ended by the clock
+  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 118, 134), 18);  // planned later: from now on
+  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 182, 182), -1);  // 20, 21 are one pair only
+  EXPECT_EQ(guiding_final_iteration(longer, -1, 54), 26);              // never-ending training: as 256
+  // The recheck: 32 spp after the probe's pair (it ends at 54): iteration 15 starts at 86.
+  EXPECT_EQ(guiding_recheck_iteration(guiding_schedule, 256), 15);
+  EXPECT_EQ(guiding_recheck_iteration({1, 1, 1, 1, 1, 1, 1, 1, 2, 4}, 256), -1);  // no probe
+  // A small budget: the probe from 8 spp, the recheck at least 16 spp after its pair (ends at 22).
   EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 16), 9);
-  EXPECT_EQ(guiding_final_iteration(guiding_schedule, 16), 11);  // 9, 10 end at 22 spp
-  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 0), 14);   // never-ending training: as 256
+  EXPECT_EQ(guiding_recheck_iteration(guiding_schedule, 16), 12);
+  EXPECT_EQ(guiding_probe_iteration(guiding_schedule, 0), 11);  // never-ending training: as 256
 
   Scene scene = load_test_scene_file(kCornell);
   RenderConfig c = quick_config(256);
   c.guiding.auto_off = true;
-  c.guiding.training_spp = 32;  // probe from 8 spp, final round after it
+  c.guiding.training_spp = 32;  // probe from 8 spp; training ends before the recheck; final round then
   RenderResult r = render_scene(scene, c);
   const nlohmann::json& a = r.log["guiding"]["auto"];
   std::printf("guiding-auto on cornell-box: %s\n", a.dump().c_str());
   EXPECT_EQ(r.log["options"]["guiding"].get<bool>(), true);  // auto implies guiding
   const std::vector<int> schedule = r.log["scheduler"]["schedule"].get<std::vector<int>>();
   EXPECT_EQ(a["probe"]["unguided_iteration"].get<int>(), guiding_probe_iteration(schedule, 32));
-  EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), guiding_final_iteration(schedule, 32));
   EXPECT_TRUE(a["probe"]["measured"].get<bool>());
-  EXPECT_GT(a["probe"]["unguided_variance"].get<double>(), 0.0);
-  EXPECT_GT(a["probe"]["guided_seconds_per_spp"].get<double>(), 0.0);
+  EXPECT_EQ(a["probe"]["guided"]["iterations"].get<int>(), 1);
+  EXPECT_GT(a["probe"]["unguided"]["variance"].get<double>(), 0.0);
+  EXPECT_GE(a["probe"]["unguided"]["variance_full"].get<double>(), a["probe"]["unguided"]["variance"].get<double>());
+  EXPECT_GT(a["probe"]["guided"]["cpu_seconds_per_spp"].get<double>(), 0.0);
   const std::string verdict = a["verdict"].get<std::string>();
   EXPECT_TRUE(verdict == "on" || verdict == "off") << verdict;
-  // The final round is measured exactly when the probe found that guiding paid.
-  EXPECT_EQ(a["final"]["measured"].get<bool>(), a["probe"]["efficiency_ratio"].get<double>() > 1.0);
+  // The final round is planned and measured exactly when the probe passed,
+  // from where training ended (the first iteration from 32 spp).
+  EXPECT_EQ(a["recheck"]["unguided_iteration"].get<int>(), -1);
+  EXPECT_FALSE(a["recheck"]["measured"].get<bool>());
+  const bool probe_passed = a["probe"]["pays"].get<bool>();
+  EXPECT_EQ(a["final"]["measured"].get<bool>(), probe_passed);
+  if (probe_passed) {
+    const int64_t trained = r.log["guiding"]["trained_spp"].get<int64_t>();
+    EXPECT_GE(trained, 32);
+    EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), guiding_final_iteration(schedule, trained, int(trained)));
+    EXPECT_EQ(a["final"]["guided"]["iterations"].get<int>(), 2);
+    EXPECT_EQ(verdict == "on", a["final"]["pays"].get<bool>());
+  } else {
+    EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), -1);
+    EXPECT_EQ(verdict, "off");
+  }
   if (verdict == "on") {
     EXPECT_GT(a["final"]["efficiency_ratio"].get<double>(), 1.1);
+    EXPECT_GT(a["final"]["efficiency_ratio_full"].get<double>(), 1.1);
   }
   ImageBuffer ref = read_image_file(std::string(THEIA_TEST_DATA) + "/cornell-box.exr");
   EXPECT_LT(rel_mse(r.image, ref), 0.005);
   EXPECT_LT(channel_mean_deviation(r.image, ref), 0.02);
+
+  // Training 128 spp: the recheck (iteration 12, from 38 spp) comes before
+  // training ends (134 spp), and each round is measured exactly when the one
+  // before passed.
+  scene.film.width = scene.film.height = 48;
+  c = quick_config(224);
+  c.guiding.auto_off = true;
+  c.guiding.training_spp = 128;
+  const nlohmann::json b = render_scene(scene, c).log["guiding"]["auto"];
+  std::printf("guiding-auto on cornell-box 48x48, training 128 spp: %s\n", b.dump().c_str());
+  EXPECT_EQ(b["recheck"]["unguided_iteration"].get<int>(), 12);
+  EXPECT_EQ(b["recheck"]["threshold"].get<double>(), kRecheckRule.threshold);
+  EXPECT_EQ(b["recheck"]["measured"].get<bool>(), b["probe"]["pays"].get<bool>());
+  const bool recheck_passed = b["recheck"]["pays"].get<bool>();
+  EXPECT_EQ(b["final"]["measured"].get<bool>(), recheck_passed);
+  if (recheck_passed) {
+    EXPECT_EQ(b["final"]["unguided_iteration"].get<int>(), 18);  // from 134 spp
+  }
+  EXPECT_EQ(b["verdict"].get<std::string>(), recheck_passed && b["final"]["pays"].get<bool>() ? "on" : "off");
+}
+
+// The final round needs guiding to pay by both variance figures: a guided
+// side with half the robust variance but fireflies (full variance 3x) does
+// not pass, however cheap; the early rounds judge by the robust figure alone
+// (one pair's full figure swings with a single firefly).  A figure that is
+// unknown (0) does not count against guiding.
+TEST(Guiding, AutoVerdictNeedsBothFiguresToPayInTheFinalRound) {
+  GuidingVerdict::Round round;
+  round.unguided_iteration = 5;
+  round.length = 2;
+  EXPECT_EQ(round.side_of(4), -1);
+  EXPECT_EQ(round.side_of(6), 0);
+  EXPECT_EQ(round.side_of(7), 1);
+  EXPECT_EQ(round.side_of(9), -1);
+  auto side = [](double variance, double full, double cpu_seconds) {
+    GuidingVerdict::Side s;
+    s.iterations = 2;
+    s.spp = 32;
+    s.variance = variance * 32.0;
+    s.variance_full = full * 32.0;
+    s.cpu_seconds = cpu_seconds;
+    return s;
+  };
+  round.unguided = side(1.0, 1.5, 3.2);
+  round.guided = side(0.5, 4.5, 3.2);
+  EXPECT_TRUE(round.measured());
+  EXPECT_DOUBLE_EQ(round.efficiency_ratio(false), 2.0);
+  EXPECT_NEAR(round.efficiency_ratio(true), 1.0 / 3.0, 1e-12);
+  EXPECT_FALSE(guiding_pays(round, kFinalRule));
+  EXPECT_TRUE(guiding_pays(round, kProbeRule));  // robust alone
+  EXPECT_TRUE(guiding_pays(round, kRecheckRule));
+  round.guided = side(0.5, 0.75, 3.2);  // no fireflies
+  EXPECT_TRUE(guiding_pays(round, kFinalRule));
+  round.guided = side(0.5, 0.75, 6.4);  // twice the time per sample: no gain
+  EXPECT_FALSE(guiding_pays(round, kFinalRule));
+  EXPECT_TRUE(guiding_pays(round, kProbeRule));  // the probe is lenient: 1.0 passes it
+  round.guided = side(0.5, 0.75, 9.6);           // 2/3: the probe asks for more
+  EXPECT_FALSE(guiding_pays(round, kProbeRule));
+  round.guided = side(0.0, 0.0, 6.4);  // a noiseless image: nothing says it loses
+  EXPECT_TRUE(guiding_pays(round, kFinalRule));
 }
 
 // One-sample MIS with the selection probability learned per leaf (seeds/001

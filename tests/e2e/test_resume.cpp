@@ -240,6 +240,46 @@ TEST(Resume, PathGuidingResumesExactly) {
   EXPECT_GT(test::max_relative_difference(read_image_file(f.out("plain.exr")), ref), 1e-3);
 }
 
+// --guiding-auto's state is in the checkpoint: the verdict, each round's
+// partial sums and the final round's plan.  Its verdicts are measurements of
+// time, so the resumed image is not compared with an uninterrupted one; what
+// must hold is that the resumed render continues the rounds it had begun
+// (without the checkpoint's state, the probe, already past, would never be
+// measured, and a final round stopped half-way never completed).
+TEST(Resume, GuidingAutoContinuesItsRoundsAfterResume) {
+  Fixture f("guidingauto", " --guiding-auto --guiding-training-spp 32 --spp 96");
+  // Guiding schedule for 96 spp: 1 x8, 2 4 8 16 16 16 16 10.  The probe holds
+  // out iteration 9 (4 spp from 10) against 10; training ends at 38 spp
+  // (iteration 12), where the final round holds out 12 and 13 against 14 and 15.
+  // Stopped after the probe, then inside the final round's second held-out iteration.
+  std::string ck = f.out("ck");
+  for (const std::string at : {"11:0", "13:0.5"}) {
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at);
+    ASSERT_EQ(r.exit_code, kInterrupted) << at << "\n" << r.output;
+  }
+  RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --resume");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("out.json")));
+  ASSERT_TRUE(log["scheduler"]["resumed"].get<bool>());
+  const nlohmann::json& a = log["guiding"]["auto"];
+  SCOPED_TRACE(a.dump());
+  EXPECT_EQ(a["probe"]["unguided_iteration"].get<int>(), 9);
+  EXPECT_TRUE(a["probe"]["measured"].get<bool>());
+  EXPECT_EQ(a["probe"]["unguided"]["spp"].get<int64_t>(), 4);
+  EXPECT_EQ(a["probe"]["guided"]["spp"].get<int64_t>(), 8);
+  if (a["probe"]["pays"].get<bool>()) {
+    EXPECT_EQ(log["guiding"]["trained_spp"].get<int64_t>(), 38);
+    EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), 12);
+    EXPECT_TRUE(a["final"]["measured"].get<bool>());
+    EXPECT_EQ(a["final"]["unguided"]["spp"].get<int64_t>(), 32);  // 12 before the stops, 13 after
+    EXPECT_EQ(a["final"]["guided"]["spp"].get<int64_t>(), 26);
+    EXPECT_NE(a["verdict"].get<std::string>(), "provisional");
+  } else {
+    EXPECT_EQ(a["verdict"].get<std::string>(), "off");
+    EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), -1);
+  }
+}
+
 // The learned selection probability (Adam's state per leaf) is part of the
 // field's checkpoint: stopped mid-training, the resumed render learns on as
 // the uninterrupted one did.

@@ -154,6 +154,40 @@ TEST(Combination, HalfBufferVarianceOfThePixelEstimate) {
   EXPECT_EQ(half_buffer_variance(f)[0], -1.0f);  // one sample: unknown
 }
 
+// The verdict statistic of --guiding-auto on a synthetic pair: the "guided"
+// iteration has half the noise of the "unguided" one but a firefly (one
+// sample of 200 where the pixel is 0.5) in 0.5% of its pixels, as guiding's
+// rare high-weight paths are.  The robust figure (1% trimmed) calls it better,
+// the full one worse, as relMSE would.  The pixel's mean comes from the
+// iterations before: with the iteration's own (the firefly pulls it to ~13),
+// a firefly pixel's figure stays near the spp and the full figure hides it.
+TEST(Combination, FullRelativeVarianceSeesFirefliesTheRobustOneLeavesOut) {
+  std::mt19937 rng(7);
+  Film prior(kW, kH), unguided(kW, kH), guided(kW, kH);
+  synthetic_iteration(prior, 0, 64, 0.2f, nullptr);  // antithetic: every pixel exactly kTruth
+  synthetic_iteration(unguided, 64, 16, 0.2f, &rng);
+  synthetic_iteration(guided, 80, 16, 0.1f, &rng);
+  const uint32_t n = guided.pixel_count(), fireflies = n / 200;
+  for (uint32_t k = 0; k < fireflies; ++k) {
+    const uint32_t p = k * 197 % n;
+    guided.splat(p, 80, RGB(200.0f - kTruth), kEventEmission);  // sample 80 of pixel p: kTruth + noise + 199.5
+  }
+  const RelativeVariance u = relative_variance(unguided, half_buffer_variance(unguided), &prior);
+  const RelativeVariance g = relative_variance(guided, half_buffer_variance(guided), &prior);
+  ASSERT_TRUE(u.known() && g.known());
+  EXPECT_LT(g.robust, 0.5 * u.robust);  // a quarter of the variance where there is no firefly
+  EXPECT_GT(g.full, 10.0 * u.full);     // the fireflies dominate what relMSE sees
+  EXPECT_NEAR(u.full, 0.04 / 0.26, 0.02);  // sigma^2 / (0.5^2 + 0.01)
+  // Without the prior, each firefly pixel's figure is ~15 and the full figure
+  // would call the guided iteration better.
+  const RelativeVariance own = relative_variance(guided, half_buffer_variance(guided));
+  EXPECT_LT(own.full, u.full);
+  // Too few pixels with two samples: unknown.
+  Film one(kW, kH);
+  synthetic_iteration(one, 0, 1, 0.2f, &rng);
+  EXPECT_FALSE(relative_variance(one, half_buffer_variance(one), &prior).known());
+}
+
 TEST(Combination, EqualWeightingSumsEverySampleAndKeepsNoIterationImages) {
   Film it(1, 1);
   ImageAccumulator acc(1, 1);

@@ -44,7 +44,11 @@ float majorant_scale(const Medium& m) {
 }
 
 // The distance to the next tentative collision at majorant rate sigma_maj.
-float exponential_step(float sigma_maj, float u) { return -std::log1p(-u) / sigma_maj; }
+// log(1 - u), not log1p(-u): u is a multiple of 2^-24 (to_unit_float, and
+// the sampler's to_sample), so 1 - u is exact and the two differ by rounding
+// only, while glibc's logf takes about half the instructions of its log1pf,
+// which was a tenth of a smoke-grid render.
+float exponential_step(float sigma_maj, float u) { return -std::log(1.0f - u) / sigma_maj; }
 
 // Walks the tentative collisions of `m` along `ray` in [0, tmax]: visit(s,
 // point props, t) returns false to stop.  Returns true if the walk left the

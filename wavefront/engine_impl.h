@@ -195,8 +195,12 @@ struct WavefrontEngine::Impl {
   template <bool kObserve>
   bool add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si, ShadeOutput& out);
   template <bool kObserve>
+  void prepare_vertex(ShadingPoint& v) const;
+  template <bool kObserve>
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
   std::optional<Continuation> sample_continuation(const ShadingPoint& v) const;
+  template <bool kObserve>
+  void continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out);
   bool survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local, float eta_scale,
                          double correction, float adjoint, float& survival) const;
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);

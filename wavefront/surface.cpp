@@ -28,45 +28,61 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
     film.splat_first_hit(ps.pixel, ps.filter_weight, true, bsdf_albedo(v.bsdf), v.ns, si.t);
   if (int(ps.depth) >= opt.max_depth) return finish_path<kObserve>(slot, out);
 
+  prepare_vertex<kObserve>(v);
+  sample_direct_light<kObserve>(v, out);
+  // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
+  std::optional<Continuation> c = sample_continuation(v);
+  if (!c || !(c->bs.pdf > 0.0f)) return finish_path<kObserve>(slot, out);
+  continue_path<kObserve>(v, *c, out);
+}
+
+// The vertex's sample dimensions, throughput, caustic flags, roughening and
+// whether (and with which selection probability) it is guided.
+template <bool kObserve>
+void WavefrontEngine::Impl::prepare_vertex(ShadingPoint& v) const {
+  const PathState& ps = v.ps;
   v.dims = bounce_dims(ps.depth);
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ps.beta;
   v.caustic_flags = caustic_flags(ps, v.bsdf);
   // Roughened after the caustic flags, so that camera paths leave the caustic
   // pass the paths they leave it without roughening (its light paths see the
   // scene's own BSDFs).  A camera ray's alpha' is 0: nothing changes at depth 0.
-  if (!pool.roughness.empty() && pool.roughness[slot] > 0.0f)
-    bsdf_roughen(v.bsdf, opt.roughening, pool.roughness[slot]);
+  if (!pool.roughness.empty() && pool.roughness[v.slot] > 0.0f)
+    bsdf_roughen(v.bsdf, opt.roughening, pool.roughness[v.slot]);
   // Only a guide or the recorder (which trains only where guiding applies) asks.
   v.guidable = (kObserve || hooks.guide) && bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness);
   if (hooks.guide && v.guidable) {
-    v.guide_region = hooks.guide->region(si.p);
+    v.guide_region = hooks.guide->region(v.si.p);
     if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
   }
+}
 
-  sample_direct_light<kObserve>(v, out);
-
-  // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
-  std::optional<Continuation> c = sample_continuation(v);
-  if (!c || !(c->bs.pdf > 0.0f)) return finish_path<kObserve>(slot, out);
-  const BSDFSample& bs = c->bs;
+// The sampled direction's throughput, Russian roulette, the vertex reported
+// to the observer, the path's state advanced and its next ray queued.
+template <bool kObserve>
+void WavefrontEngine::Impl::continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out) {
+  PathState& ps = v.ps;
+  const uint32_t slot = v.slot;
+  const SurfaceInteraction& si = v.si;
+  const BSDFSample& bs = c.bs;
   RGB local = bs.f * (std::abs(glm::dot(bs.wi, v.ns)) / bs.pdf);
   RGB beta = v.beta * local;
   // Radiance refracted into a denser medium is scaled by 1/eta^2; roulette
   // undoes that scale so that it does not kill paths inside glass.
   const float eta_scale = bs.is_transmission() ? ps.eta_scale * sqr(bs.eta) : ps.eta_scale;
   double correction = 1.0;
-  if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
-  const float adjoint = pool.pixel_estimate.empty() ? -1.0f : adjoint_survival(v, *c, beta);
+  if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c.roulette;
+  const float adjoint = pool.pixel_estimate.empty() ? -1.0f : adjoint_survival(v, c, beta);
   float survival = 1.0f;
   if (!survives_roulette(ps, v.dims.roulette, beta, local, eta_scale, correction, adjoint, survival) ||
       !is_finite(beta) ||
       is_black(beta))
     return finish_path<kObserve>(slot, out);
-  if constexpr (kObserve) report_vertex(v, *c, local, survival);
+  if constexpr (kObserve) report_vertex(v, c, local, survival);
 
   ps.beta = beta;
   ps.depth = uint16_t(ps.depth + 1);
-  ps.prev_pdf = c->mis_pdf;
+  ps.prev_pdf = c.mis_pdf;
   ps.eta_scale = eta_scale;
   ps.flags = uint8_t((bs.is_specular() ? kPathPrevSpecular : 0) | v.caustic_flags |
                      first_event_bits(ps.flags, event_of_lobe(bs.flags)));

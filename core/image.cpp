@@ -51,6 +51,19 @@ float srgb8_to_linear(uint8_t v) {
   return table[v];
 }
 
+float srgb_texel_to_linear(float v) {
+  static const std::array<float, 256> table = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) t[size_t(i)] = srgb_to_linear(float(i) * (1.0f / 255.0f));
+    return t;
+  }();
+  if (v >= 0.0f && v <= 1.0f) {
+    const int code = int(v * 255.0f + 0.5f);
+    if (v == float(code) * (1.0f / 255.0f)) return table[size_t(code)];
+  }
+  return srgb_to_linear(v);
+}
+
 namespace {
 
 // ---------------------------------------------------------------- OpenEXR

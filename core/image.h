@@ -113,5 +113,9 @@ inline uint8_t linear_to_srgb8(float v) {
 }
 // Decodes an 8-bit sRGB code value through a table (exact to float rounding).
 float srgb8_to_linear(uint8_t v);
+// srgb_to_linear(v), through a table when v is an 8-bit code value as the
+// image readers give them (code * (1.0f / 255.0f)): the same value without a
+// powf per texel, which was 5% of living-room's 8-spp render.
+float srgb_texel_to_linear(float v);
 
 }  // namespace theia

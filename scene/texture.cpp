@@ -107,7 +107,7 @@ void load_image(Image& image, const std::string& base_dir, const ImageReserve& r
       float v = buf.data[i * src_nc + size_t(ch[size_t(c)])];
       if (c != alpha) {
         if (enc.kind == Encoding::SRGB)
-          v = srgb_to_linear(v);
+          v = srgb_texel_to_linear(v);
         else if (enc.kind == Encoding::Gamma)
           v = std::pow(std::max(v, 0.0f), enc.gamma);
       }

@@ -459,6 +459,19 @@ TEST(ImageSrgb, TransferFunctionMatchesTheStandard) {
   EXPECT_EQ(linear_to_srgb8(0.5f), 188);
 }
 
+TEST(ImageSrgb, TexelDecodeEqualsTheTransferFunctionBitForBit) {
+  // 8-bit code values as the readers give them take the table; anything else the formula.
+  for (int i = 0; i <= 255; ++i) {
+    const float v = float(i) * (1.0f / 255.0f);
+    EXPECT_EQ(srgb_texel_to_linear(v), srgb_to_linear(v)) << i;
+    EXPECT_EQ(srgb_texel_to_linear(std::nextafter(v, 2.0f)), srgb_to_linear(std::nextafter(v, 2.0f))) << i;
+    const float w = float(i) / 65535.0f;  // 16-bit codes
+    EXPECT_EQ(srgb_texel_to_linear(w), srgb_to_linear(w)) << i;
+  }
+  EXPECT_EQ(srgb_texel_to_linear(-0.25f), srgb_to_linear(-0.25f));
+  EXPECT_EQ(srgb_texel_to_linear(1.5f), srgb_to_linear(1.5f));
+}
+
 TEST(ImageBufferTest, IndexingIsInterleavedRowMajorFromTheTop) {
   ImageBuffer img(3, 2, {"R", "G"});
   img.at(2, 1, 1) = 5.0f;

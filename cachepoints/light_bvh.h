@@ -35,6 +35,14 @@
 
 namespace theia {
 
+// cos(max(0, theta_a - theta_b)) and sin of it, from the cosines and sines.
+inline float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+  return cos_a >= cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
+}
+inline float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+  return cos_a >= cos_b ? 0.0f : sin_a * cos_b - cos_a * sin_b;
+}
+
 // A node's emission bound.  cos_o: the normals lie within theta_o of `axis`;
 // cos_e: each emitter sends light within theta_e of its normal (pi/2 for area
 // emitters and points; cos_o = -1 is every direction).
@@ -70,6 +78,12 @@ struct LightBvhNode {
   int emitter = -1;   // leaf: the emitter
   int parent = -1;
 };
+
+// The hierarchy over the finite emitters of positive peak intensity (the
+// infinite and distant ones, and black ones, are not in it): nodes[0] is the
+// root, children follow their parents; empty when there is no such emitter.
+// A pure function of the emitters.  `depth`, if given, gets the tree's depth.
+std::vector<LightBvhNode> build_light_tree(const LightSet& lights, const EmitterSet& emitters, int* depth = nullptr);
 
 class LightBvhSampler final : public LightSampler {
  public:

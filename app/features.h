@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -118,6 +119,9 @@ struct GuidingOptions : SDTreeOptions {
   // the update), and on veach-ajar a field trained on 64 spp already halves
   // the per-sample variance, so a short budget is better spent rendering.
   float training_share = 0.25f;
+  // Tests only (--test-guiding-verdict, outside the fingerprint): every
+  // --guiding-auto round says "on" or "off", whatever it measured.
+  std::string test_verdict;
 };
 
 template <class V>
@@ -254,6 +258,12 @@ class GuidingFeature final : public Feature {
   void add_tasks(IterationTasks& tasks) override;
   void add_participants(std::vector<CheckpointParticipant>& participants) override;
   void write_log(nlohmann::json& log) const override;
+  // --guiding-auto, once decided for good with nothing left to learn (off,
+  // or on with training over): the regular schedule for the rest of the
+  // render (IterationConfig::switch_schedule).  Guiding's small iterations
+  // pay only while the field learns and rounds measure; after that each one
+  // costs its fixed work (fold, variance pass, tasks, the wavefront's drain).
+  std::optional<ScheduleOptions> schedule_after(const IterationInfo& it) const;
 
  private:
   // The engine's hooks with or without the guide and the recorder.

@@ -280,6 +280,34 @@ TEST(Resume, GuidingAutoContinuesItsRoundsAfterResume) {
   }
 }
 
+// Where --guiding-auto switched to the regular schedule is in the checkpoint:
+// stopped before the switch (in the probe's judged iteration) and after it
+// (inside the first switched iteration), the resumed render renders the
+// schedule and the image an uninterrupted one does.  The verdict is forced
+// ("off"), so the uninterrupted image is known.
+TEST(Resume, GuidingAutoScheduleSwitchResumesExactly) {
+  Fixture f("autoswitch", " --guiding-auto --test-guiding-verdict off --spp 96");
+  // Guiding schedule for 96 spp: 1 x8, 2 4 8 16 16 16 16 10; the probe holds
+  // out 11 (22 spp) against 12; from 13 (54 spp) the regular schedule: 42.
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  const nlohmann::json ref = nlohmann::json::parse(std::ifstream(f.out("ref.json")));
+  const std::vector<int> switched{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16, 42};
+  EXPECT_EQ(ref["scheduler"]["schedule"].get<std::vector<int>>(), switched);
+  EXPECT_EQ(ref["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 13);
+  for (const std::string at : {"12:0.5", "13:0.5"}) {
+    SCOPED_TRACE(at);
+    const std::string ck = f.out("ck" + at.substr(0, 2));
+    ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at).exit_code, kInterrupted);
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --resume");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("out.json")));
+    EXPECT_TRUE(log["scheduler"]["resumed"].get<bool>());
+    EXPECT_EQ(log["scheduler"]["schedule"].get<std::vector<int>>(), switched);
+    EXPECT_EQ(log["scheduler"]["schedule_switch"], ref["scheduler"]["schedule_switch"]);
+    EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), read_image_file(f.out("ref.exr"))), 1e-5);
+  }
+}
+
 // The learned selection probability (Adam's state per leaf) is part of the
 // field's checkpoint: stopped mid-training, the resumed render learns on as
 // the uninterrupted one did.

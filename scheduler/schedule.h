@@ -95,6 +95,7 @@ enum class BetweenIterationSlot {
 };
 inline constexpr const char* kSlotNames[] = {"guiding_update", "cache_point_update", "adaptive_sampler_update",
                                              "recorder_skip_rate_update", "schedule_switch", "checkpoint"};
+static_assert(sizeof(kSlotNames) / sizeof(kSlotNames[0]) == size_t(BetweenIterationSlot::Count));
 
 // What runs around and between iterations.  A subsystem registers itself with
 // one line: tasks.add(BetweenIterationSlot::GuidingUpdate, [&](auto& it) { ... }).

@@ -363,7 +363,8 @@ void GuidingFeature::judge(GuidingVerdict::Round& round) {
 
 std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInfo&) const {
   if (!tree_ || !options_.auto_off) return std::nullopt;
-  const bool done = verdict_.state == GuidingVerdict::Off || (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0);
+  const bool done =
+      verdict_.state == GuidingVerdict::Off || (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0);
   return done ? std::optional(regular_schedule()) : std::nullopt;
 }
 

@@ -166,7 +166,8 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
 bool follows_plan(const std::vector<int>& planned, const std::vector<int>& saved, int switched_at) {
   if (switched_at < 0) return saved == planned;
   const size_t at = size_t(switched_at);
-  return at <= planned.size() && at <= saved.size() && std::equal(planned.begin(), planned.begin() + switched_at, saved.begin()) &&
+  return at <= planned.size() && at <= saved.size() &&
+         std::equal(planned.begin(), planned.begin() + switched_at, saved.begin()) &&
          std::accumulate(planned.begin(), planned.end(), 0) == std::accumulate(saved.begin(), saved.end(), 0);
 }
 
@@ -419,6 +420,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       pos.finished = ended_by_time_limit = true;
       iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
                             {"seconds", seconds_since(ti)},
+                            {"cpu_seconds", process_cpu_seconds() - cpu0},
                             {"stopped_after_camera_samples", done},
                             {"of_camera_samples", camera_total}});
       if (cfg.evaluate) iterations.back().update(cfg.evaluate(info, acc));

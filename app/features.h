@@ -131,7 +131,8 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("auto", o.auto_off,
           "Guiding measures whether it pays (relative variance, robust and with fireflies, x CPU time per sample "
           "of held-out unguided against guided iterations: early in training and again once it ends) and turns "
-          "itself off where it does not; implies --guiding");
+          "itself off where it does not; once decided (and trained), the rest renders on the regular schedule; "
+          "implies --guiding");
   v.image("sampling", o.sampling,
           "Guided directions: ris (resampling one BSDF and one guide candidate), mis (one-sample MIS with a fixed "
           "share) or mis-learned (one-sample MIS, the share learned per region)");

@@ -348,7 +348,8 @@ const GuidingRule& GuidingFeature::rule_of(const GuidingVerdict::Round& round) c
 void GuidingFeature::judge(GuidingVerdict::Round& round) {
   const bool is_final = &round == &verdict_.final;
   const char* name = &round == &verdict_.probe ? "probe" : is_final ? "final" : "recheck";
-  const bool pays = guiding_pays(round, rule_of(round));
+  const bool pays =
+      options_.test_verdict.empty() ? guiding_pays(round, rule_of(round)) : options_.test_verdict == "on";
   verdict_.state = !pays ? GuidingVerdict::Off : is_final ? GuidingVerdict::On : GuidingVerdict::Provisional;
   static const char* kSays[] = {"", "guiding stays on", "guiding off for the rest of the render",
                                 "guiding and training go on, to be judged again once training ends"};
@@ -358,6 +359,13 @@ void GuidingFeature::judge(GuidingVerdict::Round& round) {
            round.variance_ratio(false), round.variance_ratio(true),
            round.guided.cpu_seconds_per_spp() / std::max(round.unguided.cpu_seconds_per_spp(), 1e-300),
            kSays[verdict_.state]);
+}
+
+std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInfo&) const {
+  if (!tree_ || !options_.auto_off) return std::nullopt;
+  const bool done =
+      verdict_.state == GuidingVerdict::Off || (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0);
+  return done ? std::optional(regular_schedule()) : std::nullopt;
 }
 
 // The field learns from each training iteration's samples (handed over by

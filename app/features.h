@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -118,6 +119,9 @@ struct GuidingOptions : SDTreeOptions {
   // the update), and on veach-ajar a field trained on 64 spp already halves
   // the per-sample variance, so a short budget is better spent rendering.
   float training_share = 0.25f;
+  // Tests only (--test-guiding-verdict, outside the fingerprint): every
+  // --guiding-auto round says "on" or "off", whatever it measured.
+  std::string test_verdict;
 };
 
 template <class V>
@@ -127,7 +131,8 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("auto", o.auto_off,
           "Guiding measures whether it pays (relative variance, robust and with fireflies, x CPU time per sample "
           "of held-out unguided against guided iterations: early in training and again once it ends) and turns "
-          "itself off where it does not; implies --guiding");
+          "itself off where it does not; once decided (and trained), the rest renders on the regular schedule; "
+          "implies --guiding");
   v.image("sampling", o.sampling,
           "Guided directions: ris (resampling one BSDF and one guide candidate), mis (one-sample MIS with a fixed "
           "share) or mis-learned (one-sample MIS, the share learned per region)");
@@ -254,6 +259,12 @@ class GuidingFeature final : public Feature {
   void add_tasks(IterationTasks& tasks) override;
   void add_participants(std::vector<CheckpointParticipant>& participants) override;
   void write_log(nlohmann::json& log) const override;
+  // --guiding-auto, once decided for good with nothing left to learn (off,
+  // or on with training over): the regular schedule for the rest of the
+  // render (IterationConfig::switch_schedule).  Guiding's small iterations
+  // pay only while the field learns and rounds measure; after that each one
+  // costs its fixed work (fold, variance pass, tasks, the wavefront's drain).
+  std::optional<ScheduleOptions> schedule_after(const IterationInfo& it) const;
 
  private:
   // The engine's hooks with or without the guide and the recorder.

@@ -385,13 +385,11 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   WavefrontEngine engine(rs, film, engine_opt, hooks);
   for (Feature* f : features.all()) f->attach(engine);
   ic.adaptive = features.adaptive.sampler();
+  ic.switch_schedule = [&](const IterationInfo& it) { return features.guiding.schedule_after(it); };
 
   ProgressBar bar(c.progress);
-  const std::vector<int> cumulative = cumulative_spp(sizes);
-  ic.progress = [&](int it, double fraction) {
-    double before = it > 0 ? cumulative[size_t(it) - 1] : 0;
-    bar.update((before + fraction * (cumulative[size_t(it)] - before)) / cumulative.back(),
-               engine.stats().total_rays());
+  ic.progress = [&](int it, double fraction, double of_render) {
+    bar.update(of_render, engine.stats().total_rays());
     if (c.on_iteration_progress) c.on_iteration_progress(it, fraction);
   };
   ReferenceEvaluation evaluation{reference, wall_start, render_start};

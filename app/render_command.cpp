@@ -22,6 +22,10 @@ void add_render_command(CLI::App& app, RenderCommand& r) {
   render->add_option("--test-sigterm-at", r.test_sigterm, "")->group("");
   // Tests only: abandon paths in flight this many seconds after a stop signal (default 2).
   render->add_option("--test-abandon-after", rc.abandon_after_seconds, "")->group("");
+  // Tests only: every --guiding-auto round judges "on" or "off".
+  render->add_option("--test-guiding-verdict", rc.guiding.test_verdict, "")
+      ->group("")
+      ->check(CLI::IsMember({"on", "off"}));
 }
 
 void check_render_words(const std::vector<std::string>& words, const std::string& what) {

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <thread>
 
@@ -15,7 +16,7 @@ namespace theia {
 namespace {
 
 constexpr const char* kSchedulerSection = "scheduler";
-constexpr uint32_t kSchedulerSectionVersion = 2;
+constexpr uint32_t kSchedulerSectionVersion = 3;
 // A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance).
 constexpr const char* kRunChannels[5] = {"R", "G", "B", "W", "V"};
 
@@ -27,6 +28,8 @@ struct Position {
   // in the image, and nothing is left to render.
   bool finished = false;
   uint64_t generation = 0;      // of the last checkpoint written or read
+  // The first iteration of a schedule switched to (IterationConfig::switch_schedule); -1: none.
+  int switched_at = -1;
 };
 
 // Raises `stop` with StopReason::TimeLimit at `at`, unless destroyed first.
@@ -152,12 +155,23 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   for (const WeightedRun& r : acc.runs) run_spp.insert(run_spp.end(), {r.spp_begin, r.spp_end});
   w.put_vector(run_spp);
   w.put<uint32_t>(acc.skipped);
+  w.put<int32_t>(pos.switched_at);
   c.sections.push_back({kSchedulerSection, kSchedulerSectionVersion, std::move(w.bytes)});
   for (const auto& p : cfg.participants) c.sections.push_back({p.name, p.version, p.save()});
   return c;
 }
 
-void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<int>& sizes, Position& pos,
+// A checkpoint's schedule is the one planned up front or, when it switched
+// (switched_at >= 0), that one up to the switch and as many samples in all.
+bool follows_plan(const std::vector<int>& planned, const std::vector<int>& saved, int switched_at) {
+  if (switched_at < 0) return saved == planned;
+  const size_t at = size_t(switched_at);
+  return at <= planned.size() && at <= saved.size() &&
+         std::equal(planned.begin(), planned.begin() + switched_at, saved.begin()) &&
+         std::accumulate(planned.begin(), planned.end(), 0) == std::accumulate(saved.begin(), saved.end(), 0);
+}
+
+void restore(const Checkpoint& c, const IterationConfig& cfg, std::vector<int>& sizes, Position& pos,
              ImageAccumulator& acc, Film& partial) {
   const std::string what = checkpoint_bin_path(cfg.checkpoint.dir, c.generation);
   if (c.scene_hash != cfg.scene_hash)
@@ -176,7 +190,7 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
   ByteReader r(s->bytes, what);
   int total = r.get<int32_t>();
   std::vector<int> saved_sizes = r.get_vector<int>();
-  if (total != cfg.total_spp || saved_sizes != sizes) throw_error("{}: written for a different schedule", what);
+  if (total != cfg.total_spp) throw_error("{}: written for a different schedule", what);
   pos.iteration = r.get<int32_t>();
   pos.camera_done = r.get<uint64_t>();
   pos.finished = r.get<uint8_t>() != 0;
@@ -184,6 +198,9 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, const std::vector<
   uint64_t dropped_total = r.get<uint64_t>(), dropped_partial = r.get<uint64_t>();
   std::vector<uint32_t> run_spp = r.get_vector<uint32_t>();
   const uint32_t skipped = r.get<uint32_t>();
+  pos.switched_at = r.get<int32_t>();
+  if (!follows_plan(sizes, saved_sizes, pos.switched_at)) throw_error("{}: written for a different schedule", what);
+  sizes = saved_sizes;
   if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks)
     throw_error("{}: bad inverse-variance runs", what);
   if (pos.iteration < 0 || pos.iteration > int(sizes.size())) throw_error("{}: iteration out of range", what);
@@ -249,10 +266,15 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   IterationConfig cfg = config;
   if (cfg.adaptive) cfg.participants.push_back(cfg.adaptive->participant());
   auto t0 = std::chrono::steady_clock::now();
-  const std::vector<int> sizes = iteration_sizes(cfg);
-  const std::vector<int> cumulative = cumulative_spp(sizes);
-  const std::vector<bool> planned =
-      checkpoint_iterations(cumulative, cfg.checkpoint.first, cfg.checkpoint.every_iteration);
+  // The schedule planned up front; a switch (or a resumed one) replaces its tail.
+  std::vector<int> sizes = iteration_sizes(cfg);
+  std::vector<int> cumulative;
+  std::vector<bool> planned;
+  auto plan = [&] {
+    cumulative = cumulative_spp(sizes);
+    planned = checkpoint_iterations(cumulative, cfg.checkpoint.first, cfg.checkpoint.every_iteration);
+  };
+  plan();
   const bool checkpoints = !cfg.checkpoint.dir.empty();
   if (cfg.resume && !checkpoints) throw_error("--resume needs --checkpoint-dir");
   if (cfg.time_limit > 0 && !cfg.stop) throw_error("internal: a time limit needs the engine's stop request");
@@ -264,6 +286,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   if (checkpoints) {
     if (auto c = read_latest_checkpoint(cfg.checkpoint.dir)) {
       restore(*c, cfg, sizes, pos, acc, film);
+      plan();
       resumed = true;
       if (pos.finished)
         log_info("{} holds a render its time limit ended; writing its image, rendering nothing",
@@ -321,6 +344,26 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
   if (cfg.adaptive)
     tasks.add(BetweenIterationSlot::AdaptiveSamplerUpdate,
               [&](const IterationInfo& it) { cfg.adaptive->update(acc.total, it.index); });
+  nlohmann::json switch_log;  // null: the schedule planned up front throughout
+  auto log_switch = [&] {
+    const int at = pos.switched_at;
+    switch_log = {{"at_iteration", at}, {"at_spp", at > 0 ? cumulative[size_t(at) - 1] : 0}};
+  };
+  if (pos.switched_at >= 0) log_switch();
+  if (cfg.switch_schedule && !cfg.adaptive)
+    tasks.add(BetweenIterationSlot::ScheduleSwitch, [&](const IterationInfo& it) {
+      if (pos.switched_at >= 0 || it.last()) return;
+      const std::optional<ScheduleOptions> to = cfg.switch_schedule(it);
+      if (!to) return;
+      sizes = switch_schedule(sizes, it.index + 1, *to);
+      plan();
+      pos.switched_at = it.index + 1;
+      info.count = int(sizes.size());
+      log_switch();
+      log_info("schedule: switched from iteration {} ({} spp) on: {} more iteration(s), the first of {} spp",
+               it.index + 2, cumulative[size_t(it.index)], sizes.size() - size_t(it.index) - 1,
+               sizes[size_t(it.index) + 1]);
+    });
   if (checkpoints)
     tasks.add(BetweenIterationSlot::Checkpoint, [&](const IterationInfo& it) {
       wrote_this_iteration = planned[size_t(it.index)] || (signalled() && !it.last());
@@ -341,7 +384,9 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     info.elapsed_seconds = seconds_since(cfg.clock_start);
     tasks.begin_iteration(info);
     auto progress = [&](double f) {
-      if (cfg.progress) cfg.progress(i, f);
+      if (!cfg.progress) return;
+      const double before = cumulative[size_t(i)] - sizes[size_t(i)];
+      cfg.progress(i, f, (before + f * sizes[size_t(i)]) / cumulative.back());
     };
     uint64_t camera_total, done;
     if (cfg.adaptive) {
@@ -375,6 +420,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
       pos.finished = ended_by_time_limit = true;
       iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
                             {"seconds", seconds_since(ti)},
+                            {"cpu_seconds", process_cpu_seconds() - cpu0},
                             {"stopped_after_camera_samples", done},
                             {"of_camera_samples", camera_total}});
       if (cfg.evaluate) iterations.back().update(cfg.evaluate(info, acc));
@@ -437,6 +483,7 @@ IterationResult render_iterations(WavefrontEngine& engine, Film& film, Iteration
     slot_seconds[kSlotNames[s]] = tasks.seconds(BetweenIterationSlot(s));
   slot_seconds["end_hooks"] = tasks.end_hook_seconds();  // the recorder's end_iteration(): sort and training
   result.log = {{"schedule", sizes},
+                {"schedule_switch", switch_log},
                 {"combination", combination_name(cfg.combination)},
                 {"combination_used", acc.choice().log()},
                 {"resumed", resumed},

@@ -14,6 +14,7 @@
 
 #include <chrono>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -60,8 +61,17 @@ struct IterationConfig {
   // a resumed render gets it again.
   double time_limit = 0.0;
   std::chrono::steady_clock::time_point clock_start = std::chrono::steady_clock::now();
-  // (iteration index, fraction of its camera samples generated), from the driving thread.
-  std::function<void(int, double)> progress;
+  // (iteration index, fraction of its camera samples generated, fraction of
+  // the render's samples), from the driving thread.
+  std::function<void(int, double, double)> progress;
+  // Asked after each iteration's end hooks until it answers: options whose
+  // schedule renders the rest of the samples from the next iteration on
+  // (switch_schedule), or nothing to keep the schedule.  What learns between
+  // iterations wants small iterations only while it learns.  The iteration
+  // it switched at is checkpointed, so a resumed render renders the schedule
+  // an uninterrupted one does.  Not asked with adaptive sampling (its
+  // per-pixel plans follow the schedule it was built with).
+  std::function<std::optional<ScheduleOptions>(const IterationInfo&)> switch_schedule;
   // Called at every iteration boundary, after the iteration is folded in and
   // before the between-iteration tasks; what it returns is merged into that
   // iteration's log entry (the error against a reference image, --reference).

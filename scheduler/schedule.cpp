@@ -42,6 +42,21 @@ std::vector<int> clip_schedule(const std::vector<int>& sizes, int begin, int end
   return clipped;
 }
 
+std::vector<int> switch_schedule(const std::vector<int>& sizes, int at, const ScheduleOptions& options) {
+  if (at < 0 || at >= int(sizes.size())) return sizes;
+  int done = 0, total = 0;
+  for (size_t i = 0; i < sizes.size(); ++i) (int(i) < at ? done : total) += sizes[i];
+  total += done;
+  std::vector<int> rest = clip_schedule(make_schedule(options, total), done, total);
+  if (rest.size() > 1 && rest[0] < options.first) {
+    rest[1] += rest[0];
+    rest.erase(rest.begin());
+  }
+  std::vector<int> switched(sizes.begin(), sizes.begin() + at);
+  switched.insert(switched.end(), rest.begin(), rest.end());
+  return switched;
+}
+
 std::vector<int> cumulative_spp(const std::vector<int>& sizes) {
   std::vector<int> c(sizes.size());
   int sum = 0;

@@ -40,6 +40,13 @@ std::vector<int> make_schedule(const ScheduleOptions& options, int total_spp);
 // iterations a whole render has there, cut at the range's ends.
 std::vector<int> clip_schedule(const std::vector<int>& sizes, int begin, int end);
 
+// `sizes` from iteration `at` on replaced by `options`' schedule: the
+// iterations a render of the same total has there on it (clipped where `at`
+// begins; a clipped first one smaller than options.first joins the next), so
+// a render that stops learning continues on the sizes it would have had on
+// that schedule from the start.  `at` past the end: `sizes` unchanged.
+std::vector<int> switch_schedule(const std::vector<int>& sizes, int at, const ScheduleOptions& options);
+
 // Running totals of a schedule: cumulative[i] = sizes[0] + ... + sizes[i].
 std::vector<int> cumulative_spp(const std::vector<int>& sizes);
 
@@ -82,11 +89,13 @@ enum class BetweenIterationSlot {
   CachePointUpdate,
   AdaptiveSamplerUpdate,
   RecorderSkipRateUpdate,
+  ScheduleSwitch,
   Checkpoint,
   Count
 };
 inline constexpr const char* kSlotNames[] = {"guiding_update", "cache_point_update", "adaptive_sampler_update",
-                                             "recorder_skip_rate_update", "checkpoint"};
+                                             "recorder_skip_rate_update", "schedule_switch", "checkpoint"};
+static_assert(sizeof(kSlotNames) / sizeof(kSlotNames[0]) == size_t(BetweenIterationSlot::Count));
 
 // What runs around and between iterations.  A subsystem registers itself with
 // one line: tasks.add(BetweenIterationSlot::GuidingUpdate, [&](auto& it) { ... }).

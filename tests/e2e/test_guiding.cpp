@@ -196,6 +196,47 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   EXPECT_EQ(b["verdict"].get<std::string>(), recheck_passed && b["final"]["pays"].get<bool>() ? "on" : "off");
 }
 
+// Once --guiding-auto has decided for good and nothing is left to learn, the
+// rest of the render goes on in the regular schedule's growing iterations
+// (issue 12: guiding's 16-spp iterations cost ~12% more per sample than
+// unguided's): "off" right after the probe's pair, "on" after the final
+// round (training over).  The verdict is forced, so the iterations are known.
+TEST(Guiding, AutoContinuesOnTheRegularScheduleOnceDecided) {
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 48;
+  const std::vector<int> planned = make_schedule(guiding_schedule(), 256);
+  auto render = [&](const std::string& verdict, int training_spp) {
+    RenderConfig c = quick_config(256);
+    c.guiding.auto_off = true;
+    c.guiding.training_spp = training_spp;
+    c.guiding.test_verdict = verdict;
+    return render_scene(scene, c);
+  };
+  // Off: the probe holds out iteration 11 (22 spp) against 12; from 13 (54 spp) on, regular.
+  RenderResult off = render("off", 256);
+  EXPECT_EQ(off.log["guiding"]["auto"]["verdict"].get<std::string>(), "off");
+  EXPECT_EQ(off.log["scheduler"]["schedule"].get<std::vector<int>>(), switch_schedule(planned, 13, regular_schedule()));
+  EXPECT_EQ(off.log["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 13);
+  EXPECT_EQ(off.log["scheduler"]["schedule_switch"]["at_spp"].get<int>(), 54);
+  EXPECT_EQ(off.log["scheduler"]["spp_per_pixel"]["min"].get<int>(), 256);
+  // On, training 32 spp: the final round holds out 12, 13 (from 38 spp)
+  // against 14, 15; from 16 (102 spp) on, regular.
+  RenderResult on = render("on", 32);
+  EXPECT_EQ(on.log["guiding"]["auto"]["verdict"].get<std::string>(), "on");
+  EXPECT_EQ(on.log["scheduler"]["schedule"].get<std::vector<int>>(), switch_schedule(planned, 16, regular_schedule()));
+  EXPECT_EQ(on.log["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 16);
+  // Training that never ends leaves guiding's schedule alone, as does --guiding without auto.
+  RenderResult learning = render("on", 0);
+  EXPECT_TRUE(learning.log["scheduler"]["schedule_switch"].is_null());
+  RenderConfig guided = guided_config(256);
+  guided.guiding.training_spp = 32;
+  RenderResult plain = render_scene(scene, guided);
+  EXPECT_EQ(plain.log["scheduler"]["schedule"].get<std::vector<int>>(), planned);
+  EXPECT_TRUE(plain.log["scheduler"]["schedule_switch"].is_null());
+  // The same image in expectation: mean channel values against the guided render's.
+  for (const RenderResult* r : {&off, &on}) EXPECT_LT(channel_mean_deviation(r->image, plain.image), 0.02);
+}
+
 // The final round needs guiding to pay by both variance figures: a guided
 // side with half the robust variance but fireflies (full variance 3x) does
 // not pass, however cheap; the early rounds judge by the robust figure alone

@@ -241,13 +241,13 @@ TEST(Resume, PathGuidingResumesExactly) {
 }
 
 // --guiding-auto's state is in the checkpoint: the verdict, each round's
-// partial sums and the final round's plan.  Its verdicts are measurements of
-// time, so the resumed image is not compared with an uninterrupted one; what
-// must hold is that the resumed render continues the rounds it had begun
-// (without the checkpoint's state, the probe, already past, would never be
-// measured, and a final round stopped half-way never completed).
+// partial sums and the final round's plan.  The resumed render must continue
+// the rounds it had begun (without the checkpoint's state, the probe, already
+// past, would never be measured, and a final round stopped half-way never
+// completed).  Every round is forced to pass: a probe that said "off" would
+// end the rounds and switch the schedule before the second stop.
 TEST(Resume, GuidingAutoContinuesItsRoundsAfterResume) {
-  Fixture f("guidingauto", " --guiding-auto --guiding-training-spp 32 --spp 96");
+  Fixture f("guidingauto", " --guiding-auto --test-guiding-verdict on --guiding-training-spp 32 --spp 96");
   // Guiding schedule for 96 spp: 1 x8, 2 4 8 16 16 16 16 10.  The probe holds
   // out iteration 9 (4 spp from 10) against 10; training ends at 38 spp
   // (iteration 12), where the final round holds out 12 and 13 against 14 and 15.
@@ -267,16 +267,42 @@ TEST(Resume, GuidingAutoContinuesItsRoundsAfterResume) {
   EXPECT_TRUE(a["probe"]["measured"].get<bool>());
   EXPECT_EQ(a["probe"]["unguided"]["spp"].get<int64_t>(), 4);
   EXPECT_EQ(a["probe"]["guided"]["spp"].get<int64_t>(), 8);
-  if (a["probe"]["pays"].get<bool>()) {
-    EXPECT_EQ(log["guiding"]["trained_spp"].get<int64_t>(), 38);
-    EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), 12);
-    EXPECT_TRUE(a["final"]["measured"].get<bool>());
-    EXPECT_EQ(a["final"]["unguided"]["spp"].get<int64_t>(), 32);  // 12 before the stops, 13 after
-    EXPECT_EQ(a["final"]["guided"]["spp"].get<int64_t>(), 26);
-    EXPECT_NE(a["verdict"].get<std::string>(), "provisional");
-  } else {
-    EXPECT_EQ(a["verdict"].get<std::string>(), "off");
-    EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), -1);
+  EXPECT_EQ(log["guiding"]["trained_spp"].get<int64_t>(), 38);
+  EXPECT_EQ(a["final"]["unguided_iteration"].get<int>(), 12);
+  EXPECT_TRUE(a["final"]["measured"].get<bool>());
+  EXPECT_EQ(a["final"]["unguided"]["spp"].get<int64_t>(), 32);  // 12 before the stops, 13 after
+  EXPECT_EQ(a["final"]["guided"]["spp"].get<int64_t>(), 26);
+  EXPECT_EQ(a["verdict"].get<std::string>(), "on");
+  // Decided in the last iteration: nothing left to switch.
+  EXPECT_TRUE(log["scheduler"]["schedule_switch"].is_null());
+}
+
+// Where --guiding-auto switched to the regular schedule is in the checkpoint:
+// stopped before the switch (in the probe's judged iteration) and after it
+// (inside the first switched iteration), the resumed render renders the
+// schedule and the image an uninterrupted one does.  The verdict is forced
+// ("off"), so the uninterrupted image is known.
+TEST(Resume, GuidingAutoScheduleSwitchResumesExactly) {
+  Fixture f("autoswitch", " --guiding-auto --test-guiding-verdict off --spp 96");
+  // Guiding schedule for 96 spp: 1 x8, 2 4 8 16 16 16 16 10; the probe holds
+  // out 11 (22 spp) against 12; from 13 (54 spp) the regular schedule: 42.
+  ASSERT_EQ(f.render("ref.exr").exit_code, 0);
+  const nlohmann::json ref = nlohmann::json::parse(std::ifstream(f.out("ref.json")));
+  const std::vector<int> switched{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16, 42};
+  EXPECT_EQ(ref["scheduler"]["schedule"].get<std::vector<int>>(), switched);
+  EXPECT_EQ(ref["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 13);
+  for (const std::string at : {"12:0.5", "13:0.5"}) {
+    SCOPED_TRACE(at);
+    const std::string ck = f.out("ck" + at.substr(0, 2));
+    ASSERT_EQ(f.render("out.exr", " --checkpoint-dir " + ck + " --test-sigterm-at " + at).exit_code, kInterrupted);
+    RunResult r = f.render("out.exr", " --checkpoint-dir " + ck + " --resume");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json log = nlohmann::json::parse(std::ifstream(f.out("out.json")));
+    EXPECT_TRUE(log["scheduler"]["resumed"].get<bool>());
+    EXPECT_EQ(log["scheduler"]["schedule"].get<std::vector<int>>(), switched);
+    EXPECT_EQ(log["scheduler"]["schedule_switch"], ref["scheduler"]["schedule_switch"]);
+    EXPECT_LT(test::max_relative_difference(read_image_file(f.out("out.exr")), read_image_file(f.out("ref.exr"))),
+              1e-5);
   }
 }
 

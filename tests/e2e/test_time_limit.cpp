@@ -90,6 +90,8 @@ TEST(TimeLimit, StopInsideAnIterationKeepsItsSamplesAndEndsNormally) {
   EXPECT_EQ(s["iterations"].size(), 3u);
   EXPECT_LT(s["iterations"][2]["stopped_after_camera_samples"].get<uint64_t>(),
             s["iterations"][2]["of_camera_samples"].get<uint64_t>());
+  // Its CPU time is logged like a finished iteration's (what per-sample costs are computed from).
+  EXPECT_GT(s["iterations"][2]["cpu_seconds"].get<double>(), 0.0);
 
   // Unbiased: the mean is an uninterrupted render's, within the noise of 8-16 spp.
   RenderResult full = render_scene(scene, config());

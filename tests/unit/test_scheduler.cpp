@@ -34,6 +34,28 @@ TEST(Schedule, FullyConfigurable) {
   EXPECT_EQ(make_schedule({4, 1, 1.0, 4}, 10), (std::vector<int>{4, 4, 2}));
 }
 
+// Once nothing learns between iterations, the rest of a render goes on in the
+// iterations the regular schedule has from there, not in guiding's 16-spp ones.
+TEST(Schedule, SwitchedScheduleIsTheRegularOneFromThatPoint) {
+  const std::vector<int> guiding = make_schedule(guiding_schedule(), 1024);
+  // After iteration 13 (54 spp): the regular schedule's iteration 32..64 cut
+  // at 54 is 10 spp, below its first size, so it joins the next (64..128).
+  std::vector<int> expect(guiding.begin(), guiding.begin() + 13);
+  expect.insert(expect.end(), {74, 128, 256, 256, 256});
+  const std::vector<int> switched = switch_schedule(guiding, 13, regular_schedule());
+  EXPECT_EQ(switched, expect);
+  EXPECT_EQ(cumulative_spp(switched).back(), 1024);
+  // At 38 spp (iteration 12): 26 spp to 64, then on as the regular schedule.
+  std::vector<int> at38(guiding.begin(), guiding.begin() + 12);
+  at38.insert(at38.end(), {26, 64, 128, 256, 256, 256});
+  EXPECT_EQ(switch_schedule(guiding, 12, regular_schedule()), at38);
+  // From the start it is the regular schedule; past the end, nothing changes.
+  EXPECT_EQ(switch_schedule(guiding, 0, regular_schedule()), make_schedule(regular_schedule(), 1024));
+  EXPECT_EQ(switch_schedule(guiding, int(guiding.size()), regular_schedule()), guiding);
+  // A short render: what is left is one iteration.
+  EXPECT_EQ(switch_schedule({1, 1, 2, 4}, 2, regular_schedule()), (std::vector<int>{1, 1, 6}));
+}
+
 TEST(Schedule, ImpossibleOptionsAreRefused) {
   EXPECT_THROW(make_schedule({0, 1, 2.0, 16}, 16), Error);
   EXPECT_THROW(make_schedule({4, 1, 0.5, 16}, 16), Error);

@@ -83,7 +83,8 @@ SceneParser::Handler SceneParser::handler_of(std::string_view name) {
   using P = SceneParser;
   static const std::unordered_map<std::string_view, Handler> kHandlers = {
       // the options block
-      {"Camera", &P::on_camera}, {"Film", &P::on_film}, {"PixelFilter", &P::on_pixel_filter},
+      {"Camera", &P::on_options_block<&P::camera>}, {"Film", &P::on_options_block<&P::film>},
+      {"PixelFilter", &P::on_options_block<&P::pixel_filter>},
       {"Sampler", &P::on_settings}, {"Integrator", &P::on_settings}, {"Accelerator", &P::on_settings},
       {"ColorSpace", &P::on_color_space}, {"Option", &P::on_option}, {"TransformTimes", &P::on_transform_times},
       {"WorldBegin", &P::on_world_begin}, {"WorldEnd", &P::on_world_end},
@@ -118,27 +119,12 @@ ParamList SceneParser::typed_params(Directive& d, std::string& type, const Param
 
 // ---- the options block
 
-void SceneParser::on_camera(Directive& d) {
+template <void (SceneParser::*build)(const std::string&, ParamList&, const SourceLoc&)>
+void SceneParser::on_options_block(Directive& d) {
   need_options(d.loc, d.name);
   std::string type;
   ParamList params = typed_params(d, type, nullptr);
-  camera(type, params, d.loc);
-  params.report_unused();
-}
-
-void SceneParser::on_film(Directive& d) {
-  need_options(d.loc, d.name);
-  std::string type;
-  ParamList params = typed_params(d, type, nullptr);
-  film(type, params, d.loc);
-  params.report_unused();
-}
-
-void SceneParser::on_pixel_filter(Directive& d) {
-  need_options(d.loc, d.name);
-  std::string type;
-  ParamList params = typed_params(d, type, nullptr);
-  pixel_filter(type, params, d.loc);
+  (this->*build)(type, params, d.loc);
   params.report_unused();
 }
 

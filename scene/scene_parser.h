@@ -67,9 +67,9 @@ class SceneParser {
   static Handler handler_of(std::string_view name);
   ParamList typed_params(Directive& d, std::string& type, const ParamList* defaults);
   // the options block
-  void on_camera(Directive& d);
-  void on_film(Directive& d);
-  void on_pixel_filter(Directive& d);
+  // Camera, Film and PixelFilter: a type and parameters for `build`, before WorldBegin.
+  template <void (SceneParser::*build)(const std::string&, ParamList&, const SourceLoc&)>
+  void on_options_block(Directive& d);
   void on_settings(Directive& d);  // Sampler, Integrator, Accelerator
   void on_color_space(Directive& d);
   void on_option(Directive& d);

@@ -45,7 +45,7 @@ def run(cmd):
 class Browser:
     """Headless Chromium and one page, over the DevTools protocol."""
 
-    def __init__(self, profile):
+    def __init__(self):
         chromium = shutil.which("chromium") or shutil.which("chromium-browser")
         if not chromium:
             skip("no chromium on PATH (Debian: apt-get install chromium)")
@@ -53,6 +53,9 @@ class Browser:
             import websocket  # python3-websocket
         except ImportError:
             fail("no python3-websocket (tools/install-deps.sh installs it)")
+        # Its own profile folder, outside the test's: Chromium's helper processes can still
+        # write there for a moment after the browser has exited (close() removes it).
+        self.profile = profile = tempfile.mkdtemp(prefix="theia_field_view_chromium_")
         self.proc = subprocess.Popen(
             [chromium, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
              "--enable-unsafe-swiftshader", "--force-device-scale-factor=1", "--window-size=1500,820",
@@ -132,6 +135,16 @@ class Browser:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
+            self.proc.wait()
+        for _ in range(20):
+            try:
+                shutil.rmtree(self.profile)
+                return
+            except FileNotFoundError:
+                return
+            except OSError:
+                time.sleep(0.25)
+        shutil.rmtree(self.profile, ignore_errors=True)
 
 
 def wait_for(browser, expression, seconds):
@@ -171,7 +184,7 @@ def main():
              "--save-field", field, "--save-field-every-iteration", "-o", tmp / "ajar.exr"])
         run([args.theia, "field", "view", field, "-o", tmp / "page"])
         stats = json.loads(run([args.theia, "field", "stats", "--json", field]))
-        browser = Browser(tmp / "profile")
+        browser = Browser()
         try:
             check_page(browser, args, tmp, field, stats)
         finally:

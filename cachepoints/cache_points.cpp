@@ -5,6 +5,7 @@
 #include "core/hash.h"
 #include "core/log.h"
 #include "core/sampling.h"
+#include "core/stats.h"
 #include "scene/camera.h"
 #include "scene/shapes.h"
 
@@ -687,10 +688,6 @@ std::array<float, 4> group_weights(const vec3& n) {
 float visibility_weight(uint32_t attempts, uint32_t successes, float r_min) {
   const float r = float(successes + 1) / float(attempts + 1);
   return r <= r_min ? sqr(r / r_min) : 1.0f;
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
 }  // namespace

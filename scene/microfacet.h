@@ -12,8 +12,6 @@
 
 namespace theia {
 
-inline float cos2_theta(const vec3& w) { return w.z * w.z; }
-inline float sin2_theta(const vec3& w) { return std::max(0.0f, 1.0f - cos2_theta(w)); }
 inline bool same_hemisphere(const vec3& a, const vec3& b) { return a.z * b.z > 0.0f; }
 inline vec3 reflect(const vec3& wo, const vec3& n) { return -wo + 2.0f * glm::dot(wo, n) * n; }
 inline vec3 face_forward(const vec3& v, const vec3& ref) { return glm::dot(v, ref) < 0.0f ? -v : v; }

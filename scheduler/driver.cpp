@@ -259,254 +259,329 @@ std::vector<int> iteration_sizes(const IterationConfig& config) {
   return clip_schedule(sizes, int(config.sample_begin), int(config.sample_end));
 }
 
-IterationResult render_iterations(WavefrontEngine& engine, Film& film, IterationTasks tasks,
-                                  const IterationConfig& config) {
-  IterationConfig cfg = config;
-  if (cfg.adaptive) cfg.participants.push_back(cfg.adaptive->participant());
-  auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+// One call of render_iterations: the schedule, where the render is, the
+// image accumulated so far, the checkpoints written and the log of each
+// iteration.  Its steps are render_iterations'.
+class IterationRun {
+ public:
+  IterationRun(WavefrontEngine& engine, Film& film, IterationTasks& tasks, const IterationConfig& config);
+  void resume_from_newest_checkpoint();
+  void add_between_iteration_tasks();
+  void start_deadline();
+  bool done() const { return pos_.finished || pos_.iteration >= int(sizes_.size()); }
+  // Renders iteration pos_.iteration (from pos_.camera_done); false when the render stops there.
+  bool render_iteration();
+  IterationResult finish();
+
+ private:
+  void plan();
+  void write();
+  StopReason stop_reason() const { return cfg_.stop ? cfg_.stop->reason() : StopReason::None; }
+  bool signalled() const { return stop_reason() == StopReason::Signal; }
+  bool time_up() const { return stop_reason() == StopReason::TimeLimit; }
+  void log_switch();
+  // The three ways an iteration ends.
+  void keep_stopped_iteration(uint64_t done, uint64_t camera_total);
+  void save_interrupted_iteration(uint64_t done);
+  bool fold_finished_iteration();
+  nlohmann::json log() const;
+
+  WavefrontEngine& engine_;
+  Film& film_;
+  IterationTasks& tasks_;
+  IterationConfig cfg_;
+  std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
   // The schedule planned up front; a switch (or a resumed one) replaces its tail.
-  std::vector<int> sizes = iteration_sizes(cfg);
-  std::vector<int> cumulative;
-  std::vector<bool> planned;
-  auto plan = [&] {
-    cumulative = cumulative_spp(sizes);
-    planned = checkpoint_iterations(cumulative, cfg.checkpoint.first, cfg.checkpoint.every_iteration);
-  };
-  plan();
-  const bool checkpoints = !cfg.checkpoint.dir.empty();
-  if (cfg.resume && !checkpoints) throw_error("--resume needs --checkpoint-dir");
-  if (cfg.time_limit > 0 && !cfg.stop) throw_error("internal: a time limit needs the engine's stop request");
-
-  ImageAccumulator acc(film.width, film.height, cfg.combination, cfg.combine_window, film.aov_events());
-  Position pos;
-  film.clear();
-  bool resumed = false;
-  if (checkpoints) {
-    if (auto c = read_latest_checkpoint(cfg.checkpoint.dir)) {
-      restore(*c, cfg, sizes, pos, acc, film);
-      plan();
-      resumed = true;
-      if (pos.finished)
-        log_info("{} holds a render its time limit ended; writing its image, rendering nothing",
-                 checkpoint_bin_path(cfg.checkpoint.dir, c->generation));
-      else
-        log_info("resuming from {} at iteration {} of {} ({} camera samples of it done)",
-                 checkpoint_bin_path(cfg.checkpoint.dir, c->generation), pos.iteration + 1, sizes.size(),
-                 pos.camera_done);
-    } else if (cfg.resume) {
-      throw_error("--resume: no checkpoint in {}", cfg.checkpoint.dir);
-    }
-  }
-  const int first_iteration = pos.iteration;
-
-  double checkpoint_seconds = 0.0;
-  int checkpoints_written = 0;
-  int failed_checkpoint_writes = 0;
+  std::vector<int> sizes_, cumulative_;
+  std::vector<bool> planned_;  // checkpoint after iteration i
+  const bool checkpoints_;
+  ImageAccumulator acc_;
+  Position pos_;
+  bool resumed_ = false;
+  int first_iteration_ = 0;
+  double checkpoint_seconds_ = 0.0;
+  int checkpoints_written_ = 0, failed_checkpoint_writes_ = 0;
   // The newest generation on disk and the iteration it resumes at: what a
   // failed write falls back on.
-  std::optional<std::pair<uint64_t, int>> kept;
-  if (resumed) kept = {pos.generation, pos.iteration};
-  auto write = [&] {
-    ScopedTimer timer(checkpoint_seconds);
-    ++pos.generation;
-    try {
-      write_checkpoint(cfg.checkpoint.dir, make_checkpoint(cfg, sizes, pos, acc, film));
-    } catch (const std::exception& e) {
-      // A full disk must not end a render that still has a checkpoint to
-      // resume from; without one, the checkpoint the user asked for is missing.
-      if (!kept) throw;
-      --pos.generation;
-      auto spp_done = [&](int iteration) { return iteration > 0 ? cumulative[size_t(iteration) - 1] : 0; };
-      log_warning("{}; rendering on: a stop now resumes from generation {} and loses the {} spp rendered since",
-                  e.what(), kept->first, spp_done(pos.iteration) - spp_done(kept->second));
-      ++failed_checkpoint_writes;
-      return;
-    }
-    kept = {pos.generation, pos.iteration};
-    ++checkpoints_written;
-  };
-  auto stop_reason = [&] { return cfg.stop ? cfg.stop->reason() : StopReason::None; };
-  auto signalled = [&] { return stop_reason() == StopReason::Signal; };
-  auto time_up = [&] { return stop_reason() == StopReason::TimeLimit; };
-  std::optional<Deadline> deadline;
-  if (cfg.time_limit > 0 && !pos.finished)
-    deadline.emplace(*cfg.stop, cfg.clock_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                      std::chrono::duration<double>(cfg.time_limit)));
+  std::optional<std::pair<uint64_t, int>> kept_;
+  bool wrote_this_iteration_ = false;
+  std::optional<Deadline> deadline_;
+  bool interrupted_ = false, ended_by_time_limit_ = false;
+  IterationInfo info_;
+  // The iteration in progress: its clocks.
+  std::chrono::steady_clock::time_point iteration_t0_;
+  double iteration_cpu0_ = 0.0;
+  nlohmann::json iterations_ = nlohmann::json::array();
+  nlohmann::json switch_log_;  // null: the schedule planned up front throughout
+};
 
-  nlohmann::json iterations = nlohmann::json::array();
-  bool interrupted = false;
-  IterationInfo info;
-  info.count = int(sizes.size());
-  // The checkpoint task: the skipping logic's choice, or any boundary where a stop was asked for.
-  bool wrote_this_iteration = false;
-  if (cfg.adaptive)
-    tasks.add(BetweenIterationSlot::AdaptiveSamplerUpdate,
-              [&](const IterationInfo& it) { cfg.adaptive->update(acc.total, it.index); });
-  nlohmann::json switch_log;  // null: the schedule planned up front throughout
-  auto log_switch = [&] {
-    const int at = pos.switched_at;
-    switch_log = {{"at_iteration", at}, {"at_spp", at > 0 ? cumulative[size_t(at) - 1] : 0}};
-  };
-  if (pos.switched_at >= 0) log_switch();
-  if (cfg.switch_schedule && !cfg.adaptive)
-    tasks.add(BetweenIterationSlot::ScheduleSwitch, [&](const IterationInfo& it) {
-      if (pos.switched_at >= 0 || it.last()) return;
-      const std::optional<ScheduleOptions> to = cfg.switch_schedule(it);
-      if (!to) return;
-      sizes = switch_schedule(sizes, it.index + 1, *to);
+IterationRun::IterationRun(WavefrontEngine& engine, Film& film, IterationTasks& tasks, const IterationConfig& config)
+    : engine_(engine), film_(film), tasks_(tasks), cfg_(config), checkpoints_(!config.checkpoint.dir.empty()),
+      acc_(film.width, film.height, config.combination, config.combine_window, film.aov_events()) {
+  if (cfg_.adaptive) cfg_.participants.push_back(cfg_.adaptive->participant());
+  sizes_ = iteration_sizes(cfg_);
+  plan();
+  if (cfg_.resume && !checkpoints_) throw_error("--resume needs --checkpoint-dir");
+  if (cfg_.time_limit > 0 && !cfg_.stop) throw_error("internal: a time limit needs the engine's stop request");
+  film_.clear();
+  info_.count = int(sizes_.size());
+}
+
+void IterationRun::plan() {
+  cumulative_ = cumulative_spp(sizes_);
+  planned_ = checkpoint_iterations(cumulative_, cfg_.checkpoint.first, cfg_.checkpoint.every_iteration);
+}
+
+void IterationRun::resume_from_newest_checkpoint() {
+  if (checkpoints_) {
+    if (auto c = read_latest_checkpoint(cfg_.checkpoint.dir)) {
+      restore(*c, cfg_, sizes_, pos_, acc_, film_);
       plan();
-      pos.switched_at = it.index + 1;
-      info.count = int(sizes.size());
+      info_.count = int(sizes_.size());
+      resumed_ = true;
+      kept_ = {pos_.generation, pos_.iteration};
+      if (pos_.switched_at >= 0) log_switch();
+      if (pos_.finished)
+        log_info("{} holds a render its time limit ended; writing its image, rendering nothing",
+                 checkpoint_bin_path(cfg_.checkpoint.dir, c->generation));
+      else
+        log_info("resuming from {} at iteration {} of {} ({} camera samples of it done)",
+                 checkpoint_bin_path(cfg_.checkpoint.dir, c->generation), pos_.iteration + 1, sizes_.size(),
+                 pos_.camera_done);
+    } else if (cfg_.resume) {
+      throw_error("--resume: no checkpoint in {}", cfg_.checkpoint.dir);
+    }
+  }
+  first_iteration_ = pos_.iteration;
+}
+
+void IterationRun::write() {
+  ScopedTimer timer(checkpoint_seconds_);
+  ++pos_.generation;
+  try {
+    write_checkpoint(cfg_.checkpoint.dir, make_checkpoint(cfg_, sizes_, pos_, acc_, film_));
+  } catch (const std::exception& e) {
+    // A full disk must not end a render that still has a checkpoint to
+    // resume from; without one, the checkpoint the user asked for is missing.
+    if (!kept_) throw;
+    --pos_.generation;
+    auto spp_done = [&](int iteration) { return iteration > 0 ? cumulative_[size_t(iteration) - 1] : 0; };
+    log_warning("{}; rendering on: a stop now resumes from generation {} and loses the {} spp rendered since",
+                e.what(), kept_->first, spp_done(pos_.iteration) - spp_done(kept_->second));
+    ++failed_checkpoint_writes_;
+    return;
+  }
+  kept_ = {pos_.generation, pos_.iteration};
+  ++checkpoints_written_;
+}
+
+void IterationRun::log_switch() {
+  const int at = pos_.switched_at;
+  switch_log_ = {{"at_iteration", at}, {"at_spp", at > 0 ? cumulative_[size_t(at) - 1] : 0}};
+}
+
+// Adaptive sampling's update, the schedule switch and the checkpoint (the
+// skipping logic's choice, or any boundary where a stop was asked for).
+void IterationRun::add_between_iteration_tasks() {
+  if (cfg_.adaptive)
+    tasks_.add(BetweenIterationSlot::AdaptiveSamplerUpdate,
+               [this](const IterationInfo& it) { cfg_.adaptive->update(acc_.total, it.index); });
+  if (cfg_.switch_schedule && !cfg_.adaptive)
+    tasks_.add(BetweenIterationSlot::ScheduleSwitch, [this](const IterationInfo& it) {
+      if (pos_.switched_at >= 0 || it.last()) return;
+      const std::optional<ScheduleOptions> to = cfg_.switch_schedule(it);
+      if (!to) return;
+      sizes_ = switch_schedule(sizes_, it.index + 1, *to);
+      plan();
+      pos_.switched_at = it.index + 1;
+      info_.count = int(sizes_.size());
       log_switch();
       log_info("schedule: switched from iteration {} ({} spp) on: {} more iteration(s), the first of {} spp",
-               it.index + 2, cumulative[size_t(it.index)], sizes.size() - size_t(it.index) - 1,
-               sizes[size_t(it.index) + 1]);
+               it.index + 2, cumulative_[size_t(it.index)], sizes_.size() - size_t(it.index) - 1,
+               sizes_[size_t(it.index) + 1]);
     });
-  if (checkpoints)
-    tasks.add(BetweenIterationSlot::Checkpoint, [&](const IterationInfo& it) {
-      wrote_this_iteration = planned[size_t(it.index)] || (signalled() && !it.last());
-      if (wrote_this_iteration) write();
+  if (checkpoints_)
+    tasks_.add(BetweenIterationSlot::Checkpoint, [this](const IterationInfo& it) {
+      wrote_this_iteration_ = planned_[size_t(it.index)] || (signalled() && !it.last());
+      if (wrote_this_iteration_) write();
     });
+}
 
-  bool ended_by_time_limit = false;
-  for (int i = pos.iteration; i < int(sizes.size()) && !pos.finished; ++i) {
-    if (time_up()) {  // between iterations: the render ends with the ones done
-      pos.finished = ended_by_time_limit = true;
-      break;
-    }
-    info.index = i;
-    info.spp_begin = cfg.sample_begin + uint32_t(cumulative[size_t(i)] - sizes[size_t(i)]);
-    info.spp_end = cfg.sample_begin + uint32_t(cumulative[size_t(i)]);
-    auto ti = std::chrono::steady_clock::now();
-    const double cpu0 = process_cpu_seconds();
-    info.elapsed_seconds = seconds_since(cfg.clock_start);
-    tasks.begin_iteration(info);
-    auto progress = [&](double f) {
-      if (!cfg.progress) return;
-      const double before = cumulative[size_t(i)] - sizes[size_t(i)];
-      cfg.progress(i, f, (before + f * sizes[size_t(i)]) / cumulative.back());
-    };
-    uint64_t camera_total, done;
-    if (cfg.adaptive) {
-      camera_total = cfg.adaptive->ranges().total();
-      done = engine.render(cfg.adaptive->ranges(), progress, pos.camera_done);
-    } else {
-      camera_total = uint64_t(film.pixel_count()) * uint64_t(sizes[size_t(i)]);
-      done = engine.render(info.spp_begin, info.spp_end, progress, pos.camera_done);
-    }
-    if (engine.abandoned()) {
-      // Paths still in flight seconds after the signal were dropped: this
-      // iteration is incomplete and is not written; the newest checkpoint
-      // stays what a resume continues from (an uninterrupted image still).
-      log_warning("paths still in flight after the signal's grace time were abandoned: iteration {} is lost{}", i,
-                  checkpoints ? "; the resume continues from the newest checkpoint" : "");
-      iterations.push_back({{"spp", {info.spp_begin, info.spp_end}}, {"seconds", seconds_since(ti)},
-                            {"abandoned_after_camera_samples", done}});
-      interrupted = true;
-      break;
-    }
-    if (done < camera_total && time_up()) {
-      // The time limit ends the render inside the iteration: its samples are
-      // kept, folded in like a finished iteration's (each pixel's estimate
-      // divides by the weight it got).  No between-iteration task runs: they
-      // would prepare an iteration that will not come.
-      engine.finish_stopped_iteration();
-      acc.fold(film, info.spp_begin, info.spp_end);
-      film.clear();
-      pos.iteration = i;
-      pos.camera_done = done;
-      pos.finished = ended_by_time_limit = true;
-      iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
-                            {"seconds", seconds_since(ti)},
-                            {"cpu_seconds", process_cpu_seconds() - cpu0},
-                            {"stopped_after_camera_samples", done},
-                            {"of_camera_samples", camera_total}});
-      if (cfg.evaluate) iterations.back().update(cfg.evaluate(info, acc));
-      break;
-    }
-    if (done < camera_total) {
-      // Stopped inside the iteration: keep exactly the pixel-samples done.
-      pos.iteration = i;
-      pos.camera_done = done;
-      if (checkpoints) write();
-      iterations.push_back({{"spp", {info.spp_begin, info.spp_end}}, {"seconds", seconds_since(ti)},
-                            {"stopped_after_camera_samples", done}});
-      interrupted = true;
-      break;
-    }
-    info.seconds = seconds_since(ti);
-    info.cpu_seconds = process_cpu_seconds() - cpu0;
-    if (tasks.measures_variance()) {
-      const RelativeVariance v = relative_variance(film, half_buffer_variance(film), &acc.total);
-      info.sample_variance = v.robust;
-      info.sample_variance_full = v.full;
-    }
-    acc.fold(film, info.spp_begin, info.spp_end);
-    film.clear();
-    pos.iteration = i + 1;
-    pos.camera_done = 0;
-    nlohmann::json evaluation;
-    if (cfg.evaluate) evaluation = cfg.evaluate(info, acc);
-    double before = checkpoint_seconds;
-    tasks.end_iteration(info);
-    iterations.push_back({{"spp", {info.spp_begin, info.spp_end}},
-                          {"seconds", seconds_since(ti)},
-                          // The between-iteration tasks included, as in "seconds".
-                          {"cpu_seconds", process_cpu_seconds() - cpu0},
-                          {"checkpoint", wrote_this_iteration},
-                          {"checkpoint_seconds", checkpoint_seconds - before}});
-    if (evaluation.is_object()) iterations.back().update(evaluation);
-    if (signalled() && !info.last()) {
-      interrupted = true;
-      break;
-    }
+void IterationRun::start_deadline() {
+  if (cfg_.time_limit > 0 && !pos_.finished)
+    deadline_.emplace(*cfg_.stop, cfg_.clock_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                         std::chrono::duration<double>(cfg_.time_limit)));
+}
+
+bool IterationRun::render_iteration() {
+  if (time_up()) {  // between iterations: the render ends with the ones done
+    pos_.finished = ended_by_time_limit_ = true;
+    return false;
   }
-  deadline.reset();
+  const int i = pos_.iteration;
+  info_.index = i;
+  info_.spp_begin = cfg_.sample_begin + uint32_t(cumulative_[size_t(i)] - sizes_[size_t(i)]);
+  info_.spp_end = cfg_.sample_begin + uint32_t(cumulative_[size_t(i)]);
+  iteration_t0_ = std::chrono::steady_clock::now();
+  iteration_cpu0_ = process_cpu_seconds();
+  info_.elapsed_seconds = seconds_since(cfg_.clock_start);
+  tasks_.begin_iteration(info_);
+  auto progress = [&](double f) {
+    if (!cfg_.progress) return;
+    const double before = cumulative_[size_t(i)] - sizes_[size_t(i)];
+    cfg_.progress(i, f, (before + f * sizes_[size_t(i)]) / cumulative_.back());
+  };
+  uint64_t camera_total, done;
+  if (cfg_.adaptive) {
+    camera_total = cfg_.adaptive->ranges().total();
+    done = engine_.render(cfg_.adaptive->ranges(), progress, pos_.camera_done);
+  } else {
+    camera_total = uint64_t(film_.pixel_count()) * uint64_t(sizes_[size_t(i)]);
+    done = engine_.render(info_.spp_begin, info_.spp_end, progress, pos_.camera_done);
+  }
+  if (engine_.abandoned()) {
+    // Paths still in flight seconds after the signal were dropped: this
+    // iteration is incomplete and is not written; the newest checkpoint
+    // stays what a resume continues from (an uninterrupted image still).
+    log_warning("paths still in flight after the signal's grace time were abandoned: iteration {} is lost{}", i,
+                checkpoints_ ? "; the resume continues from the newest checkpoint" : "");
+    iterations_.push_back({{"spp", {info_.spp_begin, info_.spp_end}}, {"seconds", seconds_since(iteration_t0_)},
+                           {"abandoned_after_camera_samples", done}});
+    interrupted_ = true;
+    return false;
+  }
+  if (done < camera_total) {
+    if (time_up())
+      keep_stopped_iteration(done, camera_total);
+    else
+      save_interrupted_iteration(done);
+    return false;
+  }
+  return fold_finished_iteration();
+}
+
+// The time limit ends the render inside the iteration: its samples are kept,
+// folded in like a finished iteration's (each pixel's estimate divides by the
+// weight it got).  No between-iteration task runs: they would prepare an
+// iteration that will not come.
+void IterationRun::keep_stopped_iteration(uint64_t done, uint64_t camera_total) {
+  engine_.finish_stopped_iteration();
+  acc_.fold(film_, info_.spp_begin, info_.spp_end);
+  film_.clear();
+  pos_.camera_done = done;
+  pos_.finished = ended_by_time_limit_ = true;
+  iterations_.push_back({{"spp", {info_.spp_begin, info_.spp_end}},
+                         {"seconds", seconds_since(iteration_t0_)},
+                         {"cpu_seconds", process_cpu_seconds() - iteration_cpu0_},
+                         {"stopped_after_camera_samples", done},
+                         {"of_camera_samples", camera_total}});
+  if (cfg_.evaluate) iterations_.back().update(cfg_.evaluate(info_, acc_));
+}
+
+// Stopped by a signal inside the iteration: keep exactly the camera samples done.
+void IterationRun::save_interrupted_iteration(uint64_t done) {
+  pos_.camera_done = done;
+  if (checkpoints_) write();
+  iterations_.push_back({{"spp", {info_.spp_begin, info_.spp_end}}, {"seconds", seconds_since(iteration_t0_)},
+                         {"stopped_after_camera_samples", done}});
+  interrupted_ = true;
+}
+
+bool IterationRun::fold_finished_iteration() {
+  info_.seconds = seconds_since(iteration_t0_);
+  info_.cpu_seconds = process_cpu_seconds() - iteration_cpu0_;
+  if (tasks_.measures_variance()) {
+    const RelativeVariance v = relative_variance(film_, half_buffer_variance(film_), &acc_.total);
+    info_.sample_variance = v.robust;
+    info_.sample_variance_full = v.full;
+  }
+  acc_.fold(film_, info_.spp_begin, info_.spp_end);
+  film_.clear();
+  pos_.iteration = info_.index + 1;
+  pos_.camera_done = 0;
+  nlohmann::json evaluation;
+  if (cfg_.evaluate) evaluation = cfg_.evaluate(info_, acc_);
+  const double checkpoint_before = checkpoint_seconds_;
+  tasks_.end_iteration(info_);
+  iterations_.push_back({{"spp", {info_.spp_begin, info_.spp_end}},
+                         {"seconds", seconds_since(iteration_t0_)},
+                         // The between-iteration tasks included, as in "seconds".
+                         {"cpu_seconds", process_cpu_seconds() - iteration_cpu0_},
+                         {"checkpoint", wrote_this_iteration_},
+                         {"checkpoint_seconds", checkpoint_seconds_ - checkpoint_before}});
+  if (evaluation.is_object()) iterations_.back().update(evaluation);
+  if (signalled() && !info_.last()) {
+    interrupted_ = true;
+    return false;
+  }
+  return true;
+}
+
+IterationResult IterationRun::finish() {
+  deadline_.reset();
   // The finished render replaces any checkpoint a re-run would continue from.
-  if (ended_by_time_limit && checkpoints) write();
-
+  if (ended_by_time_limit_ && checkpoints_) write();
   IterationResult result;
-  result.interrupted = interrupted;
-  result.ended_by_time_limit = pos.finished;
-  std::tie(result.spp_min, result.spp_max) = spp_range(pos, sizes, cumulative, film.pixel_count(), cfg.adaptive);
-  result.dropped_samples = acc.total.dropped.load() + film.dropped.load();
-  if (!interrupted) {
-    result.image = acc.resolve();
-    result.weight = acc.total.weight;
-    if (cfg.keep_sums) result.sums = film_sums_image(acc.total, "sum.");
+  result.interrupted = interrupted_;
+  result.ended_by_time_limit = pos_.finished;
+  std::tie(result.spp_min, result.spp_max) = spp_range(pos_, sizes_, cumulative_, film_.pixel_count(), cfg_.adaptive);
+  result.dropped_samples = acc_.total.dropped.load() + film_.dropped.load();
+  if (!interrupted_) {
+    result.image = acc_.resolve();
+    result.weight = acc_.total.weight;
+    if (cfg_.keep_sums) result.sums = film_sums_image(acc_.total, "sum.");
   }
-  double wall = seconds_since(t0);
+  result.log = log();
+  result.log["spp_per_pixel"] = {{"min", result.spp_min}, {"max", result.spp_max}};
+  if (checkpoints_)
+    log_info("checkpoints: {} written, {:.3f} s = {:.2f}% of {:.2f} s wall ({})", checkpoints_written_,
+             checkpoint_seconds_, 100.0 * checkpoint_seconds_ / std::max(seconds_since(t0_), 1e-9),
+             seconds_since(t0_), cfg_.checkpoint.every_iteration ? "after every iteration" : "with skipping");
+  return result;
+}
+
+nlohmann::json IterationRun::log() const {
+  const double wall = seconds_since(t0_);
   nlohmann::json slot_seconds;
   for (size_t s = 0; s < size_t(BetweenIterationSlot::Count); ++s)
-    slot_seconds[kSlotNames[s]] = tasks.seconds(BetweenIterationSlot(s));
-  slot_seconds["end_hooks"] = tasks.end_hook_seconds();  // the recorder's end_iteration(): sort and training
-  result.log = {{"schedule", sizes},
-                {"schedule_switch", switch_log},
-                {"combination", combination_name(cfg.combination)},
-                {"combination_used", acc.choice().log()},
-                {"resumed", resumed},
-                {"resumed_at_iteration", first_iteration},
-                {"time_limit",
-                 {{"seconds", cfg.time_limit},
-                  {"reached", pos.finished},
-                  {"reached_in_this_run", ended_by_time_limit},
-                  {"elapsed_seconds", seconds_since(cfg.clock_start)}}},
-                {"spp_per_pixel", {{"min", result.spp_min}, {"max", result.spp_max}}},
-                {"iterations", iterations},
-                {"between_iteration_seconds", slot_seconds},
-                {"checkpoint",
-                 {{"dir", cfg.checkpoint.dir},
-                  {"skipping", !cfg.checkpoint.every_iteration},
-                  {"written", checkpoints_written},
-                  {"failed_writes", failed_checkpoint_writes},
-                  {"seconds", checkpoint_seconds},
-                  {"wall_seconds", wall},
-                  {"share_of_wall", wall > 0 ? checkpoint_seconds / wall : 0.0}}}};
-  if (checkpoints)
-    log_info("checkpoints: {} written, {:.3f} s = {:.2f}% of {:.2f} s wall ({})", checkpoints_written,
-             checkpoint_seconds, wall > 0 ? 100.0 * checkpoint_seconds / wall : 0.0, wall,
-             cfg.checkpoint.every_iteration ? "after every iteration" : "with skipping");
-  return result;
+    slot_seconds[kSlotNames[s]] = tasks_.seconds(BetweenIterationSlot(s));
+  slot_seconds["end_hooks"] = tasks_.end_hook_seconds();  // the recorder's end_iteration(): sort and training
+  return {{"schedule", sizes_},
+          {"schedule_switch", switch_log_},
+          {"combination", combination_name(cfg_.combination)},
+          {"combination_used", acc_.choice().log()},
+          {"resumed", resumed_},
+          {"resumed_at_iteration", first_iteration_},
+          {"time_limit",
+           {{"seconds", cfg_.time_limit},
+            {"reached", pos_.finished},
+            {"reached_in_this_run", ended_by_time_limit_},
+            {"elapsed_seconds", seconds_since(cfg_.clock_start)}}},
+          {"iterations", iterations_},
+          {"between_iteration_seconds", slot_seconds},
+          {"checkpoint",
+           {{"dir", cfg_.checkpoint.dir},
+            {"skipping", !cfg_.checkpoint.every_iteration},
+            {"written", checkpoints_written_},
+            {"failed_writes", failed_checkpoint_writes_},
+            {"seconds", checkpoint_seconds_},
+            {"wall_seconds", wall},
+            {"share_of_wall", wall > 0 ? checkpoint_seconds_ / wall : 0.0}}}};
+}
+
+}  // namespace
+
+IterationResult render_iterations(WavefrontEngine& engine, Film& film, IterationTasks tasks,
+                                  const IterationConfig& config) {
+  IterationRun run(engine, film, tasks, config);
+  run.resume_from_newest_checkpoint();
+  run.add_between_iteration_tasks();
+  run.start_deadline();
+  while (!run.done() && run.render_iteration()) {
+  }
+  return run.finish();
 }
 
 }  // namespace theia

@@ -1,6 +1,7 @@
 #include "cachepoints/cache_points.h"
 
 #include "cachepoints/cache_point_build.h"
+#include "cachepoints/local_sampler.h"
 
 #include "core/log.h"
 #include "core/stats.h"
@@ -171,12 +172,6 @@ struct CachePointSampler::Impl {
     const uint32_t last = uint32_t(std::lower_bound(cdf, cdf + f, cdf[f - 1]) - cdf);
     return int(mid[c] + std::min(first, last));
   }
-  // Locally optimal (few points): every emitter estimated at the vertex.
-  float exact_total(const LightSampleContext& ctx) const {
-    float total = 0.0f;
-    for (const Emitter& e : set.emitters) total += emitter_importance(lights, e, ctx.p, ctx.ng);
-    return total;
-  }
   void fold_visibility();
 };
 
@@ -260,30 +255,15 @@ std::optional<SampledLight> CachePointSampler::sample(const LightSampleContext& 
     const Emitter& em = emitters_.emitters[size_t(e)];
     return SampledLight{em.light, pmf, region, em.primitive};
   };
-  auto uniform = [&](float share) { return std::min(int(u / share * float(n)), int(n) - 1); };
   if (!m.tree) {
-    const float total = m.exact_total(ctx);
-    const float share = m.share(total);
-    int e = -1;
-    if (u < share) {
-      e = uniform(share);
-    } else {
-      float target = (u - share) / (1.0f - share) * total;
-      for (size_t i = 0; i < n; ++i) {
-        const float w = emitter_importance(m.lights, emitters_.emitters[i], ctx.p, ctx.ng);
-        if (w > 0.0f) e = int(i);
-        if (target < w) break;
-        target -= w;
-      }
-    }
-    if (e < 0) return std::nullopt;
-    return result(e, pmf_primitive(ctx, emitters_.emitters[size_t(e)].light, emitters_.emitters[size_t(e)].primitive), 0);
+    const LocalChoice c = sample_locally_optimal(m.lights, emitters_, ctx, u, m.prm.uniform_share);
+    return result(c.emitter, c.pmf, 0);
   }
   const Impl::Weights w = m.weights(ctx);
   const float share = m.share(w.total);
   int e = -1;
   if (u < share) {
-    e = uniform(share);
+    e = std::min(int(u / share * float(n)), int(n) - 1);
   } else {
     const int k = m.choose_entry(w, (u - share) / (1.0f - share) * w.total);
     if (k >= 0) e = int(m.entry_emitter[size_t(k)]);
@@ -296,14 +276,7 @@ float CachePointSampler::pmf_primitive(const LightSampleContext& ctx, int light,
   const Impl& m = *impl_;
   const int e = emitters_.find(light, primitive);
   if (e < 0) return 0.0f;
-  const float n = float(emitters_.size());
-  if (!m.tree) {
-    const float total = m.exact_total(ctx);
-    const float s = m.share(total);
-    float p = s / n;
-    if (s < 1.0f) p += (1.0f - s) * emitter_importance(m.lights, emitters_.emitters[size_t(e)], ctx.p, ctx.ng) / total;
-    return p;
-  }
+  if (!m.tree) return pmf_locally_optimal(m.lights, emitters_, ctx, e, m.prm.uniform_share);
   return m.probability(m.weights(ctx), e);
 }
 

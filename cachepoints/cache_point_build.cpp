@@ -179,8 +179,9 @@ struct BuildScratch {
   std::array<double, kSensorBins> rest{};  // the cull's estimate of what it left out
   std::vector<FarEntry> merged;      // the blur
   std::vector<int32_t> slot;         // per emitter: its place in `merged`, -1 none, -2 a near light
+  std::vector<uint8_t> mark;         // select_far's: per candidate, chosen by some bin; zero between calls
 
-  explicit BuildScratch(size_t emitters) : emitter(emitters), d2(emitters), slot(emitters, -1) {
+  explicit BuildScratch(size_t emitters) : emitter(emitters), d2(emitters), slot(emitters, -1), mark(emitters, 0) {
     for (auto& v : value) v.resize(emitters);
   }
 };
@@ -465,20 +466,15 @@ void select_far(size_t n, Value&& value, const std::array<double, kSensorBins>& 
   using Ranked = std::pair<float, uint32_t>;
   // Largest first, ties by index: a strict order, so the selection is deterministic.
   auto larger = [](const Ranked& a, const Ranked& c) { return a.first > c.first || (a.first == c.first && a.second < c.second); };
-  // Summed in index order per bin, as the energy walk compares against them.
-  std::array<double, kSensorBins> total = rest;
-  for (size_t i = 0; i < n; ++i)
-    for (int b = 0; b < kSensorBins; ++b) {
-      const float v = value(b, i);
-      if (v > 0.0f) total[size_t(b)] += double(v);
-    }
-  s.chosen.clear();
   const size_t cap = size_t(std::max(prm.max_far, 0));
   for (int b = 0; b < kSensorBins && cap > 0; ++b) {
+    // The bin's total, summed in index order in the same pass, is what the energy walk compares against.
+    double total = rest[size_t(b)];
     s.top.clear();  // a heap whose front is the smallest kept
     for (size_t i = 0; i < n; ++i) {
       const float v = value(b, i);
       if (!(v > 0.0f)) continue;
+      total += double(v);
       if (s.top.size() < cap) {
         s.top.emplace_back(v, uint32_t(i));
         std::push_heap(s.top.begin(), s.top.end(), larger);
@@ -491,13 +487,19 @@ void select_far(size_t n, Value&& value, const std::array<double, kSensorBins>& 
     std::sort(s.top.begin(), s.top.end(), larger);
     double sum = 0.0;
     for (size_t k = 0; k < s.top.size(); ++k) {
-      if (k >= size_t(prm.min_far) && sum >= double(prm.far_energy) * total[size_t(b)]) break;
-      s.chosen.push_back(s.top[k].second);
+      if (k >= size_t(prm.min_far) && sum >= double(prm.far_energy) * total) break;
+      s.mark[s.top[k].second] = 1;
       sum += double(s.top[k].first);
     }
   }
-  std::sort(s.chosen.begin(), s.chosen.end());
-  s.chosen.erase(std::unique(s.chosen.begin(), s.chosen.end()), s.chosen.end());
+  // The union in index order by one pass over the marks: the bins' choices
+  // overlap, and sorting their concatenation cost more than the pass.
+  s.chosen.clear();
+  for (size_t i = 0; i < n; ++i)
+    if (s.mark[i]) {
+      s.chosen.push_back(uint32_t(i));
+      s.mark[i] = 0;
+    }
 }
 
 // Section 3.1.3 at one point: the closest lights within near_radius are near

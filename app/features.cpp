@@ -14,7 +14,7 @@ namespace theia {
 
 void check(const LightSamplerOptions& o) {
   if (!light_sampler_name_known(o.light_sampler))
-    throw_error("--light-sampler {}: expected uniform, power, bvh, cachepoints or auto", o.light_sampler);
+    throw_error("--light-sampler {}: expected uniform, power, bvh, cachepoints, local or auto", o.light_sampler);
 }
 
 void LightSamplerFeature::add_tasks(IterationTasks& tasks) {

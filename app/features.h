@@ -41,7 +41,7 @@ class Feature {
 // --- Light sampler (group: none) --------------------------------------------
 
 struct LightSamplerOptions {
-  // uniform | power | bvh | cachepoints | auto (cachepoints/light_sampler.h): auto
+  // uniform | power | bvh | cachepoints | local | auto (cachepoints/light_sampler.h): auto
   // builds cache points for many emitters, the light BVH for several, else power.
   std::string light_sampler = "auto";
 };
@@ -49,8 +49,9 @@ struct LightSamplerOptions {
 template <class V>
 void declare_options(V& v, LightSamplerOptions& o) {
   v.image("light_sampler", o.light_sampler,
-          "Light selection: uniform, power, bvh (light hierarchy), cachepoints (occlusion-aware many-lights sampling) or auto (cache points "
-          "from 1024 emitters, the light BVH from 8, else power)");
+          "Light selection: uniform, power, bvh (light hierarchy), cachepoints (occlusion-aware many-lights sampling), local "
+          "(every emitter's unoccluded estimate at every vertex: the exact locally optimal choice, for small test scenes; "
+          "warns from 1024 emitters) or auto (cache points from 1024 emitters, the light BVH from 8, else power)");
 }
 void check(const LightSamplerOptions& o);
 

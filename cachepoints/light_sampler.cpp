@@ -2,6 +2,7 @@
 
 #include "cachepoints/cache_points.h"
 #include "cachepoints/light_bvh.h"
+#include "cachepoints/local_sampler.h"
 #include "core/log.h"
 
 namespace theia {
@@ -35,15 +36,23 @@ float PowerLightSampler::pmf(const LightSampleContext&, int light) const {
 }
 
 bool light_sampler_name_known(const std::string& name) {
-  return name == "uniform" || name == "power" || name == "bvh" || name == "cachepoints" || name == "auto";
+  return name == "uniform" || name == "power" || name == "bvh" || name == "cachepoints" || name == "local" ||
+         name == "auto";
 }
 
 std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights, const Accel& accel) {
   if (!light_sampler_name_known(name))
-    throw_error("unknown light sampler '{}', expected uniform, power, bvh, cachepoints or auto", name);
+    throw_error("unknown light sampler '{}', expected uniform, power, bvh, cachepoints, local or auto", name);
   if (name == "uniform") return std::make_unique<UniformLightSampler>(int(lights.scene->lights.size()));
   if (name == "bvh") return std::make_unique<LightBvhSampler>(lights);
   const size_t emitters = emitter_count(lights);
+  if (name == "local") {
+    if (emitters >= kLocalWarnEmitters)
+      log_warning("--light-sampler local evaluates all {} emitters at every vertex, twice with MIS: meant for small test "
+                  "scenes; cachepoints or bvh choose among this many far faster",
+                  emitters);
+    return std::make_unique<LocalLightSampler>(lights, CachePointParams{}.uniform_share);
+  }
   const bool cache_points = name == "cachepoints" ? emitters > 1 : name == "auto" && emitters >= kAutoCachePointEmitters;
   if (cache_points) return std::make_unique<CachePointSampler>(lights, accel);
   if (name == "auto" && emitters >= kAutoBvhEmitters) return std::make_unique<LightBvhSampler>(lights);

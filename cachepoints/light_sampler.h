@@ -44,8 +44,9 @@ inline constexpr size_t kAutoBvhEmitters = 8;
 
 bool light_sampler_name_known(const std::string& name);
 // "uniform", "power", "bvh" (cachepoints/light_bvh.h), "cachepoints" (cachepoints/cache_points.h; power for a
-// scene of one emitter, where there is nothing to choose) or "auto"; throws
-// theia::Error for anything else.
+// scene of one emitter, where there is nothing to choose), "local"
+// (cachepoints/local_sampler.h; never chosen by "auto": it costs every emitter
+// at every vertex) or "auto"; throws theia::Error for anything else.
 std::unique_ptr<LightSampler> make_light_sampler(const std::string& name, const LightSet& lights, const Accel& accel);
 
 }  // namespace theia

@@ -131,7 +131,7 @@ struct RenderableScene {
   Camera camera;
   Filter filter;
 
-  // light_sampler: uniform, power, bvh, cachepoints or auto (make_light_sampler; throws theia::Error otherwise).
+  // light_sampler: uniform, power, bvh, cachepoints, local or auto (make_light_sampler; throws theia::Error otherwise).
   explicit RenderableScene(const Scene& scene, const std::string& light_sampler = "power");
 };
 

@@ -1,5 +1,5 @@
 // Cache points in whole renders (cachepoints/cache_points.h): the image is
-// unbiased (it converges to what power sampling converges to), learned
+// unbiased (it converges to what the locally optimal sampler converges to), learned
 // visibility reaches the log, and a render stopped inside an iteration and
 // resumed equals an uninterrupted one.
 #include "light_sampler_checks.h"
@@ -12,8 +12,8 @@
 using namespace theia;
 using namespace theia::test;
 
-TEST(CachePointsRender, ConvergesToWhatPowerSamplingConvergesTo) {
-  RenderResult r = expect_converges_to_power("cachepoints");
+TEST(CachePointsRender, ConvergesToTheLocallyOptimalImage) {
+  RenderResult r = expect_converges_to_local("cachepoints");
   EXPECT_GT(r.log["light_sampler"]["points"].get<double>(), 0.0);
 }
 

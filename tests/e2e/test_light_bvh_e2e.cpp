@@ -1,5 +1,5 @@
 // The light BVH (cachepoints/light_bvh.h) in whole renders: unbiased, so the
-// street converges to what power sampling converges to, and many-lights-city
+// street converges to what the locally optimal sampler converges to, and many-lights-city
 // at 64 spp meets the validation bar (test_validation.cpp) scaled from
 // 256 spp by the variance's 1/spp, against the converged reference.
 #include "light_sampler_checks.h"
@@ -11,8 +11,8 @@
 using namespace theia;
 using namespace theia::test;
 
-TEST(LightBvhRender, ConvergesToWhatPowerSamplingConvergesTo) {
-  RenderResult r = expect_converges_to_power("bvh");
+TEST(LightBvhRender, ConvergesToTheLocallyOptimalImage) {
+  RenderResult r = expect_converges_to_local("bvh");
   EXPECT_GT(r.log["light_sampler"]["nodes"].get<double>(), 1.0);
 }
 

@@ -1,4 +1,5 @@
-// Cache points (cachepoints/cache_points.h): the pmf is a distribution over
+// Cache points (cachepoints/cache_points.h) and the locally optimal sampler
+// (cachepoints/local_sampler.h): the pmf is a distribution over
 // every emitter (a mesh light's triangles each one), sample() draws from it
 // (chi-square over emitters), learned visibility lowers occluded lights and is
 // a pure function of the counts (thread count, checkpoint round trip), the
@@ -6,20 +7,27 @@
 // build and sample.
 #include "cachepoints/cache_points.h"
 #include "cachepoints/light_sampler.h"
+#include "cachepoints/local_sampler.h"
 #include "chi2.h"
 #include "core/hash.h"
 #include "core/log.h"
 #include "scene/parser.h"
 #include "tests/street_scene.h"
+#include "tests/test_util.h"
 #include "tests/unit/light_fixture.h"
 
 #include <gtest/gtest.h>
+#include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <functional>
 #include <iterator>
+#include <map>
 #include <string>
 
 using namespace theia;
@@ -35,21 +43,23 @@ std::vector<LightSampleContext> vertices() {
           LightSampleContext{vec3(4, 3, 5), vec3(0), vec3(0), vec3(0)}};
 }
 
-double pmf_sum(const CachePointSampler& s, const LightSampleContext& ctx) {
+// For cache points and the locally optimal sampler alike: both choose among emitters().
+template <class Sampler>
+double pmf_sum(const Sampler& s, const LightSampleContext& ctx) {
   double sum = 0.0;
   for (const Emitter& e : s.emitters().emitters) sum += double(s.pmf_primitive(ctx, e.light, e.primitive));
   return sum;
 }
 
 // Sampling draws what pmf_primitive says (chi-square over emitters, 200k
-// samples at each vertex), and the pmf sums to one.
-void expect_sampling_matches_pmf(const CachePointSampler& s, int n_tests) {
+// samples at each vertex unless told), and the pmf sums to one.
+template <class Sampler>
+void expect_sampling_matches_pmf(const Sampler& s, int n_tests, int samples = 200000) {
   const size_t n = s.emitters().size();
   for (const LightSampleContext& ctx : vertices()) {
     EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
     std::vector<double> observed(n, 0.0), expected(n, 0.0);
-    constexpr int kSamples = 200000;
-    for (int i = 0; i < kSamples; ++i) {
+    for (int i = 0; i < samples; ++i) {
       auto sl = s.sample(ctx, to_unit_float(uint32_t(hash(uint64_t(i), 77u))));
       ASSERT_TRUE(sl);
       const int e = s.emitters().find(sl->light, sl->primitive);
@@ -58,7 +68,7 @@ void expect_sampling_matches_pmf(const CachePointSampler& s, int n_tests) {
       observed[size_t(e)] += 1.0;
     }
     for (size_t e = 0; e < n; ++e)
-      expected[e] = kSamples * double(s.pmf_primitive(ctx, s.emitters().emitters[e].light,
+      expected[e] = samples * double(s.pmf_primitive(ctx, s.emitters().emitters[e].light,
                                                       s.emitters().emitters[e].primitive));
     Chi2Result r = chi2_counts(observed, expected, 1e-3, n_tests);
     EXPECT_TRUE(r.passed) << r.report;
@@ -90,6 +100,39 @@ void learn_occluded_half(CachePointSampler& s) {
     s.record_shadow(chosen[i], e.center.z > 0.0f);
   });
   s.update();
+}
+
+// 1,000,000 emitters: a two-sided ceiling of 1000 x 500 quads (two triangles
+// each, one mesh light, so one emitter per triangle) over the floor, as a
+// binary PLY.
+std::string million_light_scene(const TempDir& dir) {
+  constexpr int nx = 1000, nz = 500;
+  std::string ply = fmt::format(
+      "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+      (nx + 1) * (nz + 1), 2 * nx * nz);
+  auto put = [&](const auto& v) { ply.append(reinterpret_cast<const char*>(&v), sizeof(v)); };
+  for (int j = 0; j <= nz; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      put(-10.0f + 20.0f * float(i) / float(nx));
+      put(5.0f);
+      put(-5.0f + 10.0f * float(j) / float(nz));
+    }
+  for (int j = 0; j < nz; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i, b = a + 1, c = a + nx + 1, d = c + 1;
+      for (const std::array<int, 3>& t : {std::array<int, 3>{a, b, d}, std::array<int, 3>{a, d, c}}) {
+        put(uint8_t(3));
+        for (int v : t) put(v);
+      }
+    }
+  const std::string path = dir.write("ceiling.ply", ply);
+  return "Film \"rgb\" \"integer xresolution\" [32] \"integer yresolution\" [24]\n"
+         "LookAt 0 3 -12  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" [50]\nWorldBegin\n"
+         "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+         "Shape \"trianglemesh\" \"integer indices\" [0 1 2 0 2 3] \"point3 P\" [-10 0 -10 10 0 -10 10 0 10 -10 0 10]\n"
+         "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"bool twosided\" true\n"
+         "Shape \"plymesh\" \"string filename\" \"" + path + "\"\nAttributeEnd\n";
 }
 
 }  // namespace
@@ -252,18 +295,112 @@ TEST(CachePoints, DegenerateLightSets) {
   EXPECT_THROW(make_light_sampler("bvh2", one.lights, one.accel), Error);
 }
 
-TEST(CachePoints, FewPointsFallBackToLocallyOptimal) {
+// The locally optimal sampler: a distribution over every emitter that sampling
+// draws from (chi-square), on a street of varied radiances and on one where a
+// third of the quads are black (only the uniform share reaches them).  Small
+// streets (65 and 64 emitters) and 50k samples: every sample and pmf costs a
+// pass over all emitters.
+TEST(LocalSampler, SamplingMatchesItsPmfWhichSumsToOne) {
+  for (const std::string& text : {street_scene(4, varied, true), street_scene(4, dark, false)}) {
+    LightFixture f(text);
+    LocalLightSampler s(f.lights, CachePointParams{}.uniform_share);
+    EXPECT_STREQ(s.name(), "local");
+    EXPECT_TRUE(s.chooses_primitives());
+    EXPECT_FALSE(s.wants_feedback());
+    expect_sampling_matches_pmf(s, 2, 50000);
+  }
+}
+
+// It proportions to the estimate: an emitter of zero importance gets only the
+// uniform share, and among the others the pmf minus that share is in
+// proportion to emitter_importance.
+TEST(LocalSampler, PmfIsTheUniformShareAndTheImportanceShare) {
+  LightFixture f(street_scene(6, dark, false));
+  const float share = CachePointParams{}.uniform_share;
+  LocalLightSampler s(f.lights, share);
+  const size_t n = s.emitters().size();
+  for (const LightSampleContext& ctx : vertices()) {
+    double total = 0.0;
+    for (const Emitter& e : s.emitters().emitters) total += double(emitter_importance(f.lights, e, ctx.p, ctx.ng));
+    ASSERT_GT(total, 0.0);
+    for (const Emitter& e : s.emitters().emitters) {
+      const double w = double(emitter_importance(f.lights, e, ctx.p, ctx.ng));
+      EXPECT_NEAR(double(s.pmf_primitive(ctx, e.light, e.primitive)),
+                  double(share) / double(n) + (1.0 - double(share)) * w / total, 1e-6);
+    }
+  }
+}
+
+// Cache points with too few points choose exactly as `local` does (one
+// implementation), and `auto` never picks `local`.
+TEST(LocalSampler, IsTheCachePointsFallbackAndAutoNeverPicksIt) {
   LightFixture f(street_scene(4, varied, true));
   CachePointParams p;
   p.object_candidates = 0;
   p.pilot_width = p.pilot_height = 2;
   p.pilot_depth = 1;
-  CachePointSampler s(f.lights, f.accel, p);
-  EXPECT_EQ(s.point_count(), 0u);
+  CachePointSampler few(f.lights, f.accel, p);
+  ASSERT_EQ(few.point_count(), 0u);
+  LocalLightSampler local(f.lights, p.uniform_share);
   for (const LightSampleContext& ctx : vertices()) {
-    EXPECT_NEAR(pmf_sum(s, ctx), 1.0, 1e-4);
-    auto sl = s.sample(ctx, 0.7f);
-    ASSERT_TRUE(sl);
-    EXPECT_EQ(sl->pmf, s.pmf_primitive(ctx, sl->light, sl->primitive));
+    for (const Emitter& e : local.emitters().emitters)
+      ASSERT_EQ(few.pmf_primitive(ctx, e.light, e.primitive), local.pmf_primitive(ctx, e.light, e.primitive));
+    for (float u : {0.01f, 0.3f, 0.7f, 0.999f}) {
+      auto a = few.sample(ctx, u), b = local.sample(ctx, u);
+      ASSERT_EQ(bool(a), bool(b));
+      if (a) {
+        EXPECT_TRUE(a->light == b->light && a->primitive == b->primitive && a->pmf == b->pmf);
+      }
+    }
+  }
+  EXPECT_STREQ(make_light_sampler("local", f.lights, f.accel)->name(), "local");
+  LightFixture many(street_scene(16, varied, true));  // 1,025 emitters
+  EXPECT_STREQ(make_light_sampler("auto", many.lights, many.accel)->name(), "cachepoints");
+  EXPECT_STREQ(make_light_sampler("auto", f.lights, f.accel)->name(), "bvh");
+}
+
+// Build and selection at scale: 1,000,000 emitters (one mesh light's
+// triangles) build, each point's lists stay within what the parameters allow
+// (max_near near, at most max_far per bin far), the tables' memory is what
+// the lists need, not points x emitters, and the pmf sums to one at a vertex
+// under the ceiling and one in the air.  25 points: the cost under test is
+// the emitters'.  (These sparse points' near radius, 4 point radii, covers
+// the whole ceiling, and the cull evaluates whatever may lie within it: every
+// emitter at every point here, 73% of them with 100 points.  About 9 CPU-s.)
+TEST(CachePoints, MillionEmittersBuildBoundedListsAndSumToOne) {
+  TempDir dir("theia_million_emitters");
+  LightFixture f(million_light_scene(dir));
+  CachePointParams p;
+  p.object_candidates = 16;
+  p.pilot_width = 4;
+  p.pilot_height = 3;
+  CachePointSampler s(f.lights, f.accel, p);
+  ASSERT_EQ(s.emitters().size(), 1000000u);
+  ASSERT_GE(s.point_count(), size_t(p.min_points));
+  const size_t bound = size_t(p.max_near + kSensorBins * p.max_far);
+  size_t largest = 0;
+  for (size_t c = 0; c < s.point_count(); ++c) largest = std::max(largest, s.listed(c).size());
+  EXPECT_LE(largest, bound);
+  EXPECT_GT(largest, 0u);
+  std::map<std::string, double> stats;
+  for (const auto& [key, value] : s.statistics()) stats[key] = value;
+  EXPECT_LE(stats["mean_near_lights"], double(p.max_near));
+  EXPECT_LT(stats["memory_bytes"], double(s.emitters().size() * sizeof(Emitter)) +
+                                       double(s.point_count() * bound) * 64.0);
+  for (const LightSampleContext& ctx : {vertices()[0], vertices()[3]}) {
+    const auto& all = s.emitters().emitters;
+    const double sum = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, all.size()), 0.0,
+        [&](const tbb::blocked_range<size_t>& r, double acc) {
+          for (size_t e = r.begin(); e < r.end(); ++e) acc += double(s.pmf_primitive(ctx, all[e].light, all[e].primitive));
+          return acc;
+        },
+        std::plus<double>());
+    EXPECT_NEAR(sum, 1.0, 1e-4);
+    for (int i = 0; i < 16; ++i) {
+      auto sl = s.sample(ctx, (float(i) + 0.5f) / 16.0f);
+      ASSERT_TRUE(sl);
+      EXPECT_EQ(sl->pmf, s.pmf_primitive(ctx, sl->light, sl->primitive));
+    }
   }
 }

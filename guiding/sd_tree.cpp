@@ -215,13 +215,16 @@ uint32_t SDTree::leaf_at(const vec3& p) const {
 }
 
 void SDTree::index_lookups() {
-  // Each node's box in unit coordinates (dyadic, so exact in double).
+  // Each node's box in unit coordinates (dyadic, so exact in double), and
+  // in world units halved as find_leaf halves it.
   struct Item {
     uint32_t node;
     glm::dvec3 lo, size;
+    vec3 world_size;
   };
   region_nodes_.assign(nodes_.size(), RegionNode{});
-  std::vector<Item> stack{{0, glm::dvec3(0.0), glm::dvec3(1.0)}};
+  leaf_size_.assign(leaves_.size(), vec3(0.0f));
+  std::vector<Item> stack{{0, glm::dvec3(0.0), glm::dvec3(1.0), root_size_}};
   while (!stack.empty()) {
     Item it = stack.back();
     stack.pop_back();
@@ -229,15 +232,17 @@ void SDTree::index_lookups() {
     RegionNode& r = region_nodes_[it.node];
     if (n.first_child == 0) {
       r.axis_or_leaf = n.leaf;
+      leaf_size_[n.leaf] = it.world_size;
       continue;
     }
     r.first_child = n.first_child;
     r.axis_or_leaf = n.axis;
     it.size[n.axis] *= 0.5;
+    it.world_size[n.axis] *= 0.5f;
     r.split = it.lo[n.axis] + it.size[n.axis];
-    stack.push_back({n.first_child, it.lo, it.size});
+    stack.push_back({n.first_child, it.lo, it.size, it.world_size});
     it.lo[n.axis] = r.split;
-    stack.push_back({n.first_child + 1, it.lo, it.size});
+    stack.push_back({n.first_child + 1, it.lo, it.size, it.world_size});
   }
   for (SpatialLeaf& leaf : leaves_) {
     leaf.steps.resize(leaf.sampling.size());
@@ -332,7 +337,7 @@ uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, floa
   if (!finite3(p) || !finite3(wi) || !(len > 0.0f) || !std::isfinite(radiance) || !(radiance >= 0.0f) ||
       !(pdf > 0.0f) || !std::isfinite(pdf))
     return kInvalidLeaf;
-  Lookup at = find_leaf(p);
+  const uint32_t leaf = leaf_at(p);
   if (options_.spatial_filter) {
     // Stochastic box filter: jitter p uniformly over a box the size of its
     // leaf, centred on p; a jitter leaving the root box is reflected back in
@@ -340,13 +345,13 @@ uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, floa
     uint64_t h = hash(key);
     vec3 q = p;
     for (int a = 0; a < 3; ++a) {
-      q[a] += (hash_unit(h, a) - 0.5f) * at.size[a];
+      q[a] += (hash_unit(h, a) - 0.5f) * leaf_size_[leaf][a];
       if (q[a] < root_.min[a]) q[a] = 2.0f * root_.min[a] - q[a];
       if (q[a] > root_.max[a]) q[a] = 2.0f * root_.max[a] - q[a];
     }
     return leaf_at(q);
   }
-  return at.leaf;
+  return leaf;
 }
 
 void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
@@ -365,8 +370,32 @@ void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
 // integral), so the gradient is the normalised one of eq. 11 and the L2 term
 // weighs the same in dim and bright regions (Algorithm 3 leaves that balance
 // to the scene's radiance scale).
+namespace {
+
+constexpr float kAdamBeta1 = 0.9f, kAdamBeta2 = 0.999f, kAdamLearningRate = 0.01f;
+
+// Adam's bias-corrected step size at step t >= 1, tabulated: two std::pow per
+// training sample were a sixth of training's instructions.  Past the table
+// 1 - beta^t is 1 in double (0.999^65536 ~ 3e-29), so the step is the plain
+// rate, as the formula gives it.
+float adam_rate(uint32_t t) {
+  constexpr uint32_t kSteps = 1u << 16;
+  static const std::vector<float> table = [] {
+    std::vector<float> r(kSteps);
+    for (uint32_t k = 1; k < kSteps; ++k) {
+      const double t = double(k);
+      r[k] = kAdamLearningRate * float(std::sqrt(1.0 - std::pow(double(kAdamBeta2), t)) /
+                                       (1.0 - std::pow(double(kAdamBeta1), t)));
+    }
+    return r;
+  }();
+  return t < kSteps ? table[t] : kAdamLearningRate;
+}
+
+}  // namespace
+
 void learn_selection_step(SelectionLearner& l, const SDTreeSample& s) {
-  constexpr float kBeta1 = 0.9f, kBeta2 = 0.999f, kEpsilon = 1e-8f, kLearningRate = 0.01f, kRegularization = 0.01f;
+  constexpr float kBeta1 = kAdamBeta1, kBeta2 = kAdamBeta2, kEpsilon = 1e-8f, kRegularization = 0.01f;
   if (!(s.bsdf_ratio > 0.0f || s.guide_ratio > 0.0f) || !(s.product_weight >= 0.0f) ||
       !std::isfinite(s.product_weight))
     return;
@@ -380,9 +409,7 @@ void learn_selection_step(SelectionLearner& l, const SDTreeSample& s) {
   const float gradient = d_sel * sel * (1.0f - sel) + kRegularization * l.theta;
   if (!std::isfinite(gradient)) return;
   ++l.steps;
-  const double t = double(l.steps);
-  const float rate = kLearningRate * float(std::sqrt(1.0 - std::pow(double(kBeta2), t)) /
-                                           (1.0 - std::pow(double(kBeta1), t)));
+  const float rate = adam_rate(l.steps);
   l.m = kBeta1 * l.m + (1.0f - kBeta1) * gradient;
   l.v = kBeta2 * l.v + (1.0f - kBeta2) * gradient * gradient;
   l.theta -= rate * l.m / (std::sqrt(l.v) + kEpsilon);
@@ -604,7 +631,7 @@ size_t SDTree::memory_bytes() const {
   for (const SpatialLeaf& leaf : leaves_)
     bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.steps.capacity() * sizeof(SamplingStep) +
              leaf.building.capacity() * sizeof(BuildingQuadNode);
-  bytes += region_nodes_.capacity() * sizeof(RegionNode);
+  bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3);
   return bytes;
 }
 

@@ -226,7 +226,7 @@ class SDTree final : public DirectionalGuide {
   // node's split plane in the root box's unit coordinates.  find_leaf's
   // halvings are exact, so comparing with the dyadic plane takes its branch.
   uint32_t leaf_at(const vec3& p) const;
-  // Rebuilds region_nodes_ and every leaf's steps: after update() and deserialize().
+  // Rebuilds region_nodes_, leaf_size_ and every leaf's steps: after update() and deserialize().
   void index_lookups();
   // The leaf a valid sample deposits into (after the spatial jitter); kInvalidLeaf for one add_sample drops.
   static constexpr uint32_t kInvalidLeaf = 0xffffffffu;
@@ -247,6 +247,7 @@ class SDTree final : public DirectionalGuide {
     uint32_t axis_or_leaf = 0;
   };
   std::vector<RegionNode> region_nodes_;  // nodes_, for leaf_at
+  std::vector<vec3> leaf_size_;           // each leaf's box size, as find_leaf gives it (the spatial filter's)
   uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
   uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration
   mutable uint64_t draw_failures_ = 0;             // every leaf's, including split ones

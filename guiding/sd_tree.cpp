@@ -125,11 +125,6 @@ void deposit_box(BuildingQuadNode* nodes, uint32_t index, dvec2 origin, double s
   }
 }
 
-// Flux of a sampling node, in the order sample() splits it: columns first.
-inline double sampling_total(const SamplingQuadNode& n) {
-  return (double(n.flux[0]) + double(n.flux[2])) + (double(n.flux[1]) + double(n.flux[3]));
-}
-
 // A uniform float in [0,1) from 21 bits of h, `slot` 0..2.
 inline float hash_unit(uint64_t h, int slot) { return float((h >> (21 * slot)) & 0x1fffffu) * 0x1p-21f; }
 
@@ -184,6 +179,7 @@ SDTree::SDTree(const Bounds3& scene_bounds, const SDTreeOptions& options) : opti
     leaves_[0].learner.theta = std::log(start / (1.0f - start));
   }
   leaves_[0].building = refine_quadtree({}, options_.flux_threshold, options_.max_quadtree_depth);
+  index_lookups();
 }
 
 SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
@@ -205,6 +201,68 @@ SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
   }
   at.leaf = nodes_[n].leaf;
   return at;
+}
+
+uint32_t SDTree::leaf_at(const vec3& p) const {
+  const vec3 q = (p - root_.min) / root_size_;  // as find_leaf computes it
+  const float c[3] = {std::clamp(q.x, 0.0f, kOneMinusEpsilon), std::clamp(q.y, 0.0f, kOneMinusEpsilon),
+                      std::clamp(q.z, 0.0f, kOneMinusEpsilon)};
+  const RegionNode* nodes = region_nodes_.data();
+  uint32_t n = 0;
+  while (nodes[n].first_child != 0)
+    n = nodes[n].first_child + uint32_t(double(c[nodes[n].axis_or_leaf]) >= nodes[n].split);
+  return nodes[n].axis_or_leaf;
+}
+
+void SDTree::index_lookups() {
+  // Each node's box in unit coordinates (dyadic, so exact in double), and
+  // in world units halved as find_leaf halves it.
+  struct Item {
+    uint32_t node;
+    glm::dvec3 lo, size;
+    vec3 world_size;
+  };
+  region_nodes_.assign(nodes_.size(), RegionNode{});
+  leaf_size_.assign(leaves_.size(), vec3(0.0f));
+  std::vector<Item> stack{{0, glm::dvec3(0.0), glm::dvec3(1.0), root_size_}};
+  while (!stack.empty()) {
+    Item it = stack.back();
+    stack.pop_back();
+    const SpatialNode& n = nodes_[it.node];
+    RegionNode& r = region_nodes_[it.node];
+    if (n.first_child == 0) {
+      r.axis_or_leaf = n.leaf;
+      leaf_size_[n.leaf] = it.world_size;
+      continue;
+    }
+    r.first_child = n.first_child;
+    r.axis_or_leaf = n.axis;
+    it.size[n.axis] *= 0.5;
+    it.world_size[n.axis] *= 0.5f;
+    r.split = it.lo[n.axis] + it.size[n.axis];
+    stack.push_back({n.first_child, it.lo, it.size, it.world_size});
+    it.lo[n.axis] = r.split;
+    stack.push_back({n.first_child + 1, it.lo, it.size, it.world_size});
+  }
+  for (SpatialLeaf& leaf : leaves_) {
+    leaf.steps.resize(leaf.sampling.size());
+    for (size_t k = 0; k < leaf.sampling.size(); ++k) {
+      const SamplingQuadNode& node = leaf.sampling[k];
+      SamplingStep& st = leaf.steps[k];
+      // sample()'s column-first split and pdf()'s total, as they computed them.
+      const double left = double(node.flux[0]) + double(node.flux[2]);
+      const double right = double(node.flux[1]) + double(node.flux[3]);
+      const double total = left + right;
+      st.empty = !(total > 0.0);
+      st.column = left / total;
+      st.row[0] = double(node.flux[0]) / left;
+      st.row[1] = double(node.flux[1]) / right;
+      for (int i = 0; i < 4; ++i) {
+        st.factor[i] = 4.0 * double(node.flux[i]) / total;
+        st.child[i] = node.child[i];
+      }
+    }
+  }
 }
 
 Bounds3 SDTree::leaf_bounds(const vec3& p) const {
@@ -279,7 +337,7 @@ uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, floa
   if (!finite3(p) || !finite3(wi) || !(len > 0.0f) || !std::isfinite(radiance) || !(radiance >= 0.0f) ||
       !(pdf > 0.0f) || !std::isfinite(pdf))
     return kInvalidLeaf;
-  Lookup at = find_leaf(p);
+  const uint32_t leaf = leaf_at(p);
   if (options_.spatial_filter) {
     // Stochastic box filter: jitter p uniformly over a box the size of its
     // leaf, centred on p; a jitter leaving the root box is reflected back in
@@ -287,13 +345,13 @@ uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, floa
     uint64_t h = hash(key);
     vec3 q = p;
     for (int a = 0; a < 3; ++a) {
-      q[a] += (hash_unit(h, a) - 0.5f) * at.size[a];
+      q[a] += (hash_unit(h, a) - 0.5f) * leaf_size_[leaf][a];
       if (q[a] < root_.min[a]) q[a] = 2.0f * root_.min[a] - q[a];
       if (q[a] > root_.max[a]) q[a] = 2.0f * root_.max[a] - q[a];
     }
-    at = find_leaf(q);
+    return leaf_at(q);
   }
-  return at.leaf;
+  return leaf;
 }
 
 void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
@@ -312,8 +370,32 @@ void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
 // integral), so the gradient is the normalised one of eq. 11 and the L2 term
 // weighs the same in dim and bright regions (Algorithm 3 leaves that balance
 // to the scene's radiance scale).
+namespace {
+
+constexpr float kAdamBeta1 = 0.9f, kAdamBeta2 = 0.999f, kAdamLearningRate = 0.01f;
+
+// Adam's bias-corrected step size at step t >= 1, tabulated: two std::pow per
+// training sample were a sixth of training's instructions.  Past the table
+// 1 - beta^t is 1 in double (0.999^65536 ~ 3e-29), so the step is the plain
+// rate, as the formula gives it.
+float adam_rate(uint32_t t) {
+  constexpr uint32_t kSteps = 1u << 16;
+  static const std::vector<float> table = [] {
+    std::vector<float> r(kSteps);
+    for (uint32_t k = 1; k < kSteps; ++k) {
+      const double t = double(k);
+      r[k] = kAdamLearningRate * float(std::sqrt(1.0 - std::pow(double(kAdamBeta2), t)) /
+                                       (1.0 - std::pow(double(kAdamBeta1), t)));
+    }
+    return r;
+  }();
+  return t < kSteps ? table[t] : kAdamLearningRate;
+}
+
+}  // namespace
+
 void learn_selection_step(SelectionLearner& l, const SDTreeSample& s) {
-  constexpr float kBeta1 = 0.9f, kBeta2 = 0.999f, kEpsilon = 1e-8f, kLearningRate = 0.01f, kRegularization = 0.01f;
+  constexpr float kBeta1 = kAdamBeta1, kBeta2 = kAdamBeta2, kEpsilon = 1e-8f, kRegularization = 0.01f;
   if (!(s.bsdf_ratio > 0.0f || s.guide_ratio > 0.0f) || !(s.product_weight >= 0.0f) ||
       !std::isfinite(s.product_weight))
     return;
@@ -327,9 +409,7 @@ void learn_selection_step(SelectionLearner& l, const SDTreeSample& s) {
   const float gradient = d_sel * sel * (1.0f - sel) + kRegularization * l.theta;
   if (!std::isfinite(gradient)) return;
   ++l.steps;
-  const double t = double(l.steps);
-  const float rate = kLearningRate * float(std::sqrt(1.0 - std::pow(double(kBeta2), t)) /
-                                           (1.0 - std::pow(double(kBeta1), t)));
+  const float rate = adam_rate(l.steps);
   l.m = kBeta1 * l.m + (1.0f - kBeta1) * gradient;
   l.v = kBeta2 * l.v + (1.0f - kBeta2) * gradient * gradient;
   l.theta -= rate * l.m / (std::sqrt(l.v) + kEpsilon);
@@ -402,6 +482,7 @@ void SDTree::update() {
   refine_spatial();
   for (SpatialLeaf& leaf : leaves_)
     leaf.building = refine_quadtree(leaf.building, options_.flux_threshold, options_.max_quadtree_depth);
+  index_lookups();
   last_recorded_ = recorded_;
   last_dropped_ = dropped_;
   recorded_ = dropped_ = 0;
@@ -443,7 +524,7 @@ void SDTree::refine_spatial() {
 
 uint32_t SDTree::region(const vec3& p) const {
   if (updates_ == 0 || !finite3(p)) return kNoGuideRegion;
-  uint32_t leaf = find_leaf(p).leaf;
+  uint32_t leaf = leaf_at(p);
   return leaves_[leaf].has_energy ? leaf : kNoGuideRegion;
 }
 
@@ -466,15 +547,14 @@ float SDTree::radiance_integral(uint32_t region) const {
 // a uniform leaf, in sample() too.
 float SDTree::pdf(uint32_t region, const vec3& wi) const {
   if (region >= leaves_.size() || !leaves_[region].has_energy) return 0.0f;
-  const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
+  const SamplingStep* nodes = leaves_[region].steps.data();
   vec2 c = sd_direction_to_square(wi);
   double density = 1.0;
   uint32_t n = 0;
   for (;;) {
-    double total = sampling_total(nodes[n]);
-    if (!(total > 0.0)) break;
+    if (nodes[n].empty) break;
     int i = descend(c);
-    density *= 4.0 * double(nodes[n].flux[i]) / total;
+    density *= nodes[n].factor[i];
     if (nodes[n].child[i] == 0 || density == 0.0) break;
     n = nodes[n].child[i];
   }
@@ -488,7 +568,7 @@ float SDTree::pdf(uint32_t region, const vec3& wi) const {
 // set of measure zero in the continuous domain, so both are the density.
 GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   if (region >= leaves_.size() || !leaves_[region].has_energy) return {};
-  const std::vector<SamplingQuadNode>& nodes = leaves_[region].sampling;
+  const SamplingStep* nodes = leaves_[region].steps.data();
   // u is rescaled at every level (hierarchical warping, McCool and Harwood
   // 1997), in double so that a depth-20 descent keeps bits for the leaf.
   constexpr double kBelowOne = 0x1.fffffffffffffp-1;
@@ -496,25 +576,19 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   double ox = 0.0, oy = 0.0, size = 1.0, density = 1.0;
   uint32_t n = 0;
   for (;;) {
-    const SamplingQuadNode& node = nodes[n];
+    const SamplingStep& node = nodes[n];
     // Column first (x: quadrants 0,2 vs 1,3), then the row within it.  The
     // total is summed as in pdf(), so an empty column gets b = 0 or 1 exactly.
-    double left = double(node.flux[0]) + double(node.flux[2]);
-    double right = double(node.flux[1]) + double(node.flux[3]);
-    double total = left + right;
-    if (!(total > 0.0)) break;
-    double b = left / total;
+    if (node.empty) break;
+    double b = node.column;
     int i = 0;
-    double col;
     if (ux < b) {
       ux /= b;
-      col = left;
     } else {
       ux = (ux - b) / (1.0 - b);
       i |= 1;
-      col = right;
     }
-    b = double(node.flux[i]) / col;
+    b = node.row[i];
     if (uy < b) {
       uy /= b;
     } else {
@@ -523,7 +597,7 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
     }
     ux = std::min(ux, kBelowOne);
     uy = std::min(uy, kBelowOne);
-    density *= 4.0 * double(node.flux[i]) / total;
+    density *= node.factor[i];
     size *= 0.5;
     if (i & 1) ox += size;
     if (i & 2) oy += size;
@@ -555,7 +629,9 @@ SDTreeStats SDTree::stats() const {
 size_t SDTree::memory_bytes() const {
   size_t bytes = sizeof(*this) + nodes_.capacity() * sizeof(SpatialNode) + leaves_.capacity() * sizeof(SpatialLeaf);
   for (const SpatialLeaf& leaf : leaves_)
-    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.building.capacity() * sizeof(BuildingQuadNode);
+    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.steps.capacity() * sizeof(SamplingStep) +
+             leaf.building.capacity() * sizeof(BuildingQuadNode);
+  bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3);
   return bytes;
 }
 

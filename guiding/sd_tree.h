@@ -118,8 +118,20 @@ struct SelectionLearner {
   double product_sum = 0.0;  // of the samples' product weights: their mean scales the gradient
 };
 
+// A sampling node as sample() and pdf() read it: the divisions of its
+// flux done once per update() instead of at every level of every lookup
+// (the same double expressions, so lookups give the numbers they gave).
+struct SamplingStep {
+  double column = 0.0;    // the left column's (quadrants 0, 2) share of the node's flux
+  double row[2] = {0, 0}; // quadrant 0's share of the left column, quadrant 1's of the right
+  double factor[4] = {0, 0, 0, 0};  // 4 flux / total: the density's factor for each quadrant
+  uint32_t child[4] = {0, 0, 0, 0};
+  bool empty = true;      // no flux (underflowed): a uniform leaf
+};
+
 struct SpatialLeaf {
   std::vector<SamplingQuadNode> sampling;
+  std::vector<SamplingStep> steps;  // sampling's, for lookups (index_lookups)
   std::vector<BuildingQuadNode> building;
   double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux
@@ -198,7 +210,7 @@ class SDTree final : public DirectionalGuide {
   size_t leaf_count() const { return leaves_.size(); }
   const SpatialLeaf& leaf(uint32_t index) const { return leaves_[index]; }
   std::vector<Bounds3> leaf_boxes() const;
-  uint32_t leaf_index(const vec3& p) const { return find_leaf(p).leaf; }
+  uint32_t leaf_index(const vec3& p) const { return leaf_at(p); }
   bool records(const SDTreeSample& s) const { return target_leaf(s.p, s.wi, s.radiance, s.pdf, s.key) != kInvalidLeaf; }
 
  private:
@@ -210,6 +222,12 @@ class SDTree final : public DirectionalGuide {
     vec3 lo, size;  // the leaf box
   };
   Lookup find_leaf(const vec3& p) const;
+  // find_leaf's leaf without its box: one comparison per level against the
+  // node's split plane in the root box's unit coordinates.  find_leaf's
+  // halvings are exact, so comparing with the dyadic plane takes its branch.
+  uint32_t leaf_at(const vec3& p) const;
+  // Rebuilds region_nodes_, leaf_size_ and every leaf's steps: after update() and deserialize().
+  void index_lookups();
   // The leaf a valid sample deposits into (after the spatial jitter); kInvalidLeaf for one add_sample drops.
   static constexpr uint32_t kInvalidLeaf = 0xffffffffu;
   uint32_t target_leaf(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) const;
@@ -223,6 +241,13 @@ class SDTree final : public DirectionalGuide {
   int updates_ = 0;
   std::vector<SpatialNode> nodes_;
   std::vector<SpatialLeaf> leaves_;
+  struct RegionNode {
+    double split = 0.0;      // the plane, in unit coordinates along `axis`
+    uint32_t first_child = 0;  // 0: a leaf
+    uint32_t axis_or_leaf = 0;
+  };
+  std::vector<RegionNode> region_nodes_;  // nodes_, for leaf_at
+  std::vector<vec3> leaf_size_;           // each leaf's box size, as find_leaf gives it (the spatial filter's)
   uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
   uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration
   mutable uint64_t draw_failures_ = 0;             // every leaf's, including split ones

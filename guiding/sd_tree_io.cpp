@@ -235,6 +235,7 @@ struct SDTreeSerializer {
       leaf.building = get_quadtree<double>(r, "building", l);
     }
     if (r.at != body) throw_error("SD-tree data corrupt: {} unread bytes before the checksum", body - r.at);
+    t.index_lookups();
     return t;
   }
 };

@@ -59,7 +59,9 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
       const SamplerKey key{opt.seed, s.pixel, s.sample};
       FilterSample fs = camera_filter_sample(filter, opt.seed, s.pixel, s.sample);
       vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
-      auto cam = generate_camera_ray(camera, p_film, sample_2d(key, CameraDims::lens));
+      // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
+      const vec2 u_lens = camera.lens_radius > 0.0f ? sample_2d(key, CameraDims::lens) : vec2(0.5f);
+      auto cam = generate_camera_ray(camera, p_film, u_lens);
       Ray ray;
       ray.o = cam.o;
       ray.d = cam.d;

@@ -76,6 +76,10 @@ int run_diff(const std::string& a, const std::string& b, const std::string& erro
   fmt::print("MAPE {:.9g}\n", m.mape);
   fmt::print("block_relMSE {:.9g}\n", m.block_rel_mse);
   fmt::print("channel_mean_deviation {:.9g}\n", m.channel_mean_deviation);
+  // Signed, per channel: a deviation alone cannot say which image is brighter.
+  fmt::print("channel_mean_ratio");
+  for (double ratio : channel_mean_ratios(x, r)) fmt::print(" {:.9g}", ratio);
+  fmt::print("\n");
   // Where the error lives: a biased material shows as a tile whose mean ratio is off 1.
   fmt::print("worst {}x{} tiles (x0 y0 x1 y1 relMSE mean_ratio_R mean_ratio_G mean_ratio_B):\n", kDiffTile, kDiffTile);
   for (const TileError& t : worst_tiles(x, r, kDiffTile, kDiffTileCount))

@@ -58,8 +58,9 @@ def theia_cmd(binary, scene, spp, out, threads=None):
     return cmd + ["--threads", str(threads)] if threads else cmd
 
 
-def pbrt_cmd(binary, scene, spp, out):
-    return [binary, "--spp", str(spp), "--outfile", out, scene]
+def pbrt_cmd(binary, scene, spp, out, seed=None):
+    seed = ["--seed", str(seed)] if seed is not None else []
+    return [binary, "--spp", str(spp)] + seed + ["--outfile", out, scene]
 
 
 class Summary:

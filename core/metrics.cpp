@@ -80,10 +80,10 @@ double block_rel_mse(const ImageBuffer& x, const ImageBuffer& r, int block) {
   return rel_mse(block_average(x, ch.x, block), block_average(r, ch.r, block));
 }
 
-double channel_mean_deviation(const ImageBuffer& x, const ImageBuffer& r) {
+std::vector<double> channel_mean_ratios(const ImageBuffer& x, const ImageBuffer& r) {
   Channels ch = matched_channels(x, r);
-  double worst = 0.0;
-  for (size_t c = 0; c < ch.x.size(); ++c) {
+  std::vector<double> ratio(ch.x.size());
+  for (size_t c = 0; c < ratio.size(); ++c) {
     double sx = 0.0, sr = 0.0;
     for (int y = 0; y < x.height; ++y)
       for (int px = 0; px < x.width; ++px) {
@@ -91,11 +91,20 @@ double channel_mean_deviation(const ImageBuffer& x, const ImageBuffer& r) {
         sr += r.at(px, y, ch.r[c]);
       }
     // Means share the pixel count, so their ratio is the ratio of sums.
-    double dev;
-    if (sr == 0.0)
-      dev = sx == 0.0 ? 0.0 : std::numeric_limits<double>::infinity();
-    else
-      dev = std::abs(sx / sr - 1.0);
+    if (sr != 0.0)
+      ratio[c] = sx / sr;
+    else if (sx == 0.0)
+      ratio[c] = 1.0;
+    else  // NaN stays NaN: it must not pass for a finite bias
+      ratio[c] = std::isnan(sx) ? sx : std::copysign(std::numeric_limits<double>::infinity(), sx);
+  }
+  return ratio;
+}
+
+double channel_mean_deviation(const ImageBuffer& x, const ImageBuffer& r) {
+  double worst = 0.0;
+  for (double ratio : channel_mean_ratios(x, r)) {
+    double dev = std::abs(ratio - 1.0);
     // NaN must not hide behind max().
     if (std::isnan(dev)) return dev;
     worst = std::max(worst, dev);

@@ -7,6 +7,8 @@
 
 #include "core/image.h"
 
+#include <vector>
+
 namespace theia {
 
 // The offset keeps dark reference pixels from dominating (and 0/0).
@@ -22,8 +24,11 @@ double mape(const ImageBuffer& x, const ImageBuffer& r);
 // at the right and bottom edges average the pixels they have): insensitive to
 // zero-mean per-pixel noise, sensitive to bias and low-frequency error.
 double block_rel_mse(const ImageBuffer& x, const ImageBuffer& r, int block = 8);
+// mean(x) / mean(r) per compared channel (R, G, B): which way a global energy
+// bias goes (a spectral renderer's image against an RGB one's, say). A channel
+// whose reference mean is 0 has ratio 1 if x's mean is 0 too, else +-inf.
+std::vector<double> channel_mean_ratios(const ImageBuffer& x, const ImageBuffer& r);
 // max over R, G, B of |mean(x) / mean(r) - 1|: a global energy bias check.
-// A channel whose reference mean is 0 counts 0 if x's mean is 0 too, else inf.
 double channel_mean_deviation(const ImageBuffer& x, const ImageBuffer& r);
 
 struct ErrorMetrics {

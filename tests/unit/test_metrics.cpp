@@ -91,9 +91,18 @@ TEST(Metrics, ChannelMeanDeviationIsTheWorstChannel) {
   ImageBuffer r = rgb_image(2, 1, {1, 1, 1, 1, 1, 1});
   ImageBuffer x = rgb_image(2, 1, {1.2f, 1, 0.7f, 1.0f, 1, 0.9f});  // means 1.1, 1, 0.8
   EXPECT_NEAR(channel_mean_deviation(x, r), 0.2, 1e-6);
+  std::vector<double> ratios = channel_mean_ratios(x, r);
+  ASSERT_EQ(ratios.size(), 3u);
+  EXPECT_NEAR(ratios[0], 1.1, 1e-6);  // signed: brighter in R, darker in B
+  EXPECT_NEAR(ratios[1], 1.0, 1e-6);
+  EXPECT_NEAR(ratios[2], 0.8, 1e-6);
   ImageBuffer black(2, 1, {"R", "G", "B"}, 0.0f);
   EXPECT_EQ(channel_mean_deviation(black, black), 0.0);
+  EXPECT_EQ(channel_mean_ratios(black, black), std::vector<double>(3, 1.0));
   EXPECT_EQ(channel_mean_deviation(x, black), std::numeric_limits<double>::infinity());
+  EXPECT_EQ(channel_mean_ratios(x, black)[0], std::numeric_limits<double>::infinity());
+  ImageBuffer negative = rgb_image(2, 1, {-1, -1, -1, 0, 0, 0});
+  EXPECT_EQ(channel_mean_ratios(negative, black)[2], -std::numeric_limits<double>::infinity());
 
   ErrorMetrics m = compute_error_metrics(x, r, 1);
   EXPECT_EQ(m.rel_mse, rel_mse(x, r));
@@ -108,6 +117,8 @@ TEST(Metrics, NonFiniteTestValuesAreNotHidden) {
   ImageBuffer x = rgb_image(1, 1, {std::nanf(""), 1, 1});
   EXPECT_TRUE(std::isnan(rel_mse(x, r)));
   EXPECT_TRUE(std::isnan(channel_mean_deviation(x, r)));
+  ImageBuffer black(1, 1, {"R", "G", "B"}, 0.0f);
+  EXPECT_TRUE(std::isnan(channel_mean_ratios(x, black)[0]));
 }
 
 TEST(Metrics, PerPixelRelativeError) {
@@ -203,6 +214,16 @@ TEST_F(DiffFiles, PrintsEveryMetricAndWritesTheErrorImage) {
       EXPECT_EQ(x1 - x0, 4);  // the whole 4x2 image is one 32x32 tile
       EXPECT_NEAR(rel, rel_mse(test, ref), 1e-5 * rel_mse(test, ref));  // printed to 6 digits
       ++tile_lines;
+      continue;
+    }
+    if (name == "channel_mean_ratio") {
+      std::vector<double> expected = channel_mean_ratios(test, ref);
+      for (double e : expected) {
+        double printed = 0.0;
+        lines >> printed;
+        EXPECT_NEAR(printed, e, 1e-8) << out;
+      }
+      EXPECT_NE(expected[0], 1.0);  // the test image is brighter in R: the line must show it
       continue;
     }
     if (name == "error_image") {

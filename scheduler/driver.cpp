@@ -16,8 +16,7 @@ namespace theia {
 namespace {
 
 constexpr const char* kSchedulerSection = "scheduler";
-// 4: camera_done counts camera samples in sample-major order (camera_samples.h).
-constexpr uint32_t kSchedulerSectionVersion = 4;
+constexpr uint32_t kSchedulerSectionVersion = 3;
 // A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance).
 constexpr const char* kRunChannels[5] = {"R", "G", "B", "W", "V"};
 
@@ -59,7 +58,7 @@ class Deadline {
 
 // Colour samples per pixel, smallest and largest, counted from what was
 // rendered: every iteration before pos.iteration and the first
-// pos.camera_done camera samples of it (CameraSampleOrder).
+// pos.camera_done camera samples of it (pixel-sample order, engine.h).
 std::pair<uint32_t, uint32_t> spp_range(const Position& pos, const std::vector<int>& sizes,
                                         const std::vector<int>& cumulative, size_t pixels,
                                         const AdaptiveSampler* adaptive) {
@@ -67,22 +66,25 @@ std::pair<uint32_t, uint32_t> spp_range(const Position& pos, const std::vector<i
   if (adaptive) {
     // Its ranges are those of pos.iteration (the last one's once all are done).
     const SampleRanges& r = adaptive->ranges();
-    const CameraSampleOrder order(r);
     const uint64_t done = pos.iteration >= int(sizes.size()) ? r.total() : pos.camera_done;
     uint32_t lo = UINT32_MAX, hi = 0;
     for (size_t p = 0; p < pixels; ++p) {
-      const uint32_t got = order.samples_in(uint32_t(p), done);
-      const uint32_t n = r.begin[p] + std::min(got, r.colour_end[p] - r.begin[p]);
+      uint64_t rays = r.offset[p + 1] - r.offset[p];
+      uint64_t got = std::min(rays, done > r.offset[p] ? done - r.offset[p] : 0);
+      uint32_t n = r.begin[p] + uint32_t(std::min<uint64_t>(got, r.colour_end[p] - r.begin[p]));
       lo = std::min(lo, n);
       hi = std::max(hi, n);
     }
     return {lo, hi};
   }
   if (pos.iteration >= int(sizes.size())) return {uint32_t(cumulative.back()), uint32_t(cumulative.back())};
-  const uint32_t end = uint32_t(cumulative[size_t(pos.iteration)]);
-  const uint32_t before = end - uint32_t(sizes[size_t(pos.iteration)]);
-  const CameraSampleOrder order(pixels, before, end);
-  return {before + order.samples_in(uint32_t(pixels - 1), pos.camera_done), before + order.samples_in(0, pos.camera_done)};
+  const uint64_t n = uint64_t(sizes[size_t(pos.iteration)]);
+  const uint32_t before = uint32_t(cumulative[size_t(pos.iteration)]) - uint32_t(n);
+  auto got = [&](uint64_t pixel) {
+    uint64_t first = pixel * n;
+    return uint32_t(std::min(n, pos.camera_done > first ? pos.camera_done - first : 0));
+  };
+  return {before + got(pixels - 1), before + got(0)};
 }
 
 void put_planes(ImageBuffer& img, const std::string& prefix, const Film& f, std::vector<const float*>& src,

@@ -1,9 +1,34 @@
-// Stage: generate camera rays, in the order of camera_samples.h, into fresh path slots.
+// Stage: generate camera rays, in pixel-sample order, into fresh path slots.
 #include "wavefront/engine_impl.h"
 
 #include <tbb/parallel_for.h>
 
 namespace theia {
+
+namespace {
+
+struct PixelSample {
+  uint32_t pixel = 0, sample = 0;
+  bool alpha_only = false;  // past the pixel's colour samples: coverage only
+};
+
+// Camera sample g of the iteration: pixel-sample order over the frame, or
+// over the per-pixel ranges of adaptive sampling.
+PixelSample camera_sample(uint64_t g, const SampleRanges* ranges, uint32_t sample_begin, uint32_t sample_count) {
+  PixelSample s;
+  if (ranges) {
+    auto it = std::upper_bound(ranges->offset.begin(), ranges->offset.end(), g);
+    s.pixel = uint32_t(it - ranges->offset.begin()) - 1;
+    s.sample = ranges->begin[s.pixel] + uint32_t(g - ranges->offset[s.pixel]);
+    s.alpha_only = s.sample >= ranges->colour_end[s.pixel];
+  } else {
+    s.pixel = uint32_t(g / sample_count);
+    s.sample = sample_begin + uint32_t(g % sample_count);
+  }
+  return s;
+}
+
+}  // namespace
 
 // A camera path's state at its first vertex; the cold tables of the
 // features that are on start afresh too.
@@ -36,10 +61,10 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   std::vector<uint32_t> slots(pool.free_slots.end() - count, pool.free_slots.end());
   pool.free_slots.resize(pool.free_slots.size() - count);
 
-  // Camera rays stay in their order rather than entering the direction bins:
+  // Camera rays stay in pixel order rather than entering the direction bins:
   // neighbouring pixels' rays are coherent already, and a batch of them is
   // traced with Embree's COHERENT flag.  They are written straight into
-  // their batches, pushed last first so that the first are traced first.
+  // their batches, pushed last first so that the first pixels are traced first.
   const size_t batch = sizes.batch_size, n_batches = (count + batch - 1) / batch;
   const size_t first_batch = full.size();
   for (size_t k = n_batches; k-- > 0;) {
@@ -55,7 +80,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   const uint32_t width = uint32_t(film.width);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
-      const CameraSample s = camera_order.at(first + i);
+      const PixelSample s = camera_sample(first + i, ranges, sample_begin, sample_count);
       const SamplerKey key{opt.seed, s.pixel, s.sample};
       FilterSample fs = camera_filter_sample(filter, opt.seed, s.pixel, s.sample);
       vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);

@@ -4,7 +4,6 @@
 #include "core/sampler.h"
 #include "core/stats.h"
 #include "scene/bsdf.h"
-#include "wavefront/camera_samples.h"
 #include "wavefront/sample_dims.h"
 
 #include <tbb/parallel_for.h>
@@ -83,8 +82,8 @@ struct CausticTracer::Pass {
   Film& film;
   const std::function<UVFootprint(const SurfaceInteraction&)>& footprint;
   const CausticSamples samples;
-  const CameraSampleOrder order;  // of the camera samples, and of the light paths: one per camera sample
   const uint32_t seed;
+  const size_t pixels;
   const uint64_t total;  // light paths: one per camera sample
   const int width, height;
   const vec2 radius;
@@ -103,19 +102,20 @@ struct CausticTracer::Pass {
 
   Pass(const CausticTracer& t, Film& f, const CausticSamples& s,
        const std::function<UVFootprint(const SurfaceInteraction&)>& fp)
-      : tracer(t), film(f), footprint(fp), samples(s), order(f.pixel_count(), s.sample_begin, s.sample_end), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
-        total(order.size()), width(f.width),
+      : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
+        pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
         height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
         rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk), dense_hits(kChunk), blocked(kChunk),
         dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
 
   SamplerKey key(size_t i) const {
-    const CameraSample s = order.at(first + i);
-    return SamplerKey{seed, s.pixel, s.sample};
+    uint64_t k = first + i;
+    return SamplerKey{seed, uint32_t(k % pixels), samples.sample_begin + uint32_t(k / pixels)};
   }
   // Whether camera sample (pixel, sample) of this pass was rendered.
   bool rendered(size_t pixel, uint32_t sample) const {
-    return sample - samples.sample_begin < order.samples_in(uint32_t(pixel), samples.rendered);
+    const uint64_t n = samples.sample_end - samples.sample_begin;
+    return uint64_t(pixel) * n + (sample - samples.sample_begin) < samples.rendered;
   }
   template <class Body>
   void parallel(Body&& body) const {

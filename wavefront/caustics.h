@@ -61,8 +61,8 @@ inline constexpr uint64_t kCausticDecisionPaths = 100'000;
 inline constexpr double kCausticMinSplatRate = 1e-3;
 
 // The camera samples a pass adds to: samples [sample_begin, sample_end) of
-// every pixel, numbered as the engine numbers them (CameraSampleOrder), of
-// which g < rendered are in.
+// every pixel, numbered as the engine numbers them (g = pixel * n + sample -
+// sample_begin, n = sample_end - sample_begin), of which g < rendered are in.
 struct CausticSamples {
   uint32_t camera_seed = 0;  // the camera rays' seed (their filter weights)
   uint32_t sample_begin = 0, sample_end = 0;

@@ -94,15 +94,14 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
 
 void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera) {
   sample_begin = s_begin;
-  sample_end = s_end;
-  camera_order = ranges ? CameraSampleOrder(*ranges) : CameraSampleOrder(film.pixel_count(), s_begin, s_end);
+  sample_count = s_end > s_begin ? s_end - s_begin : 0;
   // Per iteration: the caustic pass may have switched itself off after the last one.
   // Below depth 2 no camera path reaches a light through a caster, so there is nothing to hand over.
   caustics = hooks.caustics && hooks.caustics->active() && opt.throughput_reset_bounce < 0 && !ranges &&
                      opt.max_depth >= 2
                  ? hooks.caustics
                  : nullptr;
-  camera_end = camera_order.size();
+  camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
   next_camera = std::min(first_camera, camera_end);
   refill_below = size_t(opt.occupancy_threshold * float(pool.capacity()));
   signal_seen.reset();
@@ -177,7 +176,7 @@ void WavefrontEngine::Impl::process_and_recycle(Batch& b) {
 void WavefrontEngine::Impl::trace_caustics() {
   if (!caustics) return;
   ScopedTimer timer(stats.phases[Phase::Caustics]);
-  caustics->trace(film, CausticSamples{opt.seed, sample_begin, sample_end, next_camera},
+  caustics->trace(film, CausticSamples{opt.seed, sample_begin, sample_begin + sample_count, next_camera},
                   [this](const SurfaceInteraction& si) { return footprint(si); });
 }
 

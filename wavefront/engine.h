@@ -1,7 +1,7 @@
 // The sorted-deferred (wavefront) path tracer, as Hyperion does it.
 //
 // Paths live in a fixed-capacity pool.  Camera rays are generated in
-// sample-major order (camera_samples.h) whenever occupancy falls below a threshold; every ray is
+// pixel-sample order whenever occupancy falls below a threshold; every ray is
 // queued into one of six batches binned by its dominant direction; the most
 // recently filled batch is processed next: its rays are sorted (origin Morton
 // code, then direction), traced, their hits sorted by (geometry, primitive)
@@ -14,7 +14,6 @@
 #include "core/directional_guide.h"
 #include "core/stop.h"
 #include "core/stats.h"
-#include "wavefront/camera_samples.h"
 #include "wavefront/caustics.h"
 #include "scene/accel.h"
 #include "scene/camera.h"
@@ -98,6 +97,16 @@ struct EngineSizes {
 };
 EngineSizes engine_sizes(const EngineOptions& options, uint64_t pixels, int threads);
 
+// Per-pixel samples of one iteration (adaptive sampling).  Pixel p renders
+// samples [begin[p], begin[p] + offset[p+1] - offset[p]); those at or past
+// colour_end[p] are alpha-only rays: they measure coverage and nothing else.
+struct SampleRanges {
+  std::vector<uint32_t> begin;
+  std::vector<uint32_t> colour_end;
+  std::vector<uint64_t> offset;  // pixel_count + 1 prefix sums of the per-pixel counts
+  uint64_t total() const { return offset.empty() ? 0 : offset.back(); }
+};
+
 enum class Phase { Generate, Sort, Trace, TraceShadow, Shade, Queue, Caustics, Count };
 inline constexpr const char* kPhaseNames[] = {"generate", "sort", "trace", "trace_shadow", "shade", "queue", "caustics"};
 
@@ -146,13 +155,14 @@ class WavefrontEngine {
   // when no ray is in flight (one scheduler iteration).  `progress` is called
   // from the driving thread with the fraction of camera samples generated.
   //
-  // Camera samples are numbered as CameraSampleOrder numbers them; the call
-  // renders g in [first_camera_sample, end) and returns how far it got: the
-  // end, or less if options.stop was raised.  A stopped iteration is
-  // continued exactly by calling again with that value as first_camera_sample.
+  // Camera samples are numbered in pixel-sample order, g = pixel * n + (sample
+  // - sample_begin) with n = sample_end - sample_begin; the call renders
+  // g in [first_camera_sample, end) and returns how far it got: the end, or
+  // less if options.stop was raised.  A stopped iteration is continued
+  // exactly by calling again with that value as first_camera_sample.
   uint64_t render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress = {},
                   uint64_t first_camera_sample = 0);
-  // The same with a sample range per pixel (CameraSampleOrder(ranges)).
+  // The same with a sample range per pixel, numbered g = offset[pixel] + (sample - begin[pixel]).
   uint64_t render(const SampleRanges& ranges, const std::function<void(double)>& progress = {},
                   uint64_t first_camera_sample = 0);
   // The last render() was stopped and its samples are kept as they are (a

@@ -146,9 +146,8 @@ struct WavefrontEngine::Impl {
   bool abandoned = false;  // the last render() dropped paths in flight (EngineOptions::abandon_after_seconds)
   void abandon_paths_in_flight();
   uint64_t next_camera = 0, camera_end = 0;
-  uint32_t sample_begin = 0, sample_end = 0;
-  const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, sample_end)
-  CameraSampleOrder camera_order;         // of this iteration's camera samples
+  uint32_t sample_begin = 0, sample_count = 0;
+  const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
   const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
   size_t refill_below = 0;  // camera rays refill the pool below this many live paths
   std::optional<std::chrono::steady_clock::time_point> signal_seen;

@@ -361,6 +361,11 @@ void GuidingFeature::judge(GuidingVerdict::Round& round) {
            kSays[verdict_.state]);
 }
 
+std::optional<uint32_t> GuidingFeature::settled_from() const {
+  if (trained_spp_ < 0) return std::nullopt;
+  return first_sample_ + uint32_t(trained_spp_);
+}
+
 std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInfo&) const {
   if (!tree_ || !options_.auto_off) return std::nullopt;
   const bool done =

@@ -266,6 +266,9 @@ class GuidingFeature final : public Feature {
   // pay only while the field learns and rounds measure; after that each one
   // costs its fixed work (fold, variance pass, tasks, the wavefront's drain).
   std::optional<ScheduleOptions> schedule_after(const IterationInfo& it) const;
+  // The first sample rendered with the frozen field (or, --guiding-auto
+  // having said no, unguided): IterationConfig::settled_from.
+  std::optional<uint32_t> settled_from() const;
 
  private:
   // The engine's hooks with or without the guide and the recorder.

@@ -386,6 +386,7 @@ RenderResult render_scene(const Scene& scene, const RenderConfig& config) {
   for (Feature* f : features.all()) f->attach(engine);
   ic.adaptive = features.adaptive.sampler();
   ic.switch_schedule = [&](const IterationInfo& it) { return features.guiding.schedule_after(it); };
+  ic.settled_from = [&] { return features.guiding.settled_from(); };
 
   ProgressBar bar(c.progress);
   ic.progress = [&](int it, double fraction, double of_render) {

@@ -19,7 +19,8 @@
 // Only the iterations in the last `window` spp take part: the early guided
 // iterations are the ones learning (Mueller 2017 keeps only the last, which
 // has half the samples of a doubling schedule); the default is the last half
-// of the samples rendered.  The samples before the window are in the equal
+// of the samples rendered, and never less than every sample since the
+// estimator settled (fold's `settled_from`).  The samples before the window are in the equal
 // image only, and resolve() uses the inverse-variance image only where it is
 // estimated to be less noisy than the equal one (mean over the image of both
 // variance estimates, from the same half buffers), so it is never worse than
@@ -38,6 +39,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -105,8 +107,12 @@ struct ImageAccumulator {
                    bool aov_events = false)
       : total(width, height, aov_events), combination(c), window(window_spp) {}
   // The iteration that rendered samples [spp_begin, spp_end) (all of them, or
-  // the part a time limit left).
-  void fold(const Film& iteration, uint32_t spp_begin, uint32_t spp_end);
+  // the part a time limit left).  Samples from `settled_from` on stay in the
+  // window whatever its size: from there the estimator no longer changes (a
+  // frozen guiding field), so the window's rule, meant to leave out the
+  // iterations that were still learning, must not drop any of them.
+  void fold(const Film& iteration, uint32_t spp_begin, uint32_t spp_end,
+            uint32_t settled_from = std::numeric_limits<uint32_t>::max());
   CombinationChoice choice() const;
   // R G B A albedo.* N.* depth.Z, as resolve_film, with R G B as choice() says.
   ImageBuffer resolve() const;

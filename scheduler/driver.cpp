@@ -283,6 +283,10 @@ class IterationRun {
   StopReason stop_reason() const { return cfg_.stop ? cfg_.stop->reason() : StopReason::None; }
   bool signalled() const { return stop_reason() == StopReason::Signal; }
   bool time_up() const { return stop_reason() == StopReason::TimeLimit; }
+  uint32_t settled_from() const {
+    const std::optional<uint32_t> s = cfg_.settled_from ? cfg_.settled_from() : std::nullopt;
+    return s ? *s : std::numeric_limits<uint32_t>::max();
+  }
   void log_switch();
   // The three ways an iteration ends.
   void keep_stopped_iteration(uint64_t done, uint64_t camera_total);
@@ -470,7 +474,7 @@ bool IterationRun::render_iteration() {
 // iteration that will not come.
 void IterationRun::keep_stopped_iteration(uint64_t done, uint64_t camera_total) {
   engine_.finish_stopped_iteration();
-  acc_.fold(film_, info_.spp_begin, info_.spp_end);
+  acc_.fold(film_, info_.spp_begin, info_.spp_end, settled_from());
   film_.clear();
   pos_.camera_done = done;
   pos_.finished = ended_by_time_limit_ = true;
@@ -499,7 +503,7 @@ bool IterationRun::fold_finished_iteration() {
     info_.sample_variance = v.robust;
     info_.sample_variance_full = v.full;
   }
-  acc_.fold(film_, info_.spp_begin, info_.spp_end);
+  acc_.fold(film_, info_.spp_begin, info_.spp_end, settled_from());
   film_.clear();
   pos_.iteration = info_.index + 1;
   pos_.camera_done = 0;

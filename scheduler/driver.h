@@ -72,6 +72,11 @@ struct IterationConfig {
   // an uninterrupted one does.  Not asked with adaptive sampling (its
   // per-pixel plans follow the schedule it was built with).
   std::function<std::optional<ScheduleOptions>(const IterationInfo&)> switch_schedule;
+  // Asked as each iteration is folded in: the first sample from which what
+  // learns between iterations has stopped (a frozen guiding field), so that
+  // inverse-variance weighting keeps every iteration from there in its window
+  // (ImageAccumulator::fold); nothing while it still learns, or unset.
+  std::function<std::optional<uint32_t>()> settled_from;
   // Called at every iteration boundary, after the iteration is folded in and
   // before the between-iteration tasks; what it returns is merged into that
   // iteration's log entry (the error against a reference image, --reference).

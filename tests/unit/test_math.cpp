@@ -3,6 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
+#include <limits>
+#include <vector>
+
 using namespace theia;
 
 TEST(Frame, IsOrthonormalForAnyNormal) {
@@ -17,6 +21,28 @@ TEST(Frame, IsOrthonormalForAnyNormal) {
     vec3 back = f.from_local(f.to_local(v));
     EXPECT_NEAR(glm::length(back - v), 0.0f, 1e-6f);
   }
+}
+
+// Bit-for-bit std::nextafter towards +-infinity: zeros of both signs,
+// denormals, the largest finite floats, infinities, and random bit patterns.
+TEST(NextFloat, EqualsNextafterForEveryKindOfFloat) {
+  auto same = [](float a, float b) { return std::bit_cast<uint32_t>(a) == std::bit_cast<uint32_t>(b); };
+  std::vector<float> values = {0.0f, -0.0f, std::numeric_limits<float>::denorm_min(),
+                               -std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::min(),
+                               -std::numeric_limits<float>::min(), std::numeric_limits<float>::max(),
+                               -std::numeric_limits<float>::max(), kInfinity, -kInfinity, 1.0f, -1.0f, 0.5f, -3.25f};
+  uint32_t x = 12345u;
+  for (int i = 0; i < 100000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    float v = std::bit_cast<float>(x);
+    if (!std::isnan(v)) values.push_back(v);
+  }
+  for (float v : values) {
+    EXPECT_TRUE(same(next_float_up(v), std::nextafter(v, kInfinity))) << v;
+    EXPECT_TRUE(same(next_float_down(v), std::nextafter(v, -kInfinity))) << v;
+  }
+  EXPECT_TRUE(std::isnan(next_float_up(std::numeric_limits<float>::quiet_NaN())));
+  EXPECT_TRUE(std::isnan(next_float_down(std::numeric_limits<float>::quiet_NaN())));
 }
 
 TEST(Transform, NormalsStayPerpendicularUnderNonUniformScale) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -36,6 +37,25 @@ inline float sqr(float x) { return x * x; }
 inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
 inline float safe_acos(float x) { return std::acos(std::clamp(x, -1.0f, 1.0f)); }
 inline float radians(float deg) { return deg * (kPi / 180.0f); }
+
+// std::nextafter(v, +-infinity) without the libm call (a shading point makes
+// up to three per ray origin): the neighbouring float by its bit pattern.
+// Equal to nextafter for every input, -0, infinities and NaN included
+// (tests/unit/test_math.cpp).
+inline float next_float_up(float v) {
+  if (std::isinf(v) && v > 0.0f) return v;
+  if (v == 0.0f) v = 0.0f;  // -0 steps up like +0
+  uint32_t bits = std::bit_cast<uint32_t>(v);
+  bits = v >= 0.0f ? bits + 1 : bits - 1;
+  return std::isnan(v) ? v : std::bit_cast<float>(bits);
+}
+inline float next_float_down(float v) {
+  if (std::isinf(v) && v < 0.0f) return v;
+  if (v == 0.0f) v = -0.0f;  // +0 steps down like -0
+  uint32_t bits = std::bit_cast<uint32_t>(v);
+  bits = v > 0.0f ? bits - 1 : bits + 1;
+  return std::isnan(v) ? v : std::bit_cast<float>(bits);
+}
 
 // Y of a working-space (Rec.2020) colour.
 inline float luminance(const RGB& c) { return 0.2627002f * c.x + 0.6779981f * c.y + 0.0593017f * c.z; }

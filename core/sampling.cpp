@@ -5,6 +5,40 @@
 
 namespace theia {
 
+namespace {
+
+// Largest i in [first, last] with !(u < cdf[i]), clamped to a valid cell:
+// std::upper_bound's answer (NaN included) when it lies in that range.
+int upper_cell(const std::vector<float>& cdf, size_t first, size_t last, float u) {
+  while (first < last) {
+    const size_t mid = (first + last + 1) / 2;
+    if (u < cdf[mid]) last = mid - 1;
+    else first = mid;
+  }
+  return std::min(int(first), int(cdf.size()) - 2);
+}
+
+std::vector<uint32_t> guide_table(const std::vector<float>& cdf, size_t n) {
+  // Below 16 cells a plain binary search is as short as the guided one.
+  const size_t m = n < 16 ? 0 : std::min(n, Distribution1D::kGuideBuckets);
+  std::vector<uint32_t> guide(2 * m, 0);
+  // A u that float rounding puts in slice k lies within a relative 2^-24 of
+  // [k / m, (k + 1) / m): widening by 2^-20 each way keeps the cell inside.
+  // Both ends grow with k, so one sweep over the cdf finds them all.
+  size_t first = 0, last = 0;
+  for (size_t k = 0; k < m; ++k) {
+    const float lo = float(double(k) / double(m) * (1.0 - 0x1p-20));
+    const float hi = float(double(k + 1) / double(m) * (1.0 + 0x1p-20));
+    while (first < n && !(lo < cdf[first + 1])) ++first;
+    while (last < n && !(hi < cdf[last + 1])) ++last;
+    guide[2 * k] = uint32_t(std::min(first, n - 1));
+    guide[2 * k + 1] = uint32_t(std::min(last, n - 1));
+  }
+  return guide;
+}
+
+}  // namespace
+
 Distribution1D::Distribution1D(std::span<const float> f) : func(f.begin(), f.end()), cdf(f.size() + 1) {
   size_t n = func.size();
   for (float& v : func) v = std::isfinite(v) ? std::abs(v) : 0.0f;
@@ -21,17 +55,22 @@ Distribution1D::Distribution1D(std::span<const float> f) : func(f.begin(), f.end
     for (size_t i = 1; i <= n; ++i) cdf[i] = float(acc[i] / sum);
   }
   if (n > 0) cdf[n] = 1.0f;
+  guide = guide_table(cdf, n);
 }
 
-static int find_interval(const std::vector<float>& cdf, float u) {
-  // Largest i with cdf[i] <= u, clamped to a valid cell.
-  auto it = std::upper_bound(cdf.begin(), cdf.end(), u);
-  int i = int(it - cdf.begin()) - 1;
-  return std::clamp(i, 0, int(cdf.size()) - 2);
+
+
+int Distribution1D::find_interval(float u) const {
+  const size_t m = guide.size() / 2;
+  if (m != 0 && u >= 0.0f && u < 1.0f) {
+    const size_t k = std::min(size_t(u * float(m)), m - 1);
+    return upper_cell(cdf, guide[2 * k], guide[2 * k + 1], u);
+  }
+  return upper_cell(cdf, 0, func.size(), u);
 }
 
 float Distribution1D::sample_continuous(float u, float* pdf, int* offset) const {
-  int i = find_interval(cdf, u);
+  int i = find_interval(u);
   if (offset) *offset = i;
   float du = u - cdf[i];
   float width = cdf[i + 1] - cdf[i];
@@ -41,7 +80,7 @@ float Distribution1D::sample_continuous(float u, float* pdf, int* offset) const 
 }
 
 int Distribution1D::sample_discrete(float u, float* pmf, float* u_remapped) const {
-  int i = find_interval(cdf, u);
+  int i = find_interval(u);
   float width = cdf[i + 1] - cdf[i];
   if (pmf) *pmf = width;
   if (u_remapped) *u_remapped = width > 0.0f ? std::min((u - cdf[i]) / width, kOneMinusEpsilon) : 0.0f;

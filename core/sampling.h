@@ -157,6 +157,11 @@ struct Distribution1D {
   std::vector<float> func;  // |f| per cell
   std::vector<float> cdf;   // size n + 1, cdf[n] == 1
   float integral = 0.0f;    // integral of func over [0, 1)
+  // Guide table (the cutpoint method), from 16 cells: for each of min(n, kGuideBuckets)
+  // equal slices of u, the first and last cell a u in it can fall in, so a
+  // lookup searches those few cells instead of the whole cdf (same cell).
+  std::vector<uint32_t> guide;  // pairs: first, last
+  static constexpr size_t kGuideBuckets = 64;
 
   Distribution1D() = default;
   explicit Distribution1D(std::span<const float> f);
@@ -167,6 +172,8 @@ struct Distribution1D {
   // Returns a cell index with probability func[i] / sum(func).
   int sample_discrete(float u, float* pmf = nullptr, float* u_remapped = nullptr) const;
   float discrete_pmf(int i) const;
+  // Largest i with cdf[i] <= u, clamped to a valid cell.
+  int find_interval(float u) const;
 };
 
 }  // namespace theia

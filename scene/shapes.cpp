@@ -432,8 +432,8 @@ vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const
   vec3 po = p + offset;
   // Round away from p so that the offset survives the addition's rounding.
   for (int i = 0; i < 3; ++i) {
-    if (offset[i] > 0.0f) po[i] = std::nextafter(po[i], kInfinity);
-    else if (offset[i] < 0.0f) po[i] = std::nextafter(po[i], -kInfinity);
+    if (offset[i] > 0.0f) po[i] = next_float_up(po[i]);
+    else if (offset[i] < 0.0f) po[i] = next_float_down(po[i]);
   }
   return po;
 }

@@ -1,7 +1,13 @@
+#include "core/hash.h"
 #include "core/math.h"
 #include "core/sampling.h"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <limits>
+#include <vector>
 
 using namespace theia;
 
@@ -17,6 +23,28 @@ TEST(Frame, IsOrthonormalForAnyNormal) {
     vec3 back = f.from_local(f.to_local(v));
     EXPECT_NEAR(glm::length(back - v), 0.0f, 1e-6f);
   }
+}
+
+// Bit-for-bit std::nextafter towards +-infinity: zeros of both signs,
+// denormals, the largest finite floats, infinities, and random bit patterns.
+TEST(NextFloat, EqualsNextafterForEveryKindOfFloat) {
+  auto same = [](float a, float b) { return std::bit_cast<uint32_t>(a) == std::bit_cast<uint32_t>(b); };
+  std::vector<float> values = {0.0f, -0.0f, std::numeric_limits<float>::denorm_min(),
+                               -std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::min(),
+                               -std::numeric_limits<float>::min(), std::numeric_limits<float>::max(),
+                               -std::numeric_limits<float>::max(), kInfinity, -kInfinity, 1.0f, -1.0f, 0.5f, -3.25f};
+  uint32_t x = 12345u;
+  for (int i = 0; i < 100000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    float v = std::bit_cast<float>(x);
+    if (!std::isnan(v)) values.push_back(v);
+  }
+  for (float v : values) {
+    EXPECT_TRUE(same(next_float_up(v), std::nextafter(v, kInfinity))) << v;
+    EXPECT_TRUE(same(next_float_down(v), std::nextafter(v, -kInfinity))) << v;
+  }
+  EXPECT_TRUE(std::isnan(next_float_up(std::numeric_limits<float>::quiet_NaN())));
+  EXPECT_TRUE(std::isnan(next_float_down(std::numeric_limits<float>::quiet_NaN())));
 }
 
 TEST(Transform, NormalsStayPerpendicularUnderNonUniformScale) {
@@ -37,6 +65,29 @@ TEST(Distribution1D, DiscretePmfMatchesWeights) {
   EXPECT_NEAR(pmf, 3.0f / 8, 1e-6f);
   // A zero-width cell is never chosen, even at its cdf boundary.
   EXPECT_NE(d.sample_discrete(0.125f), 1);
+}
+
+// The guide table only narrows the search: the cell is the whole cdf's
+// upper bound for every u, at slice edges, on zero-weight runs, out of range.
+TEST(Distribution1D, GuidedLookupFindsTheCellAFullSearchFinds) {
+  uint32_t x = 7u;
+  auto next = [&x] { return x = x * 1664525u + 1013904223u; };
+  for (int n : {1, 2, 3, 7, 48, 63, 64, 65, 200, 1000}) {
+    std::vector<float> f(static_cast<size_t>(n));
+    for (float& v : f) v = next() % 3 == 0 ? 0.0f : float(next() % 1000) * (next() % 7 == 0 ? 1e-6f : 1.0f);
+    Distribution1D d(f);
+    std::vector<float> us = {0.0f, -0.0f, -1e-9f, 1.0f, 2.0f, kOneMinusEpsilon, std::numeric_limits<float>::quiet_NaN()};
+    for (size_t k = 0; k <= 2 * Distribution1D::kGuideBuckets; ++k) {
+      float edge = float(k) / float(Distribution1D::kGuideBuckets);
+      us.insert(us.end(), {edge, std::nextafter(edge, 0.0f), std::nextafter(edge, 1.0f)});
+    }
+    for (float c : d.cdf) us.insert(us.end(), {c, std::nextafter(c, 0.0f), std::nextafter(c, 1.0f)});
+    for (int i = 0; i < 20000; ++i) us.push_back(to_unit_float(next()));
+    for (float u : us) {
+      int full = int(std::upper_bound(d.cdf.begin(), d.cdf.end(), u) - d.cdf.begin()) - 1;
+      EXPECT_EQ(d.find_interval(u), std::clamp(full, 0, n - 1)) << "n " << n << " u " << u;
+    }
+  }
 }
 
 TEST(Distribution1D, AllZeroFallsBackToUniform) {

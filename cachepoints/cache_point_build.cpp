@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -617,6 +618,84 @@ PointLists build_lists(const LightSet& lights, const EmitterSet& set, const Emit
   std::sort(lists.far.begin(), lists.far.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
   return lists;
 }
+// ---------------------------------------------------------------- the second merge
+
+// A point's light distribution for the similarity metric: its near lights'
+// fluence at the point and its far fluence values, normalised, by emitter.
+std::vector<std::pair<uint32_t, float>> fluence_distribution(const LightSet& lights, const EmitterSet& set,
+                                                             const PointLists& l, const vec3& p) {
+  std::vector<std::pair<uint32_t, float>> d;
+  d.reserve(l.near.size() + l.far.size());
+  for (uint32_t e : l.near) d.emplace_back(e, std::max(0.0f, emitter_sensors(lights, set.emitters[e], p)[kFluenceBin]));
+  for (const FarEntry& f : l.far) d.emplace_back(f.emitter, f.value[kFluenceBin]);
+  std::sort(d.begin(), d.end());
+  double total = 0.0;
+  for (const auto& x : d) total += double(x.second);
+  for (auto& x : d) x.second = total > 0.0 ? float(double(x.second) / total) : 0.0f;
+  return d;
+}
+
+// Eqs. 2 and 3: twice the intersection's size, each common light weighted by
+// 1 - |pA - pB| / (pA + pB), over the two sizes.
+float similarity(const std::vector<std::pair<uint32_t, float>>& a, const std::vector<std::pair<uint32_t, float>>& b) {
+  if (a.empty() && b.empty()) return 1.0f;
+  double common = 0.0;
+  for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+    if (a[i].first < b[j].first) {
+      ++i;
+    } else if (b[j].first < a[i].first) {
+      ++j;
+    } else {
+      const double pa = a[i].second, pb = b[j].second;
+      common += pa + pb > 0.0 ? 1.0 - std::abs(pb - pa) / (pa + pb) : 1.0;
+      ++i, ++j;
+    }
+  }
+  return float(2.0 * common / double(a.size() + b.size()));
+}
+
+// Section 3.1.4: per point, its 20 nearest neighbours' mean similarity M_avg
+// scales their mean distance (to no less than a quarter of it); of the point
+// and the neighbours within that radius only the lowest index survives.
+// Marks in parallel (every write sets the same value), then a serial sweep:
+// the survivors, ascending, a pure function of the points and their lists.
+// (The paper's floor of 3 pixels of projected size is not applied: points
+// only merge less for it.)
+std::vector<uint32_t> similar_survivors(const LightSet& lights, const EmitterSet& set, const PointTree& tree,
+                                        const std::vector<PointLists>& lists, int neighbours) {
+  const size_t n = tree.points.size();
+  std::vector<std::vector<std::pair<uint32_t, float>>> dist(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { dist[i] = fluence_distribution(lights, set, lists[i], tree.points[i]); });
+  std::vector<std::atomic<uint8_t>> drop(n);
+  for (auto& d : drop) d.store(0, std::memory_order_relaxed);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    const size_t k = size_t(neighbours) + 1;
+    std::vector<uint32_t> index(k);
+    std::vector<float> d2(k);
+    const size_t found = tree.knn(tree.points[i], k, index.data(), d2.data());
+    double m = 0.0, distance = 0.0;
+    size_t count = 0;
+    for (size_t j = 0; j < found; ++j) {
+      if (index[j] == i) continue;
+      m += double(similarity(dist[i], dist[index[j]]));
+      distance += std::sqrt(double(d2[j]));
+      ++count;
+    }
+    if (count == 0) return;
+    const double radius = distance / double(count) * std::max(m / double(count), 0.25);
+    uint32_t lowest = uint32_t(i);
+    for (size_t j = 0; j < found; ++j)
+      if (double(d2[j]) <= radius * radius) lowest = std::min(lowest, index[j]);
+    for (size_t j = 0; j < found; ++j)
+      if (double(d2[j]) <= radius * radius && index[j] != lowest) drop[index[j]].store(1, std::memory_order_relaxed);
+    if (lowest != i) drop[i].store(1, std::memory_order_relaxed);
+  });
+  std::vector<uint32_t> keep;
+  for (size_t i = 0; i < n; ++i)
+    if (!drop[i].load(std::memory_order_relaxed)) keep.push_back(uint32_t(i));
+  return keep;
+}
+
 // Eq. 4: weight 1 for the point and its nearest neighbour, falling to 1/16 at
 // the farthest of the 16; normalised to sum to one.
 Neighbours blur_neighbours(const PointTree& tree, int count) {
@@ -718,6 +797,19 @@ CachePointTables build_cache_points(const LightSet& lights, const EmitterSet& se
     evaluated[i] = uint32_t(s.count);
   });
   for (uint32_t e : evaluated) t.cull_evaluated += e;
+  if (prm.merge_similar) {
+    const std::vector<uint32_t> keep = similar_survivors(lights, set, tree, lists, prm.similar_neighbours);
+    if (keep.size() < n && keep.size() >= size_t(prm.min_points)) {
+      std::vector<vec3> kept_points;
+      std::vector<PointLists> kept_lists;
+      for (uint32_t i : keep) {
+        kept_points.push_back(tree.points[i]);
+        kept_lists.push_back(std::move(lists[i]));
+      }
+      lists = std::move(kept_lists);
+      t.tree = std::make_unique<PointTree>(std::move(kept_points));  // `tree` is gone from here on
+    }
+  }
   const size_t m = t.tree->points.size();
   t.neighbours = blur_neighbours(*t.tree, prm.blur_neighbours);
   std::vector<std::vector<FarEntry>> blurred(m);

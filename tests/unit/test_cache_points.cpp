@@ -28,6 +28,7 @@
 #include <functional>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <string>
 
 using namespace theia;
@@ -272,6 +273,26 @@ TEST(CachePoints, CulledBuildListsWhatTheFullBuildLists) {
       EXPECT_LT(tv, 0.01) << n << " at " << ctx.p.x << " " << ctx.p.y << " " << ctx.p.z;
     }
   }
+}
+
+// Section 3.1.4's second merge (merge_similar, off by default): fewer
+// points, the same survivors at any thread count (parallel marks, a serial
+// sweep), and still a distribution over every emitter that sampling draws.
+TEST(CachePoints, SimilarityMergeIsDeterministicAndKeepsADistribution) {
+  LightFixture f(street_scene(16, varied, true));
+  CachePointParams on;
+  on.merge_similar = true;
+  auto build = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    return std::make_unique<CachePointSampler>(f.lights, f.accel, on);
+  };
+  const auto one = build(1), two = build(2);
+  const CachePointSampler plain(f.lights, f.accel);
+  EXPECT_LT(one->point_count(), plain.point_count());
+  EXPECT_GE(one->point_count(), size_t(on.min_points));
+  ASSERT_EQ(one->point_count(), two->point_count());
+  for (size_t c = 0; c < one->point_count(); ++c) ASSERT_EQ(one->listed(c), two->listed(c)) << c;
+  expect_sampling_matches_pmf(*one, 4, 100000);
 }
 
 TEST(CachePoints, DegenerateLightSets) {

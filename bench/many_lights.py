@@ -26,6 +26,11 @@ sampler's:
 
   bench/many_lights.py --theia build/theia --city100k --spp 32 --runs 3
 
+--mesh100k does the same with the same city's windows and lamps as one
+emissive mesh of 100,000 triangles and one radiance (make_scene.py
+--one-mesh-light): one light that pbrt-v4 and theia's many-lights samplers
+sample per triangle.
+
 --pbrt PATH also renders the scene with pbrt-v4 (its BVH light sampler: the
 scene's Integrator must be pbrt-v4's path or volpath with "lightsampler" "bvh"
 or unset, which is pbrt-v4's default), after theia's samplers in every run
@@ -97,12 +102,17 @@ def check_pbrt_scene(scene):
                  '"string lightsampler" "bvh" (or unset)')
 
 
-def make_city100k(tmp):
+# The generated scenes (5 MB of text each, so not committed): make_scene.py's arguments.
+CITY100K = ["--lots", "26", "--windows", "45000", "--lamps", "5000"]
+VARIANTS = {"city100k": CITY100K, "mesh100k": CITY100K + ["--one-mesh-light"]}
+
+
+def make_variant(tmp, name):
+    """Writes the generated scene `name` (a key of VARIANTS) into tmp; its path."""
     here = os.path.dirname(os.path.abspath(__file__))
-    scene = os.path.join(tmp, "city100k.pbrt")
+    scene = os.path.join(tmp, name + ".pbrt")
     subprocess.run([sys.executable, os.path.join(here, "..", "scenes", "many-lights-city", "make_scene.py"),
-                    "--lots", "26", "--windows", "45000", "--lamps", "5000", "--output", scene],
-                   check=True, stdout=subprocess.DEVNULL)
+                    *VARIANTS[name], "--output", scene], check=True, stdout=subprocess.DEVNULL)
     return scene
 
 
@@ -158,7 +168,10 @@ def main():
     ap.add_argument("--reference", default="tests/data/many-lights-city.exr",
                     help="the converged image, or 'render' to render one as for --city100k")
     ap.add_argument("--samplers", default="uniform,power,bvh,cachepoints")
-    ap.add_argument("--city100k", action="store_true", help="generate and render the 100k-emitter city")
+    variant = ap.add_mutually_exclusive_group()
+    variant.add_argument("--city100k", action="store_true", help="generate and render the 100k-emitter city")
+    variant.add_argument("--mesh100k", action="store_true",
+                         help="generate and render the city with one emissive mesh of 100k triangles")
     ap.add_argument("--reference-sampler", default="cachepoints")
     ap.add_argument("--reference-spp", type=int, default=1024)
     ap.add_argument("--spp", type=int, default=64)
@@ -174,10 +187,11 @@ def main():
     rows = []
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
-        scene, reference = (make_city100k(tmp) if args.city100k else args.scene), args.reference
+        generated = "city100k" if args.city100k else "mesh100k" if args.mesh100k else None
+        scene, reference = (make_variant(tmp, generated) if generated else args.scene), args.reference
         if args.pbrt:
             check_pbrt_scene(scene)
-        if args.city100k or reference == "render":
+        if generated or reference == "render":
             reference = os.path.join(tmp, "reference.exr")
             log, cpu, _ = render(args, scene, args.reference_sampler, args.reference_spp, 1000, reference)
             print(f"reference: {args.reference_sampler} {args.reference_spp} spp, {log['time']['total']:.1f} s wall, "

@@ -3,7 +3,10 @@
 
 No renderer runs here: `theia diff` output, scene headers and rows are given,
 so every figure can be checked against its definition."""
+import contextlib
+import io
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -85,6 +88,45 @@ class PbrtIntegrator(unittest.TestCase):
                        check=True)
         with open(street) as f:
             self.assertEqual(ml.pbrt_integrator(f.read()), ("volpath", "bvh"))
+
+
+def emissive_meshes(text):
+    """Per AreaLightSource, the triangle count of the trianglemesh shapes up to the next one (or the end)."""
+    counts = []
+    for part in text.split("AreaLightSource")[1:]:
+        indices = re.findall(r'"integer indices"\s*\[([^\]]*)\]', part)
+        counts.append(sum(len(i.split()) for i in indices) // 3)
+    return counts
+
+
+class GeneratedScenes(unittest.TestCase):
+    """--city100k and --mesh100k: the same 100,000 emissive triangles, as 100-odd lights or one mesh light."""
+
+    def test_variants_hold_100k_emissive_triangles(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            city = ml.make_variant(tmp, "city100k")
+            with open(city) as f:
+                city_text = f.read()
+            mesh = ml.make_variant(tmp, "mesh100k")
+            with open(mesh) as f:
+                mesh_text = f.read()
+        self.assertEqual(sum(emissive_meshes(city_text)), 100000)
+        self.assertGreater(len(emissive_meshes(city_text)), 1)
+        self.assertEqual(emissive_meshes(mesh_text), [100000])
+        for text in (city_text, mesh_text):
+            self.assertEqual(ml.pbrt_integrator(text), ("volpath", "bvh"))
+        # The same geometry: the emitters' vertices, as numbers, are the city's.
+        def emitter_points(text):
+            section = text.split('MakeNamedMaterial "emitter"')[1]
+            return sorted(v for p in re.findall(r'"point3 P" \[([^\]]*)\]', section) for v in p.split())
+        self.assertEqual(emitter_points(city_text), emitter_points(mesh_text))
+
+    def test_one_variant_at_a_time(self):
+        with self.assertRaises(SystemExit):
+            with contextlib.redirect_stderr(io.StringIO()):
+                self.addCleanup(setattr, sys, "argv", sys.argv)
+                sys.argv = ["many_lights.py", "--city100k", "--mesh100k"]
+                ml.main()
 
 
 def row(sampler, run, rel_mse, total, cpu, peak, ratio, build=0.0):

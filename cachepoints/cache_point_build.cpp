@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -176,6 +177,7 @@ struct BuildScratch {
   std::vector<std::pair<float, uint32_t>> near, top;
   std::vector<uint32_t> chosen;
   std::vector<Pending> queue;        // the cull's, a heap
+  std::vector<float> nearest;        // nearest_bound2's, a heap of the closest distances squared
   std::array<double, kSensorBins> rest{};  // the cull's estimate of what it left out
   std::vector<FarEntry> merged;      // the blur
   std::vector<int32_t> slot;         // per emitter: its place in `merged`, -1 none, -2 a near light
@@ -307,6 +309,26 @@ struct CullTree {
   EmitterArrays arrays;
 };
 
+// The distance squared from p to the box of a node's centres.
+float box_distance2(const CullNode& n, const vec3& p) {
+  const vec3 q = glm::clamp(p, n.lo, n.hi);
+  return glm::dot(p - q, p - q);
+}
+
+// The cull's and the nearest search's queues: heaps of nodes, `first` on top.
+template <class First>
+void queue_push(std::vector<Pending>& queue, Pending item, First first) {
+  queue.push_back(item);
+  std::push_heap(queue.begin(), queue.end(), [&](const Pending& x, const Pending& y) { return first(y, x); });
+}
+template <class First>
+Pending queue_pop(std::vector<Pending>& queue, First first) {
+  std::pop_heap(queue.begin(), queue.end(), [&](const Pending& x, const Pending& y) { return first(y, x); });
+  const Pending item = queue.back();
+  queue.pop_back();
+  return item;
+}
+
 CullTree cull_tree(const LightSet& lights, const EmitterSet& set, const EmitterArrays& a) {
   const std::vector<LightBvhNode> tree = build_light_tree(lights, set);
   std::vector<CullNode> nodes(tree.size());
@@ -383,25 +405,87 @@ SensorValues cull_factors(const CullNode& n, const vec3& p) {
   return v;
 }
 
+// The squared radius, at most near_radius2, that holds the max_near emitters
+// nearest p (build_lists' near ones): a best-first search of the light tree
+// by the distance to its nodes' boxes of centres, over the nodes the cull
+// visits (those with power, down to its buckets), among the candidates
+// already in `s` (the emitters outside the tree).  The distance as
+// evaluate_area computes it, one-sided emitters p is behind excluded, as
+// there.  The cull then evaluates whole only the nodes that may lie within
+// this radius (its 1.001 margin covers rounding between the two
+// computations), not every node within the near radius: where points are
+// sparse among dense emitters that radius holds nearly all of them.
+float nearest_bound2(const CullTree& tree, const vec3& p, float near_radius2, int max_near, BuildScratch& s) {
+  const size_t k = size_t(std::clamp(max_near, 0, kMaxNear));
+  if (k == 0) return -1.0f;
+  std::vector<float>& best = s.nearest;  // a max-heap of the k smallest distances squared
+  best.clear();
+  auto offer = [&](float d2) {
+    if (!(d2 <= near_radius2)) return;
+    if (best.size() < k) {
+      best.push_back(d2);
+      std::push_heap(best.begin(), best.end());
+    } else if (d2 < best.front()) {
+      std::pop_heap(best.begin(), best.end());
+      best.back() = d2;
+      std::push_heap(best.begin(), best.end());
+    }
+  };
+  auto bound = [&] { return best.size() < k ? near_radius2 : best.front(); };
+  for (size_t j = 0; j < s.count; ++j) offer(s.d2[j]);
+  const EmitterArrays& a = tree.arrays;
+  auto nearer = [](const Pending& x, const Pending& y) { return x.key < y.key; };
+  s.queue.clear();
+  auto push = [&](int index) {
+    const CullNode& n = tree.nodes[size_t(index)];
+    const float dmin2 = box_distance2(n, p);
+    if (n.power > 0.0f && dmin2 <= 1.001f * bound()) queue_push(s.queue, Pending{dmin2, uint32_t(index)}, nearer);
+  };
+  if (!tree.nodes.empty()) push(0);
+  while (!s.queue.empty()) {
+    const Pending item = queue_pop(s.queue, nearer);
+    if (item.key > 1.001f * bound()) break;  // the rest are farther still
+    const CullNode& n = tree.nodes[item.node];
+    if (n.count > kCullBucket) {
+      push(n.child);
+      push(n.child + 1);
+      continue;
+    }
+    for (size_t i = n.first; i < n.first + n.count; ++i) {
+      const vec3 d(a.cx[i] - p.x, a.cy[i] - p.y, a.cz[i] - p.z);
+      const bool behind = a.one_sided[i] != 0 && glm::dot(vec3(a.nx[i], a.ny[i], a.nz[i]), d) > a.radius[i];
+      if (!behind) offer(glm::dot(d, d));
+    }
+  }
+  return bound();
+}
+
 // The candidates at p without evaluating every emitter (lightcuts-like):
-// those outside the tree; every one whose centre may lie within the near
-// radius; and the tree's leaves under the nodes that the single brightest
-// emitter they could hold (their largest power at their nearest centre) puts
-// above `cull` of what the candidates found so far hold, in any of the four
-// groups sampling weighs.  The largest (summed) bounds are expanded first, so
-// that the totals grow before small nodes are judged; what is found only
-// grows, so a node left out would be left out later too.  Every near
-// emitter is evaluated; what is left out delivers under `cull` of its
-// group's total each, so the lists lose only tail entries (many-lights-city,
-// 1e-3: 553 far entries per point instead of 644, 16% of the full build's
-// entries gone, relMSE unchanged).  The nodes left out add their estimate
-// (the bound at their centre's distance) to `s.rest`, the totals the 97% rule
-// compares against.
+// those outside the tree; every one whose centre may lie within the radius
+// of the max_near nearest (nearest_bound2); and the tree's leaves under the
+// nodes that the single brightest emitter they could hold (their largest
+// power at their nearest centre) puts above `cull` of what the candidates
+// found so far hold, in any of the four groups sampling weighs, or whose
+// summed bound is above a tenth of the share the 97% rule leaves out (many
+// dim emitters close by: left out, their estimate would swell the totals and
+// so the lists; street of 1,025 emitters: 3.3% of the full build's entries
+// differ without this, 0.8% with it).  The largest (summed) bounds are
+// expanded first, so that the totals grow before small nodes are judged;
+// what is found only grows, so a node left out would be left out later too.
+// Every near emitter is evaluated; what is left out delivers under `cull` of
+// its group's total each, so the lists lose only tail entries
+// (many-lights-city: 567 far entries per point against the full build's 622,
+// 2,922 of 40,001 emitters evaluated per point).  The nodes left out add
+// their estimate (the bound at their centre's distance) to `s.rest`, the
+// totals the 97% rule compares against.
 void evaluate_culled(const LightSet& lights, const EmitterSet& set, const EmitterArrays& a, const CullTree& tree,
-                     const vec3& p, float near_radius2, float cull, BuildScratch& s) {
+                     const vec3& p, float near_radius2, const CachePointParams& prm, BuildScratch& s) {
   s.count = 0;
   s.rest.fill(0.0);
   std::array<double, 4> found{};
+  for (uint32_t i : a.other) append(evaluate_other(lights, set, a.order[i], p), s);
+  near_radius2 = nearest_bound2(tree, p, near_radius2, prm.max_near, s);
+  const double cull = double(prm.cull), tail = 0.1 * (1.0 - double(prm.far_energy));
   auto count_found = [&](size_t from) {
     for (size_t j = from; j < s.count; ++j) {
       if (s.d2[j] <= near_radius2) continue;
@@ -411,32 +495,28 @@ void evaluate_culled(const LightSet& lights, const EmitterSet& set, const Emitte
       found[3] += double(s.value[kFluenceBin][j]);
     }
   };
-  for (uint32_t i : a.other) append(evaluate_other(lights, set, a.order[i], p), s);
   count_found(0);
-  auto before = [](const Pending& x, const Pending& y) { return x.key < y.key; };
+  auto larger = [](const Pending& x, const Pending& y) { return x.key > y.key; };
   s.queue.clear();
   auto push = [&](int index) {
     const CullNode& n = tree.nodes[size_t(index)];
     if (!(n.power > 0.0f)) return;
-    const vec3 q = glm::clamp(p, n.lo, n.hi);
-    const float dmin2 = glm::dot(p - q, p - q);
+    const float dmin2 = box_distance2(n, p);
     const bool near = dmin2 <= 1.001f * near_radius2;
     const float key = n.power / std::max({dmin2, n.rmin * n.rmin, 1e-30f});
-    s.queue.push_back(Pending{near ? std::numeric_limits<float>::infinity() : key, uint32_t(index)});
-    std::push_heap(s.queue.begin(), s.queue.end(), before);
+    queue_push(s.queue, Pending{near ? std::numeric_limits<float>::infinity() : key, uint32_t(index)}, larger);
   };
   if (!tree.nodes.empty()) push(0);
   while (!s.queue.empty()) {
-    std::pop_heap(s.queue.begin(), s.queue.end(), before);
-    const Pending item = s.queue.back();
-    s.queue.pop_back();
+    const Pending item = queue_pop(s.queue, larger);
     const CullNode& n = tree.nodes[item.node];
     if (item.key != std::numeric_limits<float>::infinity()) {
       const SensorValues f = cull_factors(n, p);
       const std::array<float, 4> g = groups(f);
       const float single = item.key * n.max_power / n.power;
       bool significant = false;
-      for (size_t k = 0; k < 4; ++k) significant |= double(single * g[k]) > double(cull) * found[k];
+      for (size_t k = 0; k < 4; ++k)
+        significant |= double(single * g[k]) > cull * found[k] || double(item.key * g[k]) > tail * found[k];
       if (!significant) {
         const vec3 to_centre = p - 0.5f * (n.lo + n.hi);
         const float estimate = n.power / std::max({glm::dot(to_centre, to_centre), n.rmin * n.rmin, 1e-30f});
@@ -510,7 +590,7 @@ PointLists build_lists(const LightSet& lights, const EmitterSet& set, const Emit
                        const CachePointParams& prm, BuildScratch& s) {
   const float r2 = near_radius * near_radius;
   if (prm.cull > 0.0f)
-    evaluate_culled(lights, set, arrays, tree, p, r2, prm.cull, s);
+    evaluate_culled(lights, set, arrays, tree, p, r2, prm, s);
   else
     evaluate_emitters(lights, set, arrays, p, s);
   s.near.clear();
@@ -538,6 +618,84 @@ PointLists build_lists(const LightSet& lights, const EmitterSet& set, const Emit
   std::sort(lists.far.begin(), lists.far.end(), [](const FarEntry& a, const FarEntry& c) { return a.emitter < c.emitter; });
   return lists;
 }
+// ---------------------------------------------------------------- the second merge
+
+// A point's light distribution for the similarity metric: its near lights'
+// fluence at the point and its far fluence values, normalised, by emitter.
+std::vector<std::pair<uint32_t, float>> fluence_distribution(const LightSet& lights, const EmitterSet& set,
+                                                             const PointLists& l, const vec3& p) {
+  std::vector<std::pair<uint32_t, float>> d;
+  d.reserve(l.near.size() + l.far.size());
+  for (uint32_t e : l.near) d.emplace_back(e, std::max(0.0f, emitter_sensors(lights, set.emitters[e], p)[kFluenceBin]));
+  for (const FarEntry& f : l.far) d.emplace_back(f.emitter, f.value[kFluenceBin]);
+  std::sort(d.begin(), d.end());
+  double total = 0.0;
+  for (const auto& x : d) total += double(x.second);
+  for (auto& x : d) x.second = total > 0.0 ? float(double(x.second) / total) : 0.0f;
+  return d;
+}
+
+// Eqs. 2 and 3: twice the intersection's size, each common light weighted by
+// 1 - |pA - pB| / (pA + pB), over the two sizes.
+float similarity(const std::vector<std::pair<uint32_t, float>>& a, const std::vector<std::pair<uint32_t, float>>& b) {
+  if (a.empty() && b.empty()) return 1.0f;
+  double common = 0.0;
+  for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+    if (a[i].first < b[j].first) {
+      ++i;
+    } else if (b[j].first < a[i].first) {
+      ++j;
+    } else {
+      const double pa = a[i].second, pb = b[j].second;
+      common += pa + pb > 0.0 ? 1.0 - std::abs(pb - pa) / (pa + pb) : 1.0;
+      ++i, ++j;
+    }
+  }
+  return float(2.0 * common / double(a.size() + b.size()));
+}
+
+// Section 3.1.4: per point, its 20 nearest neighbours' mean similarity M_avg
+// scales their mean distance (to no less than a quarter of it); of the point
+// and the neighbours within that radius only the lowest index survives.
+// Marks in parallel (every write sets the same value), then a serial sweep:
+// the survivors, ascending, a pure function of the points and their lists.
+// (The paper's floor of 3 pixels of projected size is not applied: points
+// only merge less for it.)
+std::vector<uint32_t> similar_survivors(const LightSet& lights, const EmitterSet& set, const PointTree& tree,
+                                        const std::vector<PointLists>& lists, int neighbours) {
+  const size_t n = tree.points.size();
+  std::vector<std::vector<std::pair<uint32_t, float>>> dist(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { dist[i] = fluence_distribution(lights, set, lists[i], tree.points[i]); });
+  std::vector<std::atomic<uint8_t>> drop(n);
+  for (auto& d : drop) d.store(0, std::memory_order_relaxed);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    const size_t k = size_t(neighbours) + 1;
+    std::vector<uint32_t> index(k);
+    std::vector<float> d2(k);
+    const size_t found = tree.knn(tree.points[i], k, index.data(), d2.data());
+    double m = 0.0, distance = 0.0;
+    size_t count = 0;
+    for (size_t j = 0; j < found; ++j) {
+      if (index[j] == i) continue;
+      m += double(similarity(dist[i], dist[index[j]]));
+      distance += std::sqrt(double(d2[j]));
+      ++count;
+    }
+    if (count == 0) return;
+    const double radius = distance / double(count) * std::max(m / double(count), 0.25);
+    uint32_t lowest = uint32_t(i);
+    for (size_t j = 0; j < found; ++j)
+      if (double(d2[j]) <= radius * radius) lowest = std::min(lowest, index[j]);
+    for (size_t j = 0; j < found; ++j)
+      if (double(d2[j]) <= radius * radius && index[j] != lowest) drop[index[j]].store(1, std::memory_order_relaxed);
+    if (lowest != i) drop[i].store(1, std::memory_order_relaxed);
+  });
+  std::vector<uint32_t> keep;
+  for (size_t i = 0; i < n; ++i)
+    if (!drop[i].load(std::memory_order_relaxed)) keep.push_back(uint32_t(i));
+  return keep;
+}
+
 // Eq. 4: weight 1 for the point and its nearest neighbour, falling to 1/16 at
 // the farthest of the 16; normalised to sum to one.
 Neighbours blur_neighbours(const PointTree& tree, int count) {
@@ -639,11 +797,25 @@ CachePointTables build_cache_points(const LightSet& lights, const EmitterSet& se
     evaluated[i] = uint32_t(s.count);
   });
   for (uint32_t e : evaluated) t.cull_evaluated += e;
-  t.neighbours = blur_neighbours(tree, prm.blur_neighbours);
-  std::vector<std::vector<FarEntry>> blurred(n);
-  tbb::parallel_for(size_t(0), n, [&](size_t i) { blurred[i] = blurred_far(lists, t.neighbours, i, prm, scratch.local()); });
+  if (prm.merge_similar) {
+    const std::vector<uint32_t> keep = similar_survivors(lights, set, tree, lists, prm.similar_neighbours);
+    if (keep.size() < n && keep.size() >= size_t(prm.min_points)) {
+      std::vector<vec3> kept_points;
+      std::vector<PointLists> kept_lists;
+      for (uint32_t i : keep) {
+        kept_points.push_back(tree.points[i]);
+        kept_lists.push_back(std::move(lists[i]));
+      }
+      lists = std::move(kept_lists);
+      t.tree = std::make_unique<PointTree>(std::move(kept_points));  // `tree` is gone from here on
+    }
+  }
+  const size_t m = t.tree->points.size();
+  t.neighbours = blur_neighbours(*t.tree, prm.blur_neighbours);
+  std::vector<std::vector<FarEntry>> blurred(m);
+  tbb::parallel_for(size_t(0), m, [&](size_t i) { blurred[i] = blurred_far(lists, t.neighbours, i, prm, scratch.local()); });
   scratch.clear();
-  for (size_t i = 0; i < n; ++i) lists[i].far = std::move(blurred[i]);
+  for (size_t i = 0; i < m; ++i) lists[i].far = std::move(blurred[i]);
   return t;
 }
 

@@ -411,7 +411,7 @@ std::vector<std::pair<std::string, double>> CachePointSampler::statistics() cons
           {"locally_optimal", m.tree ? 0.0 : 1.0},
           {"mean_near_lights", points > 0 ? near / points : 0.0},
           {"mean_far_lights", points > 0 ? (double(m.entries()) - near) / points : 0.0},
-          {"mean_emitters_evaluated", points > 0 ? double(m.cull_evaluated) / points : 0.0},
+          {"mean_emitters_evaluated", m.tree ? double(m.cull_evaluated) / double(m.merged_points) : 0.0},
           {"memory_bytes", bytes},
           {"shadow_attempts", tries},
           {"shadow_successes", hits},

@@ -4,6 +4,9 @@
 #include "core/hash.h"
 #include "core/log.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -62,7 +65,14 @@ RecorderFeature::RecorderFeature(const RecorderOptions& options, bool guiding, u
 void RecorderFeature::add_tasks(IterationTasks& tasks) {
   if (!recorder_) return;
   tasks.on_begin([this](const IterationInfo&) { recorder_->begin_iteration(); });
-  tasks.on_end([this](const IterationInfo&) { recorder_->end_iteration(); });
+  tasks.on_end([this](const IterationInfo& it) {
+    const RecorderStats before = recorder_->stats();
+    recorder_->end_iteration();
+    const RecorderStats after = recorder_->stats();
+    iteration_times_.push_back({double(it.spp_end), double(after.samples - before.samples),
+                                after.sort_seconds - before.sort_seconds,
+                                after.consume_seconds - before.consume_seconds});
+  });
   tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [this](const IterationInfo&) { recorder_->update_skip_rate(); });
 }
 
@@ -120,7 +130,9 @@ void RecorderFeature::write_log(nlohmann::json& log) const {
                      {"samples", rs.samples},
                      {"sort_seconds", rs.sort_seconds},
                      {"consume_seconds", rs.consume_seconds},
-                     {"dropped", rs.dropped}};
+                     {"dropped", rs.dropped},
+                     {"iterations_columns", {"spp_end", "samples", "sort_seconds", "consume_seconds"}},
+                     {"iterations", iteration_times_}};
   log["memory"]["recorder"] = recorder_->peak_bytes();
 }
 
@@ -168,13 +180,22 @@ class SDTreeTrainer final : public TrainingSampleSink {
   SDTreeTrainer(SDTree& tree, const bool& training) : tree_(tree), training_(training) {}
   bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
-    if (!training_) return;
-    tree_.add_samples(samples.size(), [&](size_t i) { return sd_tree_sample(samples[i]); });
+    if (!training_) {
+      if (!converted_.empty()) converted_ = {}, tree_.release_training_buffers();
+      return;
+    }
+    // Each sample converted once, into a buffer kept across iterations.
+    if (converted_.size() < samples.size()) converted_.resize(samples.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, samples.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) converted_[i] = sd_tree_sample(samples[i]);
+    });
+    tree_.add_samples(std::span(converted_).first(samples.size()));
   }
 
  private:
   SDTree& tree_;
   const bool& training_;
+  std::vector<SDTreeSample> converted_;
 };
 
 }  // namespace
@@ -394,8 +415,15 @@ void GuidingFeature::add_tasks(IterationTasks& tasks) {
       if (round->measured()) judge(*round);
     });
   }
-  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) {
-    if (training_) tree_->update();
+  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo& it) {
+    if (!training_) return;
+    const SDTreeTimes before = logged_times_;
+    tree_->update();
+    const SDTreeTimes& t = tree_->times();
+    training_times_.push_back({double(it.spp_end), it.seconds, it.cpu_seconds, t.classify - before.classify,
+                               t.order - before.order, t.deposit - before.deposit, t.copy - before.copy,
+                               t.split - before.split, t.refine - before.refine, t.index - before.index});
+    logged_times_ = t;
   });
 }
 
@@ -473,7 +501,13 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                     // What it learned from (-1: training never ended).
                     {"trained_spp", trained_spp_},
                     // Guide directions the BSDF did not scatter into (wasted draws).
-                    {"draw_failures", gs.draw_failures}};
+                    {"draw_failures", gs.draw_failures},
+                    // Where training's time went, per iteration (wall seconds; the samples
+                    // were deposited at the iteration's end, the update after it).
+                    {"training_iterations_columns",
+                     {"spp_end", "render_seconds", "render_cpu_seconds", "classify", "order", "deposit", "copy",
+                      "split", "refine", "index"}},
+                    {"training_iterations", training_times_}};
   if (tree_->options().learn_selection) {
     // The learned share of guided directions over the leaves that guide.
     double lo = 1.0, hi = 0.0, sum = 0.0;

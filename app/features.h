@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -90,6 +91,8 @@ class RecorderFeature final : public Feature {
  private:
   RecorderOptions options_;
   std::unique_ptr<RadianceRecorder> recorder_;
+  // Per iteration: [spp_end, samples, sort seconds, consume seconds] (the log's recorder.iterations).
+  std::vector<std::array<double, 4>> iteration_times_;
 };
 
 // --- Path guiding (group "guiding") -----------------------------------------
@@ -296,6 +299,10 @@ class GuidingFeature final : public Feature {
   // Checkpointed: a resumed render keeps the field frozen.
   int64_t trained_spp_ = -1;
   bool training_ = true;  // this iteration's samples train the field
+  // Per training iteration: spp_end, the render's wall and CPU seconds, then
+  // SDTreeTimes' deltas (the log's guiding.training_iterations).
+  std::vector<std::array<double, 10>> training_times_;
+  SDTreeTimes logged_times_;  // the tree's times at the last entry
 };
 
 // --- Caustics traced from the lights (group "caustics") ---------------------

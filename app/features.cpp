@@ -4,6 +4,9 @@
 #include "core/hash.h"
 #include "core/log.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -62,7 +65,14 @@ RecorderFeature::RecorderFeature(const RecorderOptions& options, bool guiding, u
 void RecorderFeature::add_tasks(IterationTasks& tasks) {
   if (!recorder_) return;
   tasks.on_begin([this](const IterationInfo&) { recorder_->begin_iteration(); });
-  tasks.on_end([this](const IterationInfo&) { recorder_->end_iteration(); });
+  tasks.on_end([this](const IterationInfo& it) {
+    const RecorderStats before = recorder_->stats();
+    recorder_->end_iteration();
+    const RecorderStats after = recorder_->stats();
+    iteration_times_.push_back({double(it.spp_end), double(after.samples - before.samples),
+                                after.sort_seconds - before.sort_seconds,
+                                after.consume_seconds - before.consume_seconds});
+  });
   tasks.add(BetweenIterationSlot::RecorderSkipRateUpdate, [this](const IterationInfo&) { recorder_->update_skip_rate(); });
 }
 
@@ -120,7 +130,9 @@ void RecorderFeature::write_log(nlohmann::json& log) const {
                      {"samples", rs.samples},
                      {"sort_seconds", rs.sort_seconds},
                      {"consume_seconds", rs.consume_seconds},
-                     {"dropped", rs.dropped}};
+                     {"dropped", rs.dropped},
+                     {"iterations_columns", {"spp_end", "samples", "sort_seconds", "consume_seconds"}},
+                     {"iterations", iteration_times_}};
   log["memory"]["recorder"] = recorder_->peak_bytes();
 }
 
@@ -168,13 +180,22 @@ class SDTreeTrainer final : public TrainingSampleSink {
   SDTreeTrainer(SDTree& tree, const bool& training) : tree_(tree), training_(training) {}
   bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
-    if (!training_) return;
-    tree_.add_samples(samples.size(), [&](size_t i) { return sd_tree_sample(samples[i]); });
+    if (!training_) {
+      if (!converted_.empty()) converted_ = {}, tree_.release_training_buffers();
+      return;
+    }
+    // Each sample converted once, into a buffer kept across iterations.
+    if (converted_.size() < samples.size()) converted_.resize(samples.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, samples.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) converted_[i] = sd_tree_sample(samples[i]);
+    });
+    tree_.add_samples(std::span(converted_).first(samples.size()));
   }
 
  private:
   SDTree& tree_;
   const bool& training_;
+  std::vector<SDTreeSample> converted_;
 };
 
 }  // namespace
@@ -367,10 +388,19 @@ std::optional<uint32_t> GuidingFeature::settled_from() const {
 }
 
 std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInfo&) const {
-  if (!tree_ || !options_.auto_off) return std::nullopt;
-  const bool done =
-      verdict_.state == GuidingVerdict::Off || (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0);
-  return done ? std::optional(regular_schedule()) : std::nullopt;
+  if (!tree_ || !options_.regular_after_training) return std::nullopt;
+  const bool done = options_.auto_off ? verdict_.state == GuidingVerdict::Off ||
+                                            (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0)
+                                      : trained_spp_ >= 0;
+  if (!done) return std::nullopt;
+  // A time limit stops inside an iteration, whose pixels are rendered in
+  // order: those it reached have the whole iteration's samples more than the
+  // others.  Capped at 64 spp, that unevenness stays a fraction of a
+  // 30-second render's few hundred spp, and a drain per 64 spp costs a
+  // quarter of one per 16.
+  ScheduleOptions regular = regular_schedule();
+  if (time_limit_ > 0.0) regular.max = std::min(regular.max, 64);
+  return regular;
 }
 
 // The field learns from each training iteration's samples (handed over by
@@ -399,8 +429,15 @@ void GuidingFeature::add_tasks(IterationTasks& tasks) {
       if (round->measured()) judge(*round);
     });
   }
-  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo&) {
-    if (training_) tree_->update();
+  tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo& it) {
+    if (!training_) return;
+    const SDTreeTimes before = logged_times_;
+    tree_->update();
+    const SDTreeTimes& t = tree_->times();
+    training_times_.push_back({double(it.spp_end), it.seconds, it.cpu_seconds, t.classify - before.classify,
+                               t.order - before.order, t.deposit - before.deposit, t.copy - before.copy,
+                               t.split - before.split, t.refine - before.refine, t.index - before.index});
+    logged_times_ = t;
   });
 }
 
@@ -478,7 +515,13 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                     // What it learned from (-1: training never ended).
                     {"trained_spp", trained_spp_},
                     // Guide directions the BSDF did not scatter into (wasted draws).
-                    {"draw_failures", gs.draw_failures}};
+                    {"draw_failures", gs.draw_failures},
+                    // Where training's time went, per iteration (wall seconds; the samples
+                    // were deposited at the iteration's end, the update after it).
+                    {"training_iterations_columns",
+                     {"spp_end", "render_seconds", "render_cpu_seconds", "classify", "order", "deposit", "copy",
+                      "split", "refine", "index"}},
+                    {"training_iterations", training_times_}};
   if (tree_->options().learn_selection) {
     // The learned share of guided directions over the leaves that guide.
     double lo = 1.0, hi = 0.0, sum = 0.0;

@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -90,6 +91,8 @@ class RecorderFeature final : public Feature {
  private:
   RecorderOptions options_;
   std::unique_ptr<RadianceRecorder> recorder_;
+  // Per iteration: [spp_end, samples, sort seconds, consume seconds] (the log's recorder.iterations).
+  std::vector<std::array<double, 4>> iteration_times_;
 };
 
 // --- Path guiding (group "guiding") -----------------------------------------
@@ -120,6 +123,11 @@ struct GuidingOptions : SDTreeOptions {
   // the update), and on veach-ajar a field trained on 64 spp already halves
   // the per-sample variance, so a short budget is better spent rendering.
   float training_share = 0.25f;
+  // Once training is over (the field frozen, nothing left to decide), the
+  // rest of the render on the regular schedule: guiding's 16-spp iterations
+  // pay only while the field learns, and each ends with a drain of the
+  // wavefront during which a core idles.
+  bool regular_after_training = true;
   // Tests only (--test-guiding-verdict, outside the fingerprint): every
   // --guiding-auto round says "on" or "off", whatever it measured.
   std::string test_verdict;
@@ -149,6 +157,9 @@ void declare_options(V& v, GuidingOptions& o) {
           "(0: it learns from every sample)");
   v.image("training_share", o.training_share,
           "With --time-limit: the field also stops learning once this share of the limit has passed, in (0, 1]");
+  v.image("regular_after_training", o.regular_after_training,
+          "Once training is over (and --guiding-auto decided), render the rest on the regular schedule's larger "
+          "iterations");
   declare_options(v, static_cast<SDTreeOptions&>(o));
 }
 void check(const GuidingOptions& o);
@@ -260,9 +271,11 @@ class GuidingFeature final : public Feature {
   void add_tasks(IterationTasks& tasks) override;
   void add_participants(std::vector<CheckpointParticipant>& participants) override;
   void write_log(nlohmann::json& log) const override;
-  // --guiding-auto, once decided for good with nothing left to learn (off,
-  // or on with training over): the regular schedule for the rest of the
-  // render (IterationConfig::switch_schedule).  Guiding's small iterations
+  // Once nothing is left to learn (training over; with --guiding-auto also
+  // decided for good: off, or on with training over): the regular schedule
+  // for the rest of the render (IterationConfig::switch_schedule), its
+  // iterations capped at 64 spp under a time limit; none with
+  // --no-guiding-regular-after-training.  Guiding's small iterations
   // pay only while the field learns and rounds measure; after that each one
   // costs its fixed work (fold, variance pass, tasks, the wavefront's drain).
   std::optional<ScheduleOptions> schedule_after(const IterationInfo& it) const;
@@ -299,6 +312,10 @@ class GuidingFeature final : public Feature {
   // Checkpointed: a resumed render keeps the field frozen.
   int64_t trained_spp_ = -1;
   bool training_ = true;  // this iteration's samples train the field
+  // Per training iteration: spp_end, the render's wall and CPU seconds, then
+  // SDTreeTimes' deltas (the log's guiding.training_iterations).
+  std::vector<std::array<double, 10>> training_times_;
+  SDTreeTimes logged_times_;  // the tree's times at the last entry
 };
 
 // --- Caustics traced from the lights (group "caustics") ---------------------

@@ -2,14 +2,17 @@
 
 #include "core/hash.h"
 #include "core/log.h"
+#include "core/stats.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace theia {
 
@@ -244,7 +247,8 @@ void SDTree::index_lookups() {
     it.lo[n.axis] = r.split;
     stack.push_back({n.first_child + 1, it.lo, it.size, it.world_size});
   }
-  for (SpatialLeaf& leaf : leaves_) {
+  tbb::parallel_for(size_t(0), leaves_.size(), [&](size_t l) {
+    SpatialLeaf& leaf = leaves_[l];
     leaf.steps.resize(leaf.sampling.size());
     for (size_t k = 0; k < leaf.sampling.size(); ++k) {
       const SamplingQuadNode& node = leaf.sampling[k];
@@ -262,7 +266,7 @@ void SDTree::index_lookups() {
         st.child[i] = node.child[i];
       }
     }
-  }
+  });
 }
 
 Bounds3 SDTree::leaf_bounds(const vec3& p) const {
@@ -429,40 +433,58 @@ void SDTree::add_sample(const SDTreeSample& s) {
   deposit_sample(leaves_[leaf], s);
 }
 
-void SDTree::add_samples(size_t count, const std::function<SDTreeSample(size_t)>& sample) {
+void SDTree::add_samples(std::span<const SDTreeSample> samples) {
   // The leaf of every sample, then the samples of each leaf in index order
   // (a counting sort), then the leaves in parallel.
-  std::vector<uint32_t> leaf_of(count);
+  const size_t count = samples.size();
+  if (leaf_of_.size() < count) leaf_of_.resize(count);
+  std::optional<ScopedTimer> timer(std::in_place, times_.classify);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
-      const SDTreeSample s = sample(i);
-      leaf_of[i] = target_leaf(s.p, s.wi, s.radiance, s.pdf, s.key);
+      const SDTreeSample& s = samples[i];
+      leaf_of_[i] = target_leaf(s.p, s.wi, s.radiance, s.pdf, s.key);
     }
   });
-  std::vector<uint32_t> first(leaves_.size() + 1, 0);
-  for (uint32_t l : leaf_of)
-    if (l != kInvalidLeaf) ++first[l + 1];
-  for (size_t l = 0; l < leaves_.size(); ++l) first[l + 1] += first[l];
-  const uint64_t valid = first.back();
+  timer.emplace(times_.order);
+  const size_t leaves = leaves_.size();
+  first_.assign(leaves + 1, 0);
+  for (size_t i = 0; i < count; ++i)
+    if (leaf_of_[i] != kInvalidLeaf) ++first_[leaf_of_[i] + 1];
+  busiest_.clear();
+  for (uint32_t l = 0; l < leaves; ++l)
+    if (first_[l + 1] > 0) busiest_.push_back(l);
+  // Longest first, so that the last leaf a thread takes is a short one (the
+  // order the leaves are trained in does not change what each learns).
+  std::sort(busiest_.begin(), busiest_.end(),
+            [&](uint32_t a, uint32_t b) { return first_[a + 1] != first_[b + 1] ? first_[a + 1] > first_[b + 1] : a < b; });
+  for (size_t l = 0; l < leaves; ++l) first_[l + 1] += first_[l];
+  const uint64_t valid = first_.back();
   recorded_ += valid;
   dropped_ += count - valid;
-  std::vector<uint32_t> order(valid);
-  {
-    std::vector<uint32_t> next(first.begin(), first.end() - 1);
-    for (size_t i = 0; i < count; ++i)
-      if (leaf_of[i] != kInvalidLeaf) order[next[leaf_of[i]]++] = uint32_t(i);
-  }
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves_.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t l = r.begin(); l != r.end(); ++l)
-      for (uint32_t k = first[l]; k < first[l + 1]; ++k) {
-        deposit_sample(leaves_[l], sample(order[k]));
-      }
+  if (order_.size() < valid) order_.resize(valid);
+  for (size_t i = 0; i < count; ++i)
+    if (leaf_of_[i] != kInvalidLeaf) order_[first_[leaf_of_[i]]++] = uint32_t(i);
+  // first_[l] is now where leaf l's samples end: shift back to their starts.
+  for (size_t l = leaves; l-- > 0;) first_[l + 1] = first_[l];
+  first_[0] = 0;
+  timer.emplace(times_.deposit);
+  std::atomic<size_t> next{0};
+  const size_t workers = std::min(busiest_.size(), size_t(tbb::this_task_arena::max_concurrency()));
+  tbb::parallel_for(size_t(0), workers, [&](size_t) {
+    for (size_t k; (k = next.fetch_add(1, std::memory_order_relaxed)) < busiest_.size();) {
+      const uint32_t l = busiest_[k];
+      for (uint32_t j = first_[l]; j < first_[l + 1]; ++j) deposit_sample(leaves_[l], samples[order_[j]]);
+    }
   });
 }
 
 void SDTree::update() {
-  // Building (every deposit so far) becomes sampling, as fractions of the leaf's flux.
-  for (SpatialLeaf& leaf : leaves_) {
+  std::optional<ScopedTimer> timer(std::in_place, times_.copy);
+  // Building (every deposit so far) becomes sampling, as fractions of the
+  // leaf's flux.  Leaves are independent here and in the refinement below:
+  // in parallel, with the results any order gives.
+  tbb::parallel_for(size_t(0), leaves_.size(), [&](size_t l) {
+    SpatialLeaf& leaf = leaves_[l];
     sum_flux_bottom_up(leaf.building);
     double total = node_total(leaf.building[0]);
     leaf.has_energy = total > 0.0 && std::isfinite(total);
@@ -478,11 +500,16 @@ void SDTree::update() {
         leaf.sampling[n].child[i] = leaf.building[n].child[i];
         leaf.sampling[n].flux[i] = leaf.has_energy ? float(leaf.building[n].flux[i] / total) : 0.0f;
       }
-  }
+  });
+  timer.emplace(times_.split);
   refine_spatial();
-  for (SpatialLeaf& leaf : leaves_)
-    leaf.building = refine_quadtree(leaf.building, options_.flux_threshold, options_.max_quadtree_depth);
+  timer.emplace(times_.refine);
+  tbb::parallel_for(size_t(0), leaves_.size(), [&](size_t l) {
+    leaves_[l].building = refine_quadtree(leaves_[l].building, options_.flux_threshold, options_.max_quadtree_depth);
+  });
+  timer.emplace(times_.index);
   index_lookups();
+  timer.reset();
   last_recorded_ = recorded_;
   last_dropped_ = dropped_;
   recorded_ = dropped_ = 0;
@@ -632,6 +659,7 @@ size_t SDTree::memory_bytes() const {
     bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.steps.capacity() * sizeof(SamplingStep) +
              leaf.building.capacity() * sizeof(BuildingQuadNode);
   bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3);
+  bytes += (leaf_of_.capacity() + order_.capacity() + first_.capacity() + busiest_.capacity()) * sizeof(uint32_t);
   return bytes;
 }
 

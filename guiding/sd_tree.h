@@ -24,7 +24,6 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
-#include <functional>
 #include <span>
 #include <vector>
 
@@ -89,6 +88,15 @@ struct SDTreeStats {
   // The iteration being recorded now.
   uint64_t pending_recorded = 0;
   uint64_t pending_dropped = 0;
+};
+
+// Where training's time goes (seconds, accumulated over the render; wall
+// clock, so a parallel part counts once): add_samples's leaf per sample,
+// counting sort and deposits; update()'s building-to-sampling copy, spatial
+// splits, quadtree refinement and lookup tables.
+struct SDTreeTimes {
+  double classify = 0.0, order = 0.0, deposit = 0.0;
+  double copy = 0.0, split = 0.0, refine = 0.0, index = 0.0;
 };
 
 // One quadtree node: four quadrants (index = x_high | y_high << 1), each a
@@ -173,11 +181,13 @@ class SDTree final : public DirectionalGuide {
   // dropped and counted; zero radiance is recorded (it counts).
   void add_sample(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key);
   void add_sample(const SDTreeSample& s);
-  // add_sample for samples 0 .. count-1 (`sample(i)` gives sample i; it is
-  // called from several threads, twice per sample), in parallel over spatial
-  // leaves: each leaf takes its samples in index order, so the tree is the
-  // one the same add_sample calls in a row build, whatever the thread count.
-  void add_samples(size_t count, const std::function<SDTreeSample(size_t)>& sample);
+  // add_sample for every sample, in parallel over spatial leaves (the
+  // busiest first, each taken whole by one thread): each leaf takes its
+  // samples in index order, so the tree is the one the same add_sample calls
+  // in a row build, whatever the thread count.
+  void add_samples(std::span<const SDTreeSample> samples);
+  // Frees add_samples's working arrays (training is over).
+  void release_training_buffers() { leaf_of_ = {}, order_ = {}, first_ = {}, busiest_ = {}; }
   // End of an iteration: what building accumulated becomes sampling, busy
   // leaves split, and building is refined around its flux (keeping it).
   void update();
@@ -197,6 +207,7 @@ class SDTree final : public DirectionalGuide {
   static SDTree deserialize(std::span<const uint8_t> bytes);
 
   SDTreeStats stats() const;
+  const SDTreeTimes& times() const { return times_; }
   size_t memory_bytes() const;
 
   const SDTreeOptions& options() const { return options_; }
@@ -251,6 +262,11 @@ class SDTree final : public DirectionalGuide {
   uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
   uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration
   mutable uint64_t draw_failures_ = 0;             // every leaf's, including split ones
+  SDTreeTimes times_;
+  // add_samples's working arrays, kept so that an iteration allocates nothing
+  // once the largest has been seen: each sample's leaf, the samples grouped
+  // by leaf, the groups' offsets, the leaves busiest first.
+  std::vector<uint32_t> leaf_of_, order_, first_, busiest_;
 
   friend struct SDTreeSerializer;
 };

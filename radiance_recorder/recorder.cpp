@@ -10,6 +10,7 @@
 #include <glm/gtc/packing.hpp>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cstddef>
 #include <stdexcept>
@@ -473,7 +474,7 @@ void RadianceRecorder::end_iteration() {
   peak_sample_bytes_ =
       std::max<uint64_t>(peak_sample_bytes_, count * (2 * sizeof(TrainingSample) + 2 * sizeof(SortPair)));
   if (!sink_) return;
-  std::vector<TrainingSample> sorted;
+  std::span<const TrainingSample> sorted;
   {
     ScopedTimer timer(sort_seconds_);
     sorted = sorted_samples();
@@ -488,7 +489,7 @@ void RadianceRecorder::end_iteration() {
 // values need (28 on a 128 x 128 frame at 64 spp), radix-sorted with the
 // record's position, then the records gathered in that order.  The keys are
 // unique (one vertex per pixel, sample, depth and kind), so the order is too.
-std::vector<TrainingSample> RadianceRecorder::sorted_samples() {
+std::span<const TrainingSample> RadianceRecorder::sorted_samples() {
   std::vector<const std::vector<TrainingSample>*> parts;
   std::vector<size_t> offset{0};
   for (ThreadCache& tc : *caches_) {
@@ -497,22 +498,37 @@ std::vector<TrainingSample> RadianceRecorder::sorted_samples() {
     offset.push_back(offset.back() + tc.samples.size());
   }
   const size_t n = offset.back();
+  if (n == 0) {  // nothing recorded (training is over): give the kept arrays back
+    keys_ = {}, scratch_ = {}, sorted_ = {};
+    return {};
+  }
   auto sample_at = [&](size_t index) -> const TrainingSample& {
     size_t p = size_t(std::upper_bound(offset.begin(), offset.end(), index) - offset.begin()) - 1;
     return (*parts[p])[index - offset[p]];
   };
-  uint32_t max_pixel = 0, max_sample = 0, max_depth = 0, max_flags = 0;
-  for (const auto* part : parts)
-    for (const TrainingSample& s : *part) {
-      max_pixel = std::max(max_pixel, s.pixel);
-      max_sample = std::max(max_sample, s.sample);
-      max_depth = std::max<uint32_t>(max_depth, s.depth);
-      max_flags = std::max<uint32_t>(max_flags, s.flags);
+  // Each thread's part scanned on its own (maxima: the same whatever the split).
+  std::vector<std::array<uint32_t, 4>> part_max(parts.size(), {0, 0, 0, 0});
+  tbb::parallel_for(size_t(0), parts.size(), [&](size_t p) {
+    std::array<uint32_t, 4>& m = part_max[p];
+    for (const TrainingSample& s : *parts[p]) {
+      m[0] = std::max(m[0], s.pixel);
+      m[1] = std::max(m[1], s.sample);
+      m[2] = std::max<uint32_t>(m[2], s.depth);
+      m[3] = std::max<uint32_t>(m[3], s.flags);
     }
+  });
+  uint32_t max_pixel = 0, max_sample = 0, max_depth = 0, max_flags = 0;
+  for (const std::array<uint32_t, 4>& m : part_max) {
+    max_pixel = std::max(max_pixel, m[0]);
+    max_sample = std::max(max_sample, m[1]);
+    max_depth = std::max(max_depth, m[2]);
+    max_flags = std::max(max_flags, m[3]);
+  }
   const int flag_bits = bits_for(max_flags), depth_bits = bits_for(max_depth), sample_bits = bits_for(max_sample);
   const int key_bits = bits_for(max_pixel) + sample_bits + depth_bits + flag_bits;
 
-  std::vector<SortPair> keys(n), scratch;
+  std::vector<SortPair>& keys = keys_;
+  if (keys.size() != n) keys.resize(n);
   if (key_bits <= 64) {
     tbb::parallel_for(size_t(0), parts.size(), [&](size_t p) {
       const std::vector<TrainingSample>& part = *parts[p];
@@ -522,7 +538,7 @@ std::vector<TrainingSample> RadianceRecorder::sorted_samples() {
         keys[offset[p] + i] = {key, uint32_t(offset[p] + i)};
       }
     });
-    radix_sort(keys, scratch, key_bits);
+    radix_sort(keys, scratch_, key_bits);
   } else {  // too many bits to pack: compare the fields
     for (size_t i = 0; i < n; ++i) keys[i] = {0, uint32_t(i)};
     std::sort(keys.begin(), keys.end(), [&](const SortPair& a, const SortPair& b) {
@@ -530,12 +546,12 @@ std::vector<TrainingSample> RadianceRecorder::sorted_samples() {
       return std::tie(x.pixel, x.sample, x.depth, x.flags) < std::tie(y.pixel, y.sample, y.depth, y.flags);
     });
   }
-  std::vector<TrainingSample> sorted(n);
+  if (sorted_.size() < n) sorted_.resize(n);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, size_t(1) << 14), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i) sorted[i] = sample_at(keys[i].index);
+    for (size_t i = r.begin(); i < r.end(); ++i) sorted_[i] = sample_at(keys[i].index);
   });
   for (ThreadCache& tc : *caches_) tc.samples.clear();
-  return sorted;
+  return std::span<const TrainingSample>(sorted_).first(n);
 }
 
 RadianceRecorder::ResumeState RadianceRecorder::resume_state() const {

@@ -236,7 +236,8 @@ class RadianceRecorder final : public PathObserver {
   uint64_t iteration_peak_live() const;
   void finish(ThreadCache& tc, PVIndex i);      // drop one reference; backpropagate at zero
   void record(ThreadCache& tc, Vertex& v);
-  std::vector<TrainingSample> sorted_samples(); // every thread's samples, sorted; the threads' emptied
+  // Every thread's samples, sorted (into sorted_, valid until the next call); the threads' emptied.
+  std::span<const TrainingSample> sorted_samples();
 
   RecorderOptions opt_;
   TrainingMode mode_;
@@ -261,6 +262,10 @@ class RadianceRecorder final : public PathObserver {
   std::vector<float> debug_primary_, debug_bounce_;
   double sort_seconds_ = 0.0, consume_seconds_ = 0.0;
   uint64_t samples_ = 0;
+  // The sort's arrays, kept across iterations: an iteration of a million
+  // samples would otherwise allocate and zero ~90 MB on one thread.
+  std::vector<SortPair> keys_, scratch_;
+  std::vector<TrainingSample> sorted_;
 };
 
 }  // namespace theia

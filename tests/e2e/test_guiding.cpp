@@ -225,16 +225,24 @@ TEST(Guiding, AutoContinuesOnTheRegularScheduleOnceDecided) {
   EXPECT_EQ(on.log["guiding"]["auto"]["verdict"].get<std::string>(), "on");
   EXPECT_EQ(on.log["scheduler"]["schedule"].get<std::vector<int>>(), switch_schedule(planned, 16, regular_schedule()));
   EXPECT_EQ(on.log["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 16);
-  // Training that never ends leaves guiding's schedule alone, as does --guiding without auto.
+  // Training that never ends leaves guiding's schedule alone.
   RenderResult learning = render("on", 0);
   EXPECT_TRUE(learning.log["scheduler"]["schedule_switch"].is_null());
+  // --guiding without auto switches once training is over: training 32 spp
+  // ends as iteration 12 (38 spp) begins, so from 13 (54 spp) on, regular;
+  // with --no-guiding-regular-after-training guiding's schedule to the end.
   RenderConfig guided = guided_config(256);
   guided.guiding.training_spp = 32;
+  RenderResult switched = render_scene(scene, guided);
+  EXPECT_EQ(switched.log["scheduler"]["schedule"].get<std::vector<int>>(),
+            switch_schedule(planned, 13, regular_schedule()));
+  EXPECT_EQ(switched.log["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 13);
+  guided.guiding.regular_after_training = false;
   RenderResult plain = render_scene(scene, guided);
   EXPECT_EQ(plain.log["scheduler"]["schedule"].get<std::vector<int>>(), planned);
   EXPECT_TRUE(plain.log["scheduler"]["schedule_switch"].is_null());
   // The same image in expectation: mean channel values against the guided render's.
-  for (const RenderResult* r : {&off, &on}) EXPECT_LT(channel_mean_deviation(r->image, plain.image), 0.02);
+  for (const RenderResult* r : {&off, &on, &switched}) EXPECT_LT(channel_mean_deviation(r->image, plain.image), 0.02);
 }
 
 // The final round needs guiding to pay by both variance figures: a guided

@@ -421,6 +421,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-training-spp", {"8"}},
     {"--guiding-adjoint-roulette", {"off"}},
     {"--guiding-training-share", {"0.5"}},
+    {"--guiding-regular-after-training", {"off"}},
     {"--caustics", {"off"}},
     {"--caustics-caster-roughness", {"0.2"}},
     {"--adaptive", {}},

@@ -52,7 +52,7 @@ std::vector<FieldSnapshot> train(SDTree& tree, FieldRecorder& recorder, int iter
   for (int it = 0; it < iterations; ++it) {
     std::vector<SDTreeSample> s = iteration_samples(rng, n, true);
     recorder.add(tree, s);
-    tree.add_samples(s.size(), [&](size_t i) { return s[i]; });
+    tree.add_samples(s);
     tree.update();
     snaps.push_back(recorder.snapshot(tree, it, uint32_t(it + 1)));
     if (batches) batches->push_back(std::move(s));
@@ -228,12 +228,12 @@ TEST(FieldRecorder, IsIndependentOfSampleOrder) {
   std::mt19937 rng(3);
   std::vector<SDTreeSample> s = iteration_samples(rng, 5000, false);
   ra.add(a, s);
-  a.add_samples(s.size(), [&](size_t i) { return s[i]; });
+  a.add_samples(s);
   a.update();
   std::vector<SDTreeSample> shuffled = s;
   std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(9));
   rb.add(b, shuffled);
-  b.add_samples(s.size(), [&](size_t i) { return s[i]; });
+  b.add_samples(s);
   b.update();
   const FieldSnapshot sa = ra.snapshot(a, 0, 1), sb = rb.snapshot(b, 0, 1);
   ASSERT_EQ(sa.leaves.size(), sb.leaves.size());

@@ -632,7 +632,7 @@ TEST(SDTreeParallel, AddSamplesEqualsAddSampleInARow) {
     SDTree t(kUnitBox, o);
     for (int it = 0; it < 3; ++it) {
       if (parallel) {
-        t.add_samples(batch.size(), [&](size_t i) { return batch[i]; });
+        t.add_samples(batch);
       } else {
         for (const SDTreeSample& s : batch) t.add_sample(s);
       }

@@ -645,7 +645,7 @@ void AdaptiveFeature::configure(EngineOptions& engine, EngineHooks&) const {
 void check(const SchedulingOptions& o) {
   if (!o.schedule.empty() && o.schedule != "regular" && o.schedule != "guiding")
     throw_error("--schedule {}: expected regular or guiding", o.schedule);
-  if (o.combine != "equal" && o.combine != "inverse-variance")
+  if (!o.combine.empty() && o.combine != "equal" && o.combine != "inverse-variance")
     throw_error("--combine {}: expected equal or inverse-variance", o.combine);
   if (o.combine_window < 0) throw_error("--combine-window must be zero or positive, got {}", o.combine_window);
   if (!(o.time_limit >= 0.0 && std::isfinite(o.time_limit)))
@@ -658,6 +658,11 @@ void check(const CheckpointOptions& o) {
 
 std::string schedule_name(const SchedulingOptions& o, bool guiding) {
   return !o.schedule.empty() ? o.schedule : guiding ? "guiding" : "regular";
+}
+
+std::string combine_name(const SchedulingOptions& o, bool guiding, bool equal_sums_needed) {
+  if (!o.combine.empty()) return o.combine;
+  return guiding && !equal_sums_needed ? "inverse-variance" : "equal";
 }
 
 ScheduleOptions schedule_options(const std::string& name, const IterationOptions& overrides) {

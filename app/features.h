@@ -381,7 +381,7 @@ class AdaptiveFeature final : public Feature {
 
 struct SchedulingOptions {
   std::string schedule;           // regular | guiding; empty: guiding with --guiding, else regular
-  std::string combine = "equal";  // equal | inverse-variance
+  std::string combine;            // equal | inverse-variance; empty: combine_name()
   int combine_window = 0;         // spp; 0: the last half of the samples rendered
   bool resume = false;            // fail unless a checkpoint is found
   double time_limit = 0.0;        // seconds of render clock; 0: none (IterationConfig::time_limit)
@@ -394,7 +394,8 @@ void declare_options(V& v, SchedulingOptions& o) {
           "--guiding, else regular");
   v.image("combine", o.combine,
           "Combining iterations: equal, or inverse-variance (whole-image weights over the last --combine-window "
-          "spp, used only where estimated less noisy than equal weights)");
+          "spp, used only where estimated less noisy than equal weights); default: inverse-variance with --guiding "
+          "(equal with --sample-range, --aov-events or --recorder-debug), else equal");
   v.image("combine_window", o.combine_window,
           "Inverse-variance weighting: the iterations in the last this many spp (0: the last half of the samples "
           "rendered)");
@@ -428,6 +429,10 @@ void check(const CheckpointOptions& o);
 
 // Guiding learns between iterations, so it wants its small early iterations.
 std::string schedule_name(const SchedulingOptions& o, bool guiding);
+// --combine's default: a guided render's early iterations sample from a field
+// still learning, so weighting them by their noise pays; a split frame's parts,
+// the event layers and the recorder's debug layers need the equal-weight sums.
+std::string combine_name(const SchedulingOptions& o, bool guiding, bool equal_sums_needed);
 ScheduleOptions schedule_options(const std::string& name, const IterationOptions& overrides);
 
 }  // namespace theia

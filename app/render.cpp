@@ -61,7 +61,7 @@ static void check_split(const RenderConfig& c) {
   if (c.adaptive.enabled)
     refuse("--adaptive", "a pixel's extra samples would take the sample indices of the next part's range (capped "
                          "at the part's range, nothing is left to adapt)");
-  if (c.combine != "equal") refuse("--combine inverse-variance", "its weights compare the iterations of one render");
+  if (c.combine == "inverse-variance") refuse("--combine inverse-variance", "its weights compare the iterations of one render");
   if (RecorderFeature::debug_layers(c.recorder)) refuse("--recorder-debug", "its buffers are not part of the film");
   if (c.time_limit > 0) refuse("--time-limit", "a part must render its whole range");
 }
@@ -79,7 +79,7 @@ void check_config(const RenderConfig& c) {
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
   if (RecorderFeature::debug_layers(c.recorder) && c.guiding.auto_off)
     throw_error("--recorder-debug cannot be combined with --guiding-auto: the recorder stops when guiding does");
-  if (c.aov_events && c.combine != "equal")
+  if (c.aov_events && c.combine == "inverse-variance")
     throw_error("--aov-events cannot be combined with --combine {}: the layers are equal-weight sums and would not "
                 "add up to a weighted beauty",
                 c.combine);
@@ -102,6 +102,8 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
   if (c.guiding.auto_off) c.guiding.enabled = true;
   c.schedule = schedule_name(c, c.guiding.enabled);
+  c.combine = combine_name(c, c.guiding.enabled,
+                           !c.sample_range.empty() || c.aov_events || RecorderFeature::debug_layers(c.recorder));
   if (!c.sample_range.empty()) c.caustics.may_switch_off = false;
   return c;
 }

@@ -38,6 +38,31 @@ TEST(Guiding, CornellBoxMatchesPbrtReferenceWhenGuided) {
   EXPECT_EQ(r.log["options"]["schedule"].get<std::string>(), "guiding");
 }
 
+// A guided render weights its iterations by their inverse variance unless told
+// otherwise or unless what it writes needs equal-weight sums; an unguided one
+// keeps equal weights.  The log names the choice under the option's name.
+TEST(Guiding, InverseVarianceIsTheDefaultCombinationOfAGuidedRender) {
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 16;
+  auto combine = [&](const RenderConfig& c) {
+    return render_scene(scene, c).log["options"]["combine"].get<std::string>();
+  };
+  EXPECT_EQ(combine(guided_config(12)), "inverse-variance");
+  EXPECT_EQ(combine(quick_config(12)), "equal");
+  RenderConfig told = guided_config(12);
+  told.combine = "equal";
+  EXPECT_EQ(combine(told), "equal");
+  RenderConfig events = guided_config(12);
+  events.aov_events = true;
+  EXPECT_EQ(combine(events), "equal");
+  RenderConfig debug = guided_config(12);
+  debug.recorder.debug = true;
+  EXPECT_EQ(combine(debug), "equal");
+  // Asked for explicitly, the weighting still refuses the event layers.
+  events.combine = "inverse-variance";
+  EXPECT_THROW(render_scene(scene, events), std::exception);
+}
+
 // Training is deterministic (the recorder sorts its samples), so the guided
 // image depends on the thread count only through summation order.
 TEST(Guiding, ImageIndependentOfThreadCount) {

@@ -689,7 +689,7 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       ss.n = e.flip ? -n_out : n_out;
       dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
       double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
-      ss.uv = sphere_local(sp, phi_of(p_obj.x, p_obj.y), theta).uv;
+      ss.uv = sphere_uv(sp, phi_of(p_obj.x, p_obj.y), theta);  // what sphere_local gives, without its frame
       ss.pdf = 1.0f / (2.0f * kPi * one_minus_cos_max);
       if (!std::isfinite(ss.pdf)) return std::nullopt;
       return ss;

@@ -36,6 +36,15 @@ struct QuadricGeom {
   int alpha = -1;                 // float texture index: cut-outs, or -1
 };
 
+// The context every query passes: rays carry their index in the span
+// (RTCRay::id) so filters can find what travels beside them, whatever packets
+// Embree regroups them into.
+struct TraceContext {
+  RTCIntersectContext rtc;
+  const PrimRef* skips = nullptr;  // the curve segment each ray left, or none at all
+  bool surface = true;             // false: hits need only t (quadrics may leave u, v at 0)
+};
+
 // Virtual lights and interfaces do not block: shadow rays ignore every hit on
 // them.  (Closest-hit rays do stop there; the engine splats a virtual light's
 // emission and re-traces from the far side.)
@@ -65,10 +74,10 @@ bool alpha_keeps_hit(const Scene& scene, int alpha, vec2 uv, const vec3& o, cons
 }
 
 bool quadric_intersect_once(const QuadricGeom& g, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
-                            QuadricHit* hit) {
+                            QuadricHit* hit, bool surface) {
   switch (g.kind) {
-    case ShapeKind::Sphere: return intersect_sphere(g.sphere, o, d, tmin, tmax, hit);
-    case ShapeKind::Cylinder: return intersect_cylinder(g.cylinder, o, d, tmin, tmax, hit);
+    case ShapeKind::Sphere: return intersect_sphere(g.sphere, o, d, tmin, tmax, hit, surface);
+    case ShapeKind::Cylinder: return intersect_cylinder(g.cylinder, o, d, tmin, tmax, hit, surface);
     default: return intersect_disk(g.disk, o, d, tmin, tmax, hit);
   }
 }
@@ -84,12 +93,14 @@ vec2 quadric_uv(const QuadricGeom& g, const QuadricHit& hit) {
 // The closest hit in (tmin, tmax) that survives the alpha test: where the
 // first root is cut out the ray goes on to the second.  The hit distance
 // salts the test, so the two roots (and two quadrics) decide independently.
+// `surface` false: the caller needs only t (the alpha test still gets its uv).
 bool quadric_hit(const QuadricGeom& g, const glm::dvec3& o_parent, const glm::dvec3& d_parent, double tmin,
-                 double tmax, QuadricHit* hit) {
+                 double tmax, QuadricHit* hit, bool surface) {
   glm::dvec3 o = glm::dvec3(g.object_from_parent * glm::dvec4(o_parent, 1.0));
   glm::dvec3 d = glm::dmat3(g.object_from_parent) * d_parent;
+  surface = surface || g.alpha >= 0;
   // Each pass finds a root strictly past the last one: at most two passes.
-  while (quadric_intersect_once(g, o, d, tmin, tmax, hit)) {
+  while (quadric_intersect_once(g, o, d, tmin, tmax, hit, surface)) {
     if (g.alpha < 0) return true;
     vec2 uv = quadric_uv(g, *hit);
     float t = float(hit->t);
@@ -108,6 +119,7 @@ void quadric_bounds(const RTCBoundsFunctionArguments* args) {
 
 void quadric_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* g = static_cast<const QuadricGeom*>(args->geometryUserPtr);
+  const bool surface = reinterpret_cast<const TraceContext*>(args->context)->surface;
   unsigned n = args->N;
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
@@ -116,7 +128,7 @@ void quadric_intersect(const RTCIntersectFunctionNArguments* args) {
     glm::dvec3 o(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i));
     glm::dvec3 d(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i));
     QuadricHit qh;
-    if (!quadric_hit(*g, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), &qh)) continue;
+    if (!quadric_hit(*g, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), &qh, surface)) continue;
     RTCRayN_tfar(ray, n, i) = float(qh.t);
     RTCHitN_u(hit, n, i) = qh.u;
     RTCHitN_v(hit, n, i) = qh.v;
@@ -139,7 +151,7 @@ void quadric_occluded(const RTCOccludedFunctionNArguments* args) {
     glm::dvec3 o(RTCRayN_org_x(args->ray, n, i), RTCRayN_org_y(args->ray, n, i), RTCRayN_org_z(args->ray, n, i));
     glm::dvec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
     QuadricHit qh;
-    if (quadric_hit(*g, o, d, RTCRayN_tnear(args->ray, n, i), RTCRayN_tfar(args->ray, n, i), &qh))
+    if (quadric_hit(*g, o, d, RTCRayN_tnear(args->ray, n, i), RTCRayN_tfar(args->ray, n, i), &qh, false))
       RTCRayN_tfar(args->ray, n, i) = -kInfinity;
   }
 }
@@ -152,14 +164,6 @@ struct FilterGeom {
   const TriangleMesh* mesh;  // nullptr for curves, whose texture uv is the hit's (u, v)
   const CurveSet* curve;     // nullptr for meshes
   int alpha;                 // float texture index, or -1
-};
-
-// The context every query passes: rays carry their index in the span
-// (RTCRay::id) so filters can find what travels beside them, whatever packets
-// Embree regroups them into.
-struct TraceContext {
-  RTCIntersectContext rtc;
-  const PrimRef* skips = nullptr;  // the curve segment each ray left, or none at all
 };
 
 // A hit on the curve segment the ray left, within kCurveSkipWidths of its
@@ -519,9 +523,10 @@ static void fill_ray(const Ray& r, uint32_t index, RTCRay& out) {
 }
 
 void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
-                      std::span<const PrimRef> skips) const {
+                      std::span<const PrimRef> skips, bool surface) const {
   TraceContext ctx;
   rtcInitIntersectContext(&ctx.rtc);
+  ctx.surface = surface;
   ctx.rtc.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
   if (!skips.empty()) ctx.skips = skips.data();
   size_t n = std::min(rays.size(), hits.size());
@@ -560,9 +565,9 @@ void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std:
   }
 }
 
-Hit Accel::intersect1(const Ray& ray, const PrimRef& skip) const {
+Hit Accel::intersect1(const Ray& ray, const PrimRef& skip, bool surface) const {
   Hit h;
-  intersect(std::span<const Ray>(&ray, 1), std::span<Hit>(&h, 1), false, std::span<const PrimRef>(&skip, 1));
+  intersect(std::span<const Ray>(&ray, 1), std::span<Hit>(&h, 1), false, std::span<const PrimRef>(&skip, 1), surface);
   return h;
 }
 

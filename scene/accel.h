@@ -71,11 +71,15 @@ class Accel {
 
   // Closest hits.  Single-threaded over the span; safe to call concurrently.
   // `skips`: empty, or the curve segment each ray left (parallel to rays).
+  // `surface` false: the caller needs only t and what was hit, not (u, v):
+  // spheres and cylinders whose cuts cannot reject a root then leave u, v at
+  // 0 (no atan2 / acos).  The hits are the same either way.
   void intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
-                 std::span<const PrimRef> skips = {}) const;
+                 std::span<const PrimRef> skips = {}, bool surface = true) const;
   // Any hit in [tmin, tmax]: blocked[i] = 1 if ray i is occluded.
   void occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std::span<const PrimRef> skips = {}) const;
-  Hit intersect1(const Ray& ray, const PrimRef& skip = {}) const;  // convenience for tests and one-off queries
+  // Convenience for tests and one-off queries.
+  Hit intersect1(const Ray& ray, const PrimRef& skip = {}, bool surface = true) const;
   bool occluded1(const Ray& ray, const PrimRef& skip = {}) const;
 
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss

@@ -38,6 +38,14 @@ CylinderShape make_cylinder_shape(const CylinderParams& p) {
           std::clamp(double(p.phimax), 0.0, 360.0) * (kPiD / 180.0)};
 }
 
+// phi_of's largest value is 2 pi as a double (atan2 of a negative angle
+// plus 2 pi rounds to at most that), so phimax >= 2 pi never cuts.
+static bool is_full_turn(double phimax) { return phimax >= 2.0 * kPiD; }
+
+static bool is_full_sphere(const SphereShape& s) {
+  return s.zmin <= -s.radius && s.zmax >= s.radius && is_full_turn(s.phimax);
+}
+
 static double phi_of(double x, double y) {
   double phi = std::atan2(y, x);
   return phi < 0.0 ? phi + 2.0 * kPiD : phi;
@@ -58,7 +66,7 @@ static bool quadric_roots(double a, double b, double c, double r, double vlen, d
 }
 
 bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax,
-                      QuadricHit* hit) {
+                      QuadricHit* hit, bool surface) {
   double r = s.radius;
   double a = glm::dot(d, d);
   if (a == 0.0) return false;
@@ -71,6 +79,10 @@ bool intersect_sphere(const SphereShape& s, const dvec3& o, const dvec3& d, doub
   for (double t : {t0, t1}) {
     if (t <= tmin) continue;
     if (t >= tmax) break;
+    if (!surface && is_full_sphere(s)) {
+      *hit = {t, 0.0f, 0.0f};
+      return true;
+    }
     dvec3 p = o + t * d;
     p *= r / glm::length(p);
     if (p.x == 0.0 && p.y == 0.0) p.x = 1e-5 * r;
@@ -95,7 +107,7 @@ bool intersect_disk(const DiskShape& s, const dvec3& o, const dvec3& d, double t
 }
 
 bool intersect_cylinder(const CylinderShape& s, const dvec3& o, const dvec3& d, double tmin, double tmax,
-                        QuadricHit* hit) {
+                        QuadricHit* hit, bool surface) {
   double r = s.radius;
   double a = d.x * d.x + d.y * d.y;
   if (a == 0.0) return false;  // along the axis: never meets the side
@@ -109,10 +121,15 @@ bool intersect_cylinder(const CylinderShape& s, const dvec3& o, const dvec3& d, 
     if (t <= tmin) continue;
     if (t >= tmax) break;
     dvec3 p = o + t * d;
+    if (p.z < s.zmin || p.z > s.zmax) continue;
+    if (!surface && is_full_turn(s.phimax)) {
+      *hit = {t, 0.0f, 0.0f};
+      return true;
+    }
     double rxy = std::sqrt(p.x * p.x + p.y * p.y);
     if (rxy > 0.0) p.x *= r / rxy, p.y *= r / rxy;
     double phi = phi_of(p.x, p.y);
-    if (p.z < s.zmin || p.z > s.zmax || phi > s.phimax) continue;
+    if (phi > s.phimax) continue;
     *hit = {t, float(phi), float(p.z)};
     return true;
   }
@@ -473,10 +490,6 @@ bool is_similarity(const dmat3& lin, double* s2_out) {
   return true;
 }
 
-bool is_full_sphere(const SphereShape& s) {
-  return s.zmin <= -s.radius && s.zmax >= s.radius && s.phimax >= 2.0 * kPiD;
-}
-
 // 1 - cos(theta_max) of the cone subtended by a sphere, with pbrt-v4's
 // small-angle expansion where the direct form loses all precision.
 float cone_one_minus_cos(float sin2_theta_max) {
@@ -676,7 +689,7 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       ss.n = e.flip ? -n_out : n_out;
       dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
       double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
-      ss.uv = sphere_local(sp, phi_of(p_obj.x, p_obj.y), theta).uv;
+      ss.uv = sphere_uv(sp, phi_of(p_obj.x, p_obj.y), theta);  // what sphere_local gives, without its frame
       ss.pdf = 1.0f / (2.0f * kPi * one_minus_cos_max);
       if (!std::isfinite(ss.pdf)) return std::nullopt;
       return ss;

@@ -42,14 +42,17 @@ struct QuadricHit {
 };
 // Closest intersection with t in (tmin, tmax), both sphere roots considered.
 // Double precision so that rays spawned off the surface never re-hit it.
+// `surface` false: the caller needs only t, so where no cut (z range, phimax)
+// can reject the root, u and v are left 0 (no atan2 / acos); the same roots
+// are accepted either way.
 bool intersect_sphere(const SphereShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
-                      QuadricHit* hit);
+                      QuadricHit* hit, bool surface = true);
 bool intersect_disk(const DiskShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
                     QuadricHit* hit);
 // Both roots considered; the caps are open (pbrt-v4), so a ray can enter at
-// one end and hit the inside.
+// one end and hit the inside.  `surface` as for spheres (the full turn: no phi).
 bool intersect_cylinder(const CylinderShape& s, const glm::dvec3& o, const glm::dvec3& d, double tmin, double tmax,
-                        QuadricHit* hit);
+                        QuadricHit* hit, bool surface = true);
 // pbrt-v4's (u, v) of a hit from QuadricHit's u, v: (phi / phimax, the
 // fraction of the theta range) on spheres, (phi / phimax, (radius - r) /
 // (radius - inner radius)) on disks, (phi / phimax, (z - zmin) / (zmax -

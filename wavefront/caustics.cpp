@@ -35,6 +35,23 @@ float adjoint_shading_correction(const vec3& wo, const vec3& wi, const vec3& ns,
   return std::abs(glm::dot(wo, ns)) * std::abs(glm::dot(wi, ng)) / den;
 }
 
+// Whether a hit on `shape` can be a caster (bsdf_is_caustic_caster): only a
+// conductor or dielectric, or a mix that may resolve to one, is worth setting
+// up; most first hits are on other surfaces.  An unknown shape goes on to
+// compute_interaction, which reports it.
+bool may_cast(const Scene& scene, int shape) {
+  if (shape < 0) return true;
+  const int m = scene.shapes[size_t(shape)].material;
+  if (m < 0) return false;  // the default diffuse
+  switch (scene.materials[size_t(m)].kind) {
+    case MaterialKind::Conductor:
+    case MaterialKind::Dielectric:
+    case MaterialKind::ThinDielectric:
+    case MaterialKind::Mix: return true;
+    default: return false;
+  }
+}
+
 // A finished path's connection to the camera, waiting for its shadow ray.
 struct Connection {
   vec2 raster{0.0f};
@@ -186,7 +203,7 @@ void CausticTracer::Pass::the_caster() {
   parallel([&](size_t i) {
     if (!paths[i].alive) return;
     paths[i].alive = false;
-    if (!hits[i].hit()) return;
+    if (!hits[i].hit() || !may_cast(tracer.scene_, tracer.accel_.shape_index(hits[i]))) return;
     auto hit = surface(i);
     if (!hit || !bsdf_is_caustic_caster(hit->second, tracer.options_.caster_roughness)) return;
     const auto& [si, bsdf] = *hit;

@@ -231,27 +231,59 @@ void WavefrontEngine::Impl::attenuate_shadow_rays_in_media() {
   });
 }
 
+namespace {
+
+// What a shape does to a shadow ray, where the shape alone decides it: a
+// holdout or a surface with a BSDF blocks, an interface or a virtual light
+// passes; a mix material is resolved at the hit (its choice hashes the point).
+enum class ShadowCrossing { Blocks, Passes, AtHit };
+
+ShadowCrossing shadow_crossing(const Scene& scene, int shape) {
+  const Shape& s = scene.shapes[size_t(shape)];
+  if (s.holdout) return ShadowCrossing::Blocks;
+  if (s.area_light >= 0 && scene.lights[size_t(s.area_light)].is_virtual) return ShadowCrossing::Passes;
+  if (s.material < 0) return ShadowCrossing::Blocks;  // the default diffuse
+  switch (scene.materials[size_t(s.material)].kind) {
+    case MaterialKind::Interface: return ShadowCrossing::Passes;
+    case MaterialKind::Mix: return ShadowCrossing::AtHit;
+    default: return ShadowCrossing::Blocks;
+  }
+}
+
+}  // namespace
+
 // Transmittance from the ray's origin to its end: traced hit by hit, each
 // segment attenuated by ratio tracking in its medium; an "interface"
 // surface (or a virtual light) passes the ray on into the medium beyond it,
-// any other surface blocks it.
+// any other surface blocks it.  A segment that ends on a blocker is not
+// tracked (its numbers are its own, keyed by the segment's ray), and the
+// surface is set up only where the ray goes on through it.
 RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const {
   RGB T(1.0f);
   const vec3 end = ray.o + ray.d * ray.tmax;
+  // Attenuates T along the segment up to t; false once nothing gets through.
+  auto track = [&](float t) {
+    if (medium < 0) return true;
+    TrackingRng rng{ray_key(ray, key)};
+    T *= ratio_tracking(scene.media[size_t(medium)], ray, t, rng);
+    return !is_black(T);
+  };
   // Interfaces are thin: a ray crosses few of them.  The bound only guards a degenerate loop.
   for (int crossing = 0; crossing < 256; ++crossing) {
-    const Hit hit = accel.intersect1(ray, skip);
-    const float t = hit.geom == kInvalidId ? ray.tmax : hit.t;
-    if (medium >= 0) {
-      TrackingRng rng{ray_key(ray, key)};
-      T *= ratio_tracking(scene.media[size_t(medium)], ray, t, rng);
-      if (is_black(T)) return T;
+    Hit hit = accel.intersect1(ray, skip, false);
+    if (hit.geom == kInvalidId) {
+      track(ray.tmax);
+      return T;
     }
-    if (hit.geom == kInvalidId) return T;
+    const int shape = accel.shape_index(hit);
+    const ShadowCrossing what = shape >= 0 ? shadow_crossing(scene, shape) : ShadowCrossing::Passes;
+    if (what == ShadowCrossing::Blocks) return RGB(0.0f);
+    // Spheres and cylinders were met without their (u, v): the same hit again, with them.
+    const ShapeKind kind = shape >= 0 ? scene.shapes[size_t(shape)].kind : ShapeKind::TriangleMesh;
+    if (kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) hit = accel.intersect1(ray, skip);
     const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
-    const bool virtual_light = si.area_light >= 0 && scene.lights[size_t(si.area_light)].is_virtual;
-    const bool holdout = si.shape >= 0 && scene.shapes[size_t(si.shape)].holdout;
-    if (holdout || (!virtual_light && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{})))) return RGB(0.0f);
+    if (what == ShadowCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
+    if (!track(hit.t)) return T;
     medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
     ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));
     skip = si.skip;

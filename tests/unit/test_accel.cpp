@@ -310,6 +310,45 @@ TEST(AccelCylinder, PartialPhiMaxTransformAndOrientation) {
   }
 }
 
+// Queries that need only t (shadow rays through media, occlusion) skip the
+// quadric's surface coordinates where no cut can reject a root: they must
+// meet the same roots, at the same t, as full queries, on full and cut shapes.
+TEST(AccelQuadrics, DistanceOnlyHitsAreTheFullHits) {
+  SphereParams cut_sphere;
+  cut_sphere.zmin = -0.5f;
+  cut_sphere.phimax = 300.0f;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.5f, 1.5f);
+  for (int shape = 0; shape < 4; ++shape) {
+    Scene sc;
+    Transform t = translate(vec3(0.1f, -0.2f, 0.3f)) * scale(vec3(1.0f, 1.5f, 0.75f));
+    if (shape == 0) add_sphere(sc, SphereParams{}, t);
+    if (shape == 1) add_sphere(sc, cut_sphere, t);
+    if (shape == 2) add_cylinder(sc, {1.0f, -1.0f, 1.0f, 360.0f}, t);
+    if (shape == 3) add_cylinder(sc, {1.0f, -1.0f, 1.0f, 200.0f}, t);
+    Accel a(sc);
+    int hits = 0;
+    for (int i = 0; i < 2000; ++i) {
+      // Origins outside, inside and on the far side of the shape.
+      Ray r = make_ray(vec3(u(rng), u(rng), u(rng)), random_direction(rng));
+      Hit full = a.intersect1(r), dist = a.intersect1(r, {}, false);
+      ASSERT_EQ(full.hit(), dist.hit()) << "shape " << shape << " ray " << i;
+      EXPECT_FALSE(a.occluded1(r) != full.hit()) << "shape " << shape << " ray " << i;
+      if (!full.hit()) continue;
+      ++hits;
+      EXPECT_EQ(full.t, dist.t) << "shape " << shape << " ray " << i;
+      EXPECT_EQ(full.geom, dist.geom);
+      EXPECT_EQ(full.prim, dist.prim);
+      // Shortened to just before the hit, nothing is met.
+      Ray before = r;
+      before.tmax = full.t * 0.999f;
+      EXPECT_EQ(a.intersect1(before, {}, false).hit(), a.intersect1(before).hit());
+      EXPECT_EQ(a.occluded1(before), a.intersect1(before).hit());
+    }
+    EXPECT_GT(hits, 300) << "shape " << shape;
+  }
+}
+
 // ---------------------------------------------------------------- triangles
 
 TEST(AccelTriangles, OrientationRules) {

@@ -63,14 +63,34 @@ float vmf_mean_cosine(float kappa) {
   return float((1.0 + std::exp(-2.0 * k)) / -std::expm1(-2.0 * k) - 1.0 / k);
 }
 
-float vmm_pdf(const VMMixture& m, const vec3& w) {
+float vmf_norm(float kappa) { return float(std::exp(vmf_log_norm(kappa))); }
+
+namespace {
+
+std::array<float, kVMMLobes> norms(const VMMixture& m) {
+  std::array<float, kVMMLobes> n{};
+  for (int k = 0; k < kVMMLobes; ++k) n[size_t(k)] = vmf_norm(m.lobes[size_t(k)].kappa);
+  return n;
+}
+
+}  // namespace
+
+float vmm_pdf(const VMMixture& m, const std::array<float, kVMMLobes>& norm, const vec3& w) {
   float p = 0.0f;
-  for (const VMMLobe& l : m.lobes)
-    if (l.weight > 0.0f) p += l.weight * vmf_pdf(l.mu, l.kappa, w);
+  for (int k = 0; k < kVMMLobes; ++k) {
+    const VMMLobe& l = m.lobes[size_t(k)];
+    if (!(l.weight > 0.0f)) continue;
+    const float kappa = l.kappa < kMinKappa ? 0.0f : l.kappa;
+    p += l.weight * norm[size_t(k)] * std::exp(kappa * (std::min(glm::dot(l.mu, w), 1.0f) - 1.0f));
+  }
   return p;
 }
 
-GuideSample vmm_sample(const VMMixture& m, vec2 u) {
+float vmm_pdf(const VMMixture& m, const vec3& w) { return vmm_pdf(m, norms(m), w); }
+
+GuideSample vmm_sample(const VMMixture& m, vec2 u) { return vmm_sample(m, norms(m), u); }
+
+GuideSample vmm_sample(const VMMixture& m, const std::array<float, kVMMLobes>& norm, vec2 u) {
   float total = 0.0f;
   for (const VMMLobe& l : m.lobes) total += l.weight;
   if (!(total > 0.0f)) return {};
@@ -85,7 +105,7 @@ GuideSample vmm_sample(const VMMixture& m, vec2 u) {
   u.x = std::clamp((at - begin) / l.weight, 0.0f, kOneMinusEpsilon);
   GuideSample s;
   s.wi = vmf_sample(l.mu, l.kappa, u);
-  s.pdf = vmm_pdf(m, s.wi) / total;
+  s.pdf = vmm_pdf(m, norm, s.wi) / total;
   return s;
 }
 
@@ -257,6 +277,7 @@ void vmm_fit(VMMRegion& region, std::span<const VMMSample> samples, const VMMOpt
     st.inv_distance += b.inv_distance, st.distance_weight += b.distance_weight;
   }
   region.weight_sum += double(fit.size());
+  region.norm = norms(m);
   region.fitted = true;
 }
 
@@ -347,12 +368,12 @@ VMMixture VMMField::mixture_at(uint32_t region) const {
 
 GuideSample VMMField::sample(uint32_t region, vec2 u) const {
   if (region == kNoGuideRegion || leaf_of(region) >= regions_.size()) return {};
-  return vmm_sample(mixture_at(region), u);
+  return vmm_sample(mixture_at(region), regions_[leaf_of(region)].norm, u);
 }
 
 float VMMField::pdf(uint32_t region, const vec3& wi) const {
   if (region == kNoGuideRegion || leaf_of(region) >= regions_.size()) return 0.0f;
-  return vmm_pdf(mixture_at(region), wi);
+  return vmm_pdf(mixture_at(region), regions_[leaf_of(region)].norm, wi);
 }
 
 float VMMField::selection_probability(uint32_t region) const {

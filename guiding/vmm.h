@@ -49,14 +49,19 @@ struct VMMixture {
 float vmf_pdf(const vec3& mu, float kappa, const vec3& w);
 // A direction drawn from it (closed form, stable for large kappa), u in [0,1)^2.
 vec3 vmf_sample(const vec3& mu, float kappa, vec2 u);
+// The normalisation kappa / (2 pi (1 - exp(-2 kappa))) (1 / 4 pi below kappa 1e-3).
+float vmf_norm(float kappa);
 // kappa from the mean cosine r (Banerjee et al. 2005's approximation) and back.
 float vmf_kappa_from_mean_cosine(float r);
 float vmf_mean_cosine(float kappa);
 
 float vmm_pdf(const VMMixture& m, const vec3& w);
+// The same with each lobe's vmf_norm(kappa) given (what the field keeps per region).
+float vmm_pdf(const VMMixture& m, const std::array<float, kVMMLobes>& norm, const vec3& w);
 // The lobe is chosen by u.x (rescaled and reused), so that a stratified u
 // stays stratified within each lobe.  Returns the mixture's density of the direction.
 GuideSample vmm_sample(const VMMixture& m, vec2 u);
+GuideSample vmm_sample(const VMMixture& m, const std::array<float, kVMMLobes>& norm, vec2 u);
 // The mixture every region starts from: lobes spread evenly over the sphere,
 // equal weights, kappa `kappa`.
 VMMixture vmm_initial(float kappa = 5.0f);
@@ -105,6 +110,7 @@ struct VMMRegion {
   vec3 pivot{0.0f};
   double weight_sum = 0.0;      // of the normalised weights: effective non-zero samples, decayed
   bool fitted = false;          // has learned from at least one sample with energy
+  std::array<float, kVMMLobes> norm{};  // vmf_norm of each lobe's kappa (lookups: no logs)
 };
 
 // One update of a region from its new samples (taken in order): the pivot

@@ -334,7 +334,7 @@ void VMMField::update() {
     for (size_t i = 0; i < n; ++i)
       if (leaf_of[i] < regions_.size()) grouped[at[leaf_of[i]]++] = pending_[i];
   }
-  pending_.clear();
+  pending_ = {};  // nothing kept once training ends (the recorder may detach without telling)
   tbb::parallel_for(size_t(0), regions_.size(), [&](size_t l) {
     vmm_fit(regions_[l], std::span(grouped).subspan(first[l], first[l + 1] - first[l]), options_);
   });

@@ -147,6 +147,8 @@ void check(const GuidingOptions& o) {
     throw_error("--guiding-min-roughness must be zero or positive, got {}", o.min_roughness);
   if (o.sampling != "ris" && o.sampling != "mis" && o.sampling != "mis-learned")
     throw_error("--guiding-sampling {}: expected ris, mis or mis-learned", o.sampling);
+  if (o.field != "sdtree" && o.field != "vmm")
+    throw_error("--guiding-field {}: expected sdtree or vmm", o.field);
   if (o.sampling == "mis-learned" && !(o.selection_probability > 0.0f))
     throw_error("--guiding-sampling mis-learned starts from --guiding-selection-probability, which must then be above 0");
   if (!(o.defensive >= 0.0f && o.defensive <= 1.0f))
@@ -176,26 +178,51 @@ namespace {
 class SDTreeTrainer final : public TrainingSampleSink {
  public:
   // `training`: false once the field is frozen (a recorder kept for its
-  // debug layers still hands samples over).
-  SDTreeTrainer(SDTree& tree, const bool& training) : tree_(tree), training_(training) {}
+  // debug layers still hands samples over).  `vmm`: also trains it (null: off).
+  SDTreeTrainer(SDTree& tree, VMMField* vmm, const bool& training) : tree_(tree), vmm_(vmm), training_(training) {}
   bool wants_nee_samples() const override { return false; }
   void consume(std::span<const TrainingSample> samples) override {
     if (!training_) {
-      if (!converted_.empty()) converted_ = {}, tree_.release_training_buffers();
+      if (!converted_.empty()) converted_ = {}, vmm_samples_ = {}, tree_.release_training_buffers();
       return;
     }
     // Each sample converted once, into a buffer kept across iterations.
     if (converted_.size() < samples.size()) converted_.resize(samples.size());
+    if (vmm_ && vmm_samples_.size() < samples.size()) vmm_samples_.resize(samples.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, samples.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i != r.end(); ++i) converted_[i] = sd_tree_sample(samples[i]);
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        converted_[i] = sd_tree_sample(samples[i]);
+        if (vmm_) vmm_samples_[i] = vmm_sample(samples, i);
+      }
     });
     tree_.add_samples(std::span(converted_).first(samples.size()));
+    if (vmm_) vmm_->add_samples(std::span(vmm_samples_).first(samples.size()));
   }
 
  private:
+  // The source distance of sample i is how far its ray went: to the next
+  // vertex of its path, the sample one depth further (samples come sorted by
+  // pixel, sample, depth).  Unknown (0) where that vertex made no sample (it
+  // was skipped, merged or could not train, or the ray escaped or ended the path).
+  static VMMSample vmm_sample(std::span<const TrainingSample> samples, size_t i) {
+    const TrainingSample& s = samples[i];
+    VMMSample v{s.p, s.wi, luminance(s.radiance), s.pdf, 0.0f};
+    for (size_t j = i + 1; j < samples.size(); ++j) {
+      const TrainingSample& c = samples[j];
+      if (c.pixel != s.pixel || c.sample != s.sample || c.depth > s.depth + 1) break;
+      if (c.depth == s.depth + 1) {
+        v.distance = glm::distance(c.p, s.p);
+        break;
+      }
+    }
+    return v;
+  }
+
   SDTree& tree_;
+  VMMField* vmm_;
   const bool& training_;
   std::vector<SDTreeSample> converted_;
+  std::vector<VMMSample> vmm_samples_;
 };
 
 }  // namespace
@@ -288,7 +315,13 @@ GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& sce
   SDTreeOptions tree = options;
   tree.learn_selection = options.sampling == "mis-learned";
   tree_ = std::make_unique<SDTree>(scene_bounds, tree);
-  trainer_ = std::make_unique<SDTreeTrainer>(*tree_, training_);
+  if (options.field == "vmm") {
+    VMMOptions vo;
+    vo.pdf_floor = options.pdf_floor;
+    vo.split_decay = options.split_decay;
+    vmm_ = std::make_unique<VMMField>(*tree_, vo);
+  }
+  trainer_ = std::make_unique<SDTreeTrainer>(*tree_, vmm_.get(), training_);
   if (options.auto_off) {
     schedule_ = schedule;
     verdict_.probe.length = kProbeLength;
@@ -302,7 +335,7 @@ GuidingFeature::~GuidingFeature() = default;
 
 void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const {
   if (!tree_) return;
-  hooks.guide = tree_.get();
+  hooks.guide = vmm_ ? static_cast<const DirectionalGuide*>(vmm_.get()) : tree_.get();
   engine.guiding.mixing = options_.sampling == "ris" ? GuideMixing::Resampled : GuideMixing::OneSampleMIS;
   engine.guiding.min_roughness = options_.min_roughness;
   engine.guiding.defensive = options_.defensive;
@@ -433,6 +466,7 @@ void GuidingFeature::add_tasks(IterationTasks& tasks) {
     if (!training_) return;
     const SDTreeTimes before = logged_times_;
     tree_->update();
+    if (vmm_) vmm_->update();
     const SDTreeTimes& t = tree_->times();
     training_times_.push_back({double(it.spp_end), it.seconds, it.cpu_seconds, t.classify - before.classify,
                                t.order - before.order, t.deposit - before.deposit, t.copy - before.copy,
@@ -522,6 +556,12 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                      {"spp_end", "render_seconds", "render_cpu_seconds", "classify", "order", "deposit", "copy",
                       "split", "refine", "index"}},
                     {"training_iterations", training_times_}};
+  log["guiding"]["field"] = options_.field;
+  if (vmm_)
+    log["guiding"]["vmm"] = {{"regions", vmm_->region_count()},
+                             {"lobes", kVMMLobes},
+                             {"fit_seconds", vmm_->fit_seconds()},
+                             {"bytes", vmm_->memory_bytes()}};
   if (tree_->options().learn_selection) {
     // The learned share of guided directions over the leaves that guide.
     double lo = 1.0, hi = 0.0, sum = 0.0;
@@ -566,7 +606,7 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                               {"recheck", round_log(verdict_.recheck)},
                               {"final", round_log(verdict_.final)}};
   }
-  log["memory"]["guiding"] = tree_->memory_bytes();
+  log["memory"]["guiding"] = tree_->memory_bytes() + (vmm_ ? vmm_->memory_bytes() : 0);
 }
 
 // --- Caustics ---------------------------------------------------------------

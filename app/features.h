@@ -10,6 +10,7 @@
 #include "app/options.h"
 #include "core/light_sampler.h"
 #include "guiding/sd_tree.h"
+#include "guiding/vmm.h"
 #include "radiance_recorder/recorder.h"
 #include "scheduler/driver.h"
 #include "wavefront/caustics.h"
@@ -105,6 +106,11 @@ struct GuidingOptions : SDTreeOptions {
   // One-sample MIS with a learned share: per sample it ties RIS on
   // guiding-panel and veach-ajar and costs less (shorter guided paths).
   std::string sampling = "mis-learned";
+  // sdtree | vmm: the directional distribution the engine samples.  vmm: a
+  // von Mises-Fisher mixture per SD-tree leaf with parallax
+  // (guiding/vmm.h); the tree still splits the space and learns the
+  // radiance integral and the selection share.
+  std::string field = "sdtree";
   float min_roughness = 0.05f;   // EngineOptions::guiding (core/directional_guide.h)
   float defensive = 0.5f;
   bool roulette_correction = true;
@@ -145,6 +151,9 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("sampling", o.sampling,
           "Guided directions: ris (resampling one BSDF and one guide candidate), mis (one-sample MIS with a fixed "
           "share) or mis-learned (one-sample MIS, the share learned per region)");
+  v.image("field", o.field,
+          "Guiding field: sdtree (directional quadtrees per spatial leaf) or vmm (a parallax-aware von "
+          "Mises-Fisher mixture per spatial leaf; not with --checkpoint-dir or --save-field)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
   v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
   v.image("roulette_correction", o.roulette_correction,
@@ -266,6 +275,8 @@ class GuidingFeature final : public Feature {
   // Where the recorder hands its training samples; null when off.
   TrainingSampleSink* trainer() const { return trainer_.get(); }
   const SDTree* tree() const { return tree_.get(); }
+  // With --guiding-field vmm, what the engine samples (null otherwise).
+  const VMMField* vmm() const { return vmm_.get(); }
   void configure(EngineOptions& engine, EngineHooks& hooks) const override;
   void attach(WavefrontEngine& engine) override;
   void add_tasks(IterationTasks& tasks) override;
@@ -299,6 +310,7 @@ class GuidingFeature final : public Feature {
 
   GuidingOptions options_;
   std::unique_ptr<SDTree> tree_;
+  std::unique_ptr<VMMField> vmm_;
   std::unique_ptr<TrainingSampleSink> trainer_;
   WavefrontEngine* engine_ = nullptr;
   EngineHooks guided_hooks_;

@@ -20,6 +20,31 @@ RenderConfig guided_config(int spp, uint32_t seed = 0) {
   return c;
 }
 
+// Renders `c` (guided, 128 spp, leaves split at 1000 samples, 2 threads) on
+// a 48 x 48 Cornell box and checks it
+// against an unguided render of the same schedule (the same mean, within
+// noise), and that 24 spp of it give the same image with 1 and 2 threads.
+RenderResult render_unbiased_and_deterministic(RenderConfig c) {
+  c.guiding.spatial_threshold = 1000.0;
+  c.threads = 2;
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 48;
+  RenderResult guided = render_scene(scene, c);
+  RenderConfig unguided = quick_config(c.spp);
+  unguided.schedule = "guiding";
+  RenderResult plain = render_scene(scene, unguided);
+  const RGB mg = image_mean(guided.image), mp = image_mean(plain.image);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(mg[k] / mp[k], 1.0, 0.01) << "channel " << k;
+  EXPECT_LT(rel_mse(guided.image, plain.image), 0.05);
+  RenderConfig one = c;
+  one.threads = 1;
+  one.spp = 24;
+  RenderConfig two = one;
+  two.threads = 2;
+  EXPECT_LT(max_relative_difference(render_scene(scene, one).image, render_scene(scene, two).image), 1e-4);
+  return guided;
+}
+
 }  // namespace
 
 TEST(Guiding, CornellBoxMatchesPbrtReferenceWhenGuided) {
@@ -317,19 +342,9 @@ TEST(Guiding, AutoVerdictNeedsBothFiguresToPayInTheFinalRound) {
 // with 1 and 2 threads); and it did learn (leaves moved away from their start
 // of 0.5, differently).
 TEST(Guiding, LearnedSelectionIsUnbiasedDeterministicAndLearns) {
-  Scene scene = load_test_scene_file(kCornell);
-  scene.film.width = scene.film.height = 48;
   RenderConfig c = guided_config(128);
   c.guiding.sampling = "mis-learned";
-  c.guiding.spatial_threshold = 1000.0;
-  c.threads = 2;
-  RenderResult learned = render_scene(scene, c);
-  RenderConfig unguided = quick_config(128);
-  unguided.schedule = "guiding";
-  RenderResult plain = render_scene(scene, unguided);
-  const RGB ml = image_mean(learned.image), mp = image_mean(plain.image);
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(ml[k] / mp[k], 1.0, 0.01) << "channel " << k;
-  EXPECT_LT(rel_mse(learned.image, plain.image), 0.05);
+  RenderResult learned = render_unbiased_and_deterministic(c);
   const nlohmann::json& sel = learned.log["guiding"]["selection"];
   std::printf("learned selection over %llu leaves: mean %.3f, min %.3f, max %.3f\n",
               (unsigned long long)learned.log["guiding"]["spatial_leaves"].get<uint64_t>(), sel["mean"].get<double>(),
@@ -339,10 +354,36 @@ TEST(Guiding, LearnedSelectionIsUnbiasedDeterministicAndLearns) {
   EXPECT_GT(std::abs(sel["mean"].get<double>() - 0.5), 0.02);
   // One-sample MIS draws guide directions into the surface (counted; the paths end there).
   EXPECT_GT(learned.log["guiding"]["draw_failures"].get<uint64_t>(), 0u);
-  RenderConfig one = c;
-  one.threads = 1;
-  one.spp = 24;
-  RenderConfig two = one;
-  two.threads = 2;
-  EXPECT_LT(max_relative_difference(render_scene(scene, one).image, render_scene(scene, two).image), 1e-4);
+}
+
+// --guiding-field vmm: the mixture field guides without bias, trains the same
+// whatever the thread count, and is refused where its state would be lost.
+TEST(Guiding, VMMFieldIsUnbiasedDeterministicAndRefusedWithCheckpoints) {
+  RenderConfig c = guided_config(128);
+  c.guiding.field = "vmm";
+  RenderResult vmm = render_unbiased_and_deterministic(c);
+  EXPECT_EQ(vmm.log["dropped_samples"].get<uint64_t>(), 0u);
+  EXPECT_EQ(vmm.log["guiding"]["field"].get<std::string>(), "vmm");
+  EXPECT_EQ(vmm.log["guiding"]["vmm"]["regions"].get<uint64_t>(), vmm.log["guiding"]["spatial_leaves"].get<uint64_t>());
+  EXPECT_GT(vmm.log["guiding"]["spatial_leaves"].get<uint64_t>(), 4u);
+
+  Scene scene = load_test_scene_file(kCornell);
+  RenderConfig bad = guided_config(4);
+  bad.guiding.field = "quadtree";
+  try {
+    render_scene(scene, bad);
+    ADD_FAILURE() << "--guiding-field quadtree was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("expected sdtree or vmm"), std::string::npos) << e.what();
+  }
+  // Refused before anything is written there.
+  RenderConfig ck = guided_config(4);
+  ck.guiding.field = "vmm";
+  ck.checkpoint.dir = (std::filesystem::temp_directory_path() / "theia_vmm_refused").string();
+  try {
+    render_scene(scene, ck);
+    ADD_FAILURE() << "--guiding-field vmm with --checkpoint-dir was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot be combined with --checkpoint-dir"), std::string::npos) << e.what();
+  }
 }

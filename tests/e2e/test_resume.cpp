@@ -414,6 +414,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-selection-probability", {"0.25"}},
     {"--guiding-auto", {}},
     {"--guiding-sampling", {"mis"}},
+    {"--guiding-field", {"vmm"}},
     {"--guiding-defensive", {"0.3"}},
     {"--guiding-roulette-correction", {"off"}},
     {"--guiding-split-decay", {"0.5"}},
@@ -433,7 +434,9 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
 };
 
 // The debug layers are refused with any checkpoint directory, before the fingerprint is compared.
-bool refused_with_checkpoints(const std::string& flag) { return flag.rfind("--recorder-debug", 0) == 0; }
+bool refused_with_checkpoints(const std::string& flag) {
+  return flag.rfind("--recorder-debug", 0) == 0 || flag == "--guiding-field";
+}
 
 OptionFlags declared_flags() {
   RenderConfig c;

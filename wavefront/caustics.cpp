@@ -35,21 +35,20 @@ float adjoint_shading_correction(const vec3& wo, const vec3& wi, const vec3& ns,
   return std::abs(glm::dot(wo, ns)) * std::abs(glm::dot(wi, ng)) / den;
 }
 
-// Whether a hit on `shape` can be a caster (bsdf_is_caustic_caster): only a
-// conductor or dielectric, or a mix that may resolve to one, is worth setting
-// up; most first hits are on other surfaces.  An unknown shape goes on to
-// compute_interaction, which reports it.
+// The materials bsdf_is_caustic_caster can accept.
+bool caster_kind(MaterialKind k) {
+  return k == MaterialKind::Conductor || k == MaterialKind::Dielectric || k == MaterialKind::ThinDielectric;
+}
+
+// Whether a hit on `shape` can be a caster: only a caster's material, or a mix
+// that may resolve to one, is worth setting up; most first hits are on other
+// surfaces.  An unknown shape goes on to compute_interaction, which reports it.
 bool may_cast(const Scene& scene, int shape) {
   if (shape < 0) return true;
   const int m = scene.shapes[size_t(shape)].material;
   if (m < 0) return false;  // the default diffuse
-  switch (scene.materials[size_t(m)].kind) {
-    case MaterialKind::Conductor:
-    case MaterialKind::Dielectric:
-    case MaterialKind::ThinDielectric:
-    case MaterialKind::Mix: return true;
-    default: return false;
-  }
+  const MaterialKind k = scene.materials[size_t(m)].kind;
+  return k == MaterialKind::Mix || caster_kind(k);
 }
 
 // A finished path's connection to the camera, waiting for its shadow ray.
@@ -78,8 +77,7 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
   }
   bool has_caster = false, has_interface = false;
   for (const Material& m : scene.materials) {
-    has_caster |= m.kind == MaterialKind::Conductor || m.kind == MaterialKind::Dielectric ||
-                  m.kind == MaterialKind::ThinDielectric;
+    has_caster |= caster_kind(m.kind);
     has_interface |= m.kind == MaterialKind::Interface;
   }
   if (!camera_supports_wi(camera)) inactive_reason_ = "the camera is not a pinhole perspective camera";

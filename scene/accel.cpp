@@ -119,7 +119,13 @@ void quadric_bounds(const RTCBoundsFunctionArguments* args) {
 
 void quadric_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* g = static_cast<const QuadricGeom*>(args->geometryUserPtr);
-  const bool surface = reinterpret_cast<const TraceContext*>(args->context)->surface;
+  // A sphere or cylinder at top level leaves its (u, v) to compute_interaction
+  // (Accel::quadric_uv, from the same ray): most hits in a dense medium, or
+  // behind a closer one, are never shaded, and their atan2 and acos were a
+  // tenth of a render.  Inside an instance the ray is Embree's float
+  // transform of it, which the lazy path could not repeat bit for bit.
+  const bool lazy = g->kind != ShapeKind::Disk && args->context->instID[0] == RTC_INVALID_GEOMETRY_ID;
+  const bool surface = reinterpret_cast<const TraceContext*>(args->context)->surface && !lazy;
   unsigned n = args->N;
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
@@ -130,7 +136,7 @@ void quadric_intersect(const RTCIntersectFunctionNArguments* args) {
     QuadricHit qh;
     if (!quadric_hit(*g, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i), &qh, surface)) continue;
     RTCRayN_tfar(ray, n, i) = float(qh.t);
-    RTCHitN_u(hit, n, i) = qh.u;
+    RTCHitN_u(hit, n, i) = lazy ? kQuadricUVPending : qh.u;
     RTCHitN_v(hit, n, i) = qh.v;
     // Ng is not used by theia (compute_interaction rebuilds it), but keep it sane.
     RTCHitN_Ng_x(hit, n, i) = 0.0f;
@@ -266,6 +272,7 @@ struct Accel::Impl {
   std::deque<std::vector<uint32_t>> curve_indices;  // stable: Embree shares them
   std::vector<int> top_shape;        // top-level geometry id -> shape index (-1 for instances)
   std::vector<int> top_instance;     // top-level geometry id -> instance index (-1 for shapes)
+  std::vector<const QuadricGeom*> top_quadric;  // top-level geometry id -> its quadric, or nullptr
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
   std::vector<int> instance_prototype;        // Scene instance -> prototype
   std::vector<glm::dmat4> render_from_instance, instance_from_render;  // per Scene instance
@@ -476,6 +483,10 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
     }
     I.top_shape[id] = shape;
     I.top_instance[id] = instance;
+    if (I.top_quadric.size() <= id) I.top_quadric.resize(id + 1, nullptr);
+    if (shape >= 0 && scene.shapes[size_t(shape)].kind != ShapeKind::TriangleMesh &&
+        scene.shapes[size_t(shape)].kind != ShapeKind::Curve)
+      I.top_quadric[id] = &I.quadrics.back();
   };
   for (int s : scene.top_level_shapes) {
     uint32_t id = I.add_shape(I.top, scene, s);
@@ -575,6 +586,16 @@ bool Accel::occluded1(const Ray& ray, const PrimRef& skip) const {
   uint8_t b = 0;
   occluded(std::span<const Ray>(&ray, 1), std::span<uint8_t>(&b, 1), std::span<const PrimRef>(&skip, 1));
   return b != 0;
+}
+
+vec2 Accel::quadric_uv(const Ray& ray, const Hit& hit) const {
+  const QuadricGeom* g = hit.geom < impl_->top_quadric.size() ? impl_->top_quadric[hit.geom] : nullptr;
+  if (!g) return {hit.u, hit.v};
+  // The closest root past tmin is the one the trace accepted (it lay below
+  // the ray's tfar then), and it is found from the same doubles.
+  QuadricHit qh;
+  if (!quadric_hit(*g, glm::dvec3(ray.o), glm::dvec3(ray.d), double(ray.tmin), kInfinity, &qh, true)) return {0.0f, 0.0f};
+  return {qh.u, qh.v};
 }
 
 int Accel::shape_index(const Hit& hit) const {

@@ -11,6 +11,7 @@
 #include "scene/scene.h"
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 
@@ -61,6 +62,8 @@ struct Hit {
   uint32_t geom = kInvalidId, prim = 0, inst = kInvalidId;
   bool hit() const { return geom != kInvalidId; }
 };
+// Hit::u of a quadric hit whose (u, v) were left for Accel::quadric_uv.
+inline constexpr float kQuadricUVPending = std::numeric_limits<float>::quiet_NaN();
 
 class Accel {
  public:
@@ -82,6 +85,9 @@ class Accel {
   Hit intersect1(const Ray& ray, const PrimRef& skip = {}, bool surface = true) const;
   bool occluded1(const Ray& ray, const PrimRef& skip = {}) const;
 
+  // A top-level sphere's or cylinder's hit carries u = kQuadricUVPending:
+  // its (u, v), found again from the ray that hit (compute_interaction asks).
+  vec2 quadric_uv(const Ray& ray, const Hit& hit) const;
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
   int instance_index(const Hit& hit) const;  // index into Scene::instances, or -1
   // Scene instance i's render_from_instance and its inverse, in double, as

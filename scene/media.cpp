@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <optional>
 
 namespace theia {
 
@@ -369,6 +370,97 @@ MediumSegment medium_segment(const Medium& m, const Ray& ray, float t0, float t1
   seg.s0 = float(s0);
   seg.s1 = s1 > 3.0e38 ? kInfinity : float(s1);
   return seg;
+}
+
+namespace {
+
+// A sphere that keeps a medium sealed (sealed_media): full, outward, opaque
+// to shadow rays, not a light.
+bool sealing_sphere(const Scene& scene, const Shape& s, const std::vector<uint8_t>& top_level) {
+  const SphereParams& sp = s.sphere;
+  const bool full = sp.radius > 0.0f && std::min(sp.zmin, sp.zmax) <= -sp.radius &&
+                    std::max(sp.zmin, sp.zmax) >= sp.radius && sp.phimax >= 360.0f;
+  if (s.kind != ShapeKind::Sphere || !full || s.reverse_orientation != s.transform_swaps_handedness) return false;
+  const int index = int(&s - scene.shapes.data());
+  if (!top_level[size_t(index)] || s.alpha >= 0 || s.area_light >= 0) return false;
+  if (s.holdout || s.material < 0) return true;
+  const MaterialKind k = scene.materials[size_t(s.material)].kind;
+  return k != MaterialKind::Interface && k != MaterialKind::Mix;
+}
+
+// Render-space bounds of what a light emits from; empty for lights at
+// infinity; nullopt where they are not known here.
+std::optional<Bounds3> light_bounds(const Scene& scene, const Light& l, const std::vector<uint8_t>& top_level) {
+  switch (l.kind) {
+    case LightKind::Infinite:
+    case LightKind::Distant: return Bounds3{};
+    case LightKind::Point:
+    case LightKind::Spot:
+    case LightKind::Goniometric:
+    case LightKind::Projection: return Bounds3(l.position);
+    case LightKind::Area: break;
+  }
+  if (l.shape < 0 || !top_level[size_t(l.shape)]) return std::nullopt;
+  const Shape& s = scene.shapes[size_t(l.shape)];
+  Bounds3 b;
+  if (s.kind == ShapeKind::TriangleMesh) {
+    for (const vec3& p : scene.meshes[size_t(s.mesh)].p) b = union_bounds(b, p);
+    return b;
+  }
+  // A quadric: the corners of a box around it in object space, carried to render space.
+  float r = 0.0f, z0 = 0.0f, z1 = 0.0f;
+  switch (s.kind) {
+    case ShapeKind::Sphere: r = std::abs(s.sphere.radius), z0 = -r, z1 = r; break;
+    case ShapeKind::Disk: r = std::abs(s.disk.radius), z0 = z1 = s.disk.height; break;
+    case ShapeKind::Cylinder:
+      r = std::abs(s.cylinder.radius);
+      z0 = std::min(s.cylinder.zmin, s.cylinder.zmax), z1 = std::max(s.cylinder.zmin, s.cylinder.zmax);
+      break;
+    case ShapeKind::TriangleMesh:
+    case ShapeKind::Curve: return std::nullopt;
+  }
+  for (int c = 0; c < 8; ++c)
+    b = union_bounds(b, s.render_from_object.point(vec3((c & 1) ? r : -r, (c & 2) ? r : -r, (c & 4) ? z1 : z0)));
+  return b;
+}
+
+// Whether box b (render space) lies outside sphere s by a margin.
+bool outside_sphere(const Shape& s, const Bounds3& b) {
+  if (b.empty()) return true;
+  const Transform object_from_render = s.render_from_object.inverse();
+  Bounds3 o;
+  for (int c = 0; c < 8; ++c)
+    o = union_bounds(o, object_from_render.point(vec3((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y,
+                                                      (c & 4) ? b.max.z : b.min.z)));
+  const vec3 nearest = glm::clamp(vec3(0.0f), o.min, o.max);
+  return glm::length(nearest) > 1.001f * s.sphere.radius;
+}
+
+}  // namespace
+
+std::vector<uint8_t> sealed_media(const Scene& scene) {
+  std::vector<uint8_t> top_level(scene.shapes.size(), 0);
+  for (int i : scene.top_level_shapes) top_level[size_t(i)] = 1;
+  std::vector<Bounds3> lights;
+  for (const Light& l : scene.lights) {
+    const std::optional<Bounds3> b = light_bounds(scene, l, top_level);
+    if (!b) return std::vector<uint8_t>(scene.media.size(), 0);
+    lights.push_back(*b);
+  }
+  std::vector<uint8_t> sealed(scene.media.size(), 1);
+  if (scene.camera_medium >= 0) sealed[size_t(scene.camera_medium)] = 0;
+  for (const Shape& s : scene.shapes) {
+    if (!s.medium_transition()) continue;
+    bool seals = s.medium_inside >= 0 && sealing_sphere(scene, s, top_level);
+    for (const Bounds3& b : lights) seals = seals && outside_sphere(s, b);
+    if (!seals) {
+      for (int m : {s.medium_inside, s.medium_outside})
+        if (m >= 0) sealed[size_t(m)] = 0;
+    } else if (s.medium_outside >= 0) {
+      sealed[size_t(s.medium_outside)] = 0;
+    }
+  }
+  return sealed;
 }
 
 FreeFlight sample_free_flight(const Medium& m, const Ray& ray, float tmax, const RGB& beta_in, TrackingRng& rng) {

@@ -102,6 +102,19 @@ FreeFlight sample_free_flight(const Medium& m, const Ray& ray, float tmax, const
 // channel's transmittance, with Russian roulette once it falls below 1/4.
 RGB ratio_tracking(const Medium& m, const Ray& ray, float tmax, TrackingRng& rng);
 
+// Per medium: 1 where no shadow ray that starts in it can reach a light, so
+// that next-event estimation from its vertices would only trace rays that are
+// blocked.  Decided from the scene alone, conservatively: the camera is not
+// in the medium, and every shape whose sides differ and name it is a full
+// sphere (no z or phi cut) at top level holding the medium inside (its normal
+// outward), without alpha or emission, whose material blocks shadow rays (not
+// "interface", not a mix), with every light (a point-like light's position,
+// an area light's bounds) outside every such sphere by a margin.  A path
+// enters such a medium only by crossing one of its spheres inwards and leaves
+// it by crossing the sphere again, so its vertices lie inside the sphere and
+// every segment from them to a light meets the sphere, which blocks it.
+std::vector<uint8_t> sealed_media(const Scene& scene);
+
 // pbrt-v4's rule at a surface: a shape whose sides differ sets the medium on
 // the side `w` leaves towards (the outside along the geometric normal); any
 // other surface keeps `current`.

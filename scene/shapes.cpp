@@ -396,10 +396,10 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   if (s.kind == ShapeKind::TriangleMesh) {
     si = triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v);
     si.prim = int(hit.prim);
-  } else if (s.kind == ShapeKind::Sphere) {
-    si = quadric_interaction(s, sphere_local(make_sphere_shape(s.sphere), hit.u, hit.v));
-  } else if (s.kind == ShapeKind::Cylinder) {
-    si = quadric_interaction(s, cylinder_local(make_cylinder_shape(s.cylinder), hit.u, hit.v));
+  } else if (s.kind == ShapeKind::Sphere || s.kind == ShapeKind::Cylinder) {
+    const vec2 uv = std::isnan(hit.u) ? accel.quadric_uv(ray, hit) : vec2(hit.u, hit.v);
+    si = quadric_interaction(s, s.kind == ShapeKind::Sphere ? sphere_local(make_sphere_shape(s.sphere), uv.x, uv.y)
+                                                            : cylinder_local(make_cylinder_shape(s.cylinder), uv.x, uv.y));
   } else if (s.kind == ShapeKind::Curve) {
     vec3 o = ray.o, d = ray.d;
     if (int inst = accel.instance_index(hit); inst >= 0) {

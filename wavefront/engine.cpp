@@ -69,6 +69,7 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
   }
   uses_footprint = scene_uses_footprint(scene);
   check_media_hooks();
+  if (rs.scene.has_media()) sealed_media = theia::sealed_media(scene);
   light_sampler_learns = light_sampler.wants_feedback();
   light_sampler_primitives = light_sampler.chooses_primitives();
   footprint_scale = footprint_spp_scale(opt.footprint_spp);

@@ -115,6 +115,7 @@ struct WavefrontEngine::Impl {
   bool light_sampler_primitives = false;  // light_sampler.chooses_primitives(): emitter hits name their triangle
   bool light_sampler_learns = false;  // light_sampler.wants_feedback(): shadow rays carry its choice
   CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
+  std::vector<uint8_t> sealed_media;  // scene/media.h sealed_media: NEE from their vertices is always blocked
 
   EngineSizes sizes;  // the pool's and batches' (engine_sizes)
   PathStatePool pool;

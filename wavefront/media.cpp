@@ -136,7 +136,10 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
     v.guide_region = hooks.guide->region(v.si.p);
     if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
   }
-  if (int(ps.depth) >= opt.throughput_reset_bounce) sample_direct_light_in_medium(v, medium, out);
+  // In a sealed medium every shadow ray would be blocked: none is sampled,
+  // unless an observer or a learning light sampler is told of each one.
+  const bool nee_blocked = sealed_media[size_t(medium)] && !observer && !light_sampler_learns;
+  if (int(ps.depth) >= opt.throughput_reset_bounce && !nee_blocked) sample_direct_light_in_medium(v, medium, out);
 
   const std::optional<PhaseContinuation> c = sample_phase_continuation(v);
   if (!c) return end_path(slot, out);

@@ -385,3 +385,52 @@ TEST(MediaTracking, RGBGridAndCloudTransmittanceMatchQuadrature) {
     }
   }
 }
+
+// sealed_media: a medium inside a closed, opaque sphere with every light
+// outside is sealed (NEE from it is skipped); anything that could let a
+// shadow ray out, or a light in, unseals it.
+TEST(MediaSealed, ClosedSphereWithLightsOutsideOnly) {
+  auto sealed = [](const std::string& sphere, const std::string& light = "LightSource \"point\" \"point3 from\" [0 5 0]",
+                   const std::string& camera_medium = "") {
+    const std::string text = fmt::format(R"(
+      MakeNamedMedium "milk" "string type" "homogeneous" "rgb sigma_a" [0.2 0.2 0.2] "rgb sigma_s" [20 20 20]
+      {}
+      Camera "perspective"
+      WorldBegin
+      LightSource "infinite" "rgb L" [0.1 0.1 0.1]
+      {}
+      AttributeBegin
+        Material "diffuse"
+        AreaLightSource "diffuse" "rgb L" [1 1 1]
+        Shape "trianglemesh" "integer indices" [0 1 2] "point3 P" [-1 3 -1 1 3 -1 0 3 1]
+      AttributeEnd
+      AttributeBegin
+        Translate 0 0.5 0
+        {}
+      AttributeEnd
+    )", camera_medium, light, sphere);
+    Scene s = parse_scene_string(text, "<test>", ".");
+    return sealed_media(s).at(0) != 0;
+  };
+  const std::string glass = R"(MediumInterface "milk" "" Material "dielectric" "float eta" 1.33 )";
+  EXPECT_TRUE(sealed(glass + R"(Shape "sphere" "float radius" 0.5)"));
+  EXPECT_TRUE(sealed(R"(MediumInterface "milk" "" Material "diffuse" Shape "sphere" "float radius" 0.5)"));
+  // Scaled unevenly, the sphere is an ellipsoid: the light at (0, 5, 0) stays outside.
+  EXPECT_TRUE(sealed(glass + R"(Scale 1 4 1 Shape "sphere" "float radius" 0.5)"));
+  // A light inside (the point light at the sphere's centre; the sphere grown around the area light).
+  EXPECT_FALSE(sealed(glass + R"(Shape "sphere" "float radius" 0.5)",
+                      R"(LightSource "point" "point3 from" [0 0.5 0])"));
+  EXPECT_FALSE(sealed(glass + R"(Shape "sphere" "float radius" 4)"));
+  EXPECT_FALSE(sealed(glass + R"(Scale 1 12 1 Shape "sphere" "float radius" 0.5)"));
+  // Open spheres, an inward normal, a surface that lets shadow rays through, a cut-out, an emitter.
+  EXPECT_FALSE(sealed(glass + R"(Shape "sphere" "float radius" 0.5 "float zmax" 0.3)"));
+  EXPECT_FALSE(sealed(glass + R"(Shape "sphere" "float radius" 0.5 "float phimax" 300)"));
+  EXPECT_FALSE(sealed(glass + R"(ReverseOrientation Shape "sphere" "float radius" 0.5)"));
+  EXPECT_FALSE(sealed(R"(MediumInterface "milk" "" Material "interface" Shape "sphere" "float radius" 0.5)"));
+  EXPECT_FALSE(sealed(glass + R"(Shape "sphere" "float radius" 0.5 "float alpha" 0.5)"));
+  EXPECT_FALSE(sealed(glass + R"(AreaLightSource "diffuse" "rgb L" [1 1 1] Shape "sphere" "float radius" 0.5)"));
+  // The medium outside the sphere, a mesh boundary, the camera in the medium.
+  EXPECT_FALSE(sealed(R"(MediumInterface "" "milk" Material "dielectric" Shape "sphere" "float radius" 0.5)"));
+  EXPECT_FALSE(sealed(glass + R"(Shape "trianglemesh" "integer indices" [0 1 2] "point3 P" [0 0 0 1 0 0 0 1 0])"));
+  EXPECT_FALSE(sealed(glass + R"(Shape "sphere" "float radius" 0.5)", "", R"(MediumInterface "" "milk")"));
+}

@@ -535,6 +535,16 @@ void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& partic
                             }
                             trained_spp_ = r.get<int64_t>();
                           }});
+  // The mixture in a section of its own (an SD-tree render's checkpoint is
+  // unchanged), restored after 'guiding': its regions are the tree's leaves.
+  if (vmm_)
+    participants.push_back({"guiding-vmm", 1, [this] { return vmm_->serialize(); },
+                            [this](const CheckpointSection& section) {
+                              const std::string what = "checkpoint section 'guiding-vmm'";
+                              if (section.version != 1)
+                                throw_error("{} has version {}, this build reads 1", what, section.version);
+                              vmm_->restore(section.bytes, what);
+                            }});
 }
 
 void GuidingFeature::write_log(nlohmann::json& log) const {

@@ -25,6 +25,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace theia {
@@ -152,6 +153,18 @@ class VMMField final : public DirectionalGuide {
   // The mixture the handle's lookup samples (re-pointed to its position).
   VMMixture mixture_at(uint32_t region) const;
   double fit_seconds() const { return fit_seconds_; }
+
+  // Everything update() and the lookups read (every region's mixture,
+  // statistics, pivot and position sums, the leaf boxes, samples not yet
+  // fitted, the handle's cell bits), for a checkpoint: a restored field fits
+  // and samples as the saved one would have.  Layout as the host writes it:
+  //   "THEIAVMM" | u32 version | options | regions | boxes | pending | u64 hash_bytes(everything before)
+  std::vector<uint8_t> serialize() const;
+  // Replaces the state with `bytes` (all or nothing), once the tree has been
+  // restored: the regions must be the tree's leaves.  Throws theia::Error,
+  // prefixed `what`, for a truncated or corrupt input, another version, other
+  // options or another tree; nothing is allocated beyond what the input holds.
+  void restore(std::span<const uint8_t> bytes, const std::string& what);
 
   static constexpr int kVMMCellBits = 8;
 

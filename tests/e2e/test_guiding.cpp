@@ -358,7 +358,7 @@ TEST(Guiding, LearnedSelectionIsUnbiasedDeterministicAndLearns) {
 
 // --guiding-field vmm: the mixture field guides without bias, trains the same
 // whatever the thread count, and is refused where its state would be lost.
-TEST(Guiding, VMMFieldIsUnbiasedDeterministicAndRefusedWithCheckpoints) {
+TEST(Guiding, VMMFieldIsUnbiasedDeterministicAndRefusedWithSaveField) {
   RenderConfig c = guided_config(128);
   c.guiding.field = "vmm";
   RenderResult vmm = render_unbiased_and_deterministic(c);
@@ -377,13 +377,13 @@ TEST(Guiding, VMMFieldIsUnbiasedDeterministicAndRefusedWithCheckpoints) {
     EXPECT_NE(std::string(e.what()).find("expected sdtree or vmm"), std::string::npos) << e.what();
   }
   // Refused before anything is written there.
-  RenderConfig ck = guided_config(4);
-  ck.guiding.field = "vmm";
-  ck.checkpoint.dir = (std::filesystem::temp_directory_path() / "theia_vmm_refused").string();
+  RenderConfig saved = guided_config(4);
+  saved.guiding.field = "vmm";
+  saved.save_field = (std::filesystem::temp_directory_path() / "theia_vmm_refused.field").string();
   try {
-    render_scene(scene, ck);
-    ADD_FAILURE() << "--guiding-field vmm with --checkpoint-dir was accepted";
+    render_scene(scene, saved);
+    ADD_FAILURE() << "--guiding-field vmm with --save-field was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("cannot be combined with --checkpoint-dir"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cannot be combined with --save-field"), std::string::npos) << e.what();
   }
 }

@@ -131,6 +131,20 @@ VMMixture vmm_initial(float kappa) {
   return m;
 }
 
+VMMSummary vmm_summary(const VMMixture& m) {
+  VMMSummary s;
+  double total = 0.0, weighted = 0.0;
+  for (const VMMLobe& l : m.lobes) {
+    total += double(l.weight), weighted += double(l.weight) * double(l.kappa);
+    if (!(l.weight >= kVMMActiveWeight)) continue;
+    s.kappa_min = s.active_lobes == 0 ? l.kappa : std::min(s.kappa_min, l.kappa);
+    s.kappa_max = std::max(s.kappa_max, l.kappa);
+    ++s.active_lobes;
+  }
+  s.kappa_mean = total > 0.0 ? float(weighted / total) : 0.0f;
+  return s;
+}
+
 VMMixture vmm_at(const VMMixture& m, const vec3& pivot, const vec3& p) {
   VMMixture r = m;
   const vec3 shift = pivot - p;

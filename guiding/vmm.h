@@ -70,6 +70,17 @@ VMMixture vmm_initial(float kappa = 5.0f);
 // (unchanged where inv_distance is 0 or the source is at p).
 VMMixture vmm_at(const VMMixture& m, const vec3& pivot, const vec3& p);
 
+// What the log and the saved field say about a mixture: how many lobes carry
+// at least kVMMActiveWeight of it (the MAP prior keeps every lobe's weight
+// above 0; a lobe below 1% guides next to nothing), and their concentrations
+// (min and max over those lobes; the mean weighted by the lobes' weights).
+inline constexpr float kVMMActiveWeight = 0.01f;
+struct VMMSummary {
+  int active_lobes = 0;
+  float kappa_min = 0.0f, kappa_max = 0.0f, kappa_mean = 0.0f;
+};
+VMMSummary vmm_summary(const VMMixture& m);
+
 struct VMMOptions {
   int em_iterations = 8;               // per update, over that iteration's samples
   float weight_prior = 0.01f;          // Dirichlet prior per lobe, in samples (MAP, keeps lobes alive)

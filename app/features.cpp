@@ -535,6 +535,16 @@ void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& partic
                             }
                             trained_spp_ = r.get<int64_t>();
                           }});
+  // The mixture in a section of its own (an SD-tree render's checkpoint is
+  // unchanged), restored after 'guiding': its regions are the tree's leaves.
+  if (vmm_)
+    participants.push_back({"guiding-vmm", 1, [this] { return vmm_->serialize(); },
+                            [this](const CheckpointSection& section) {
+                              const std::string what = "checkpoint section 'guiding-vmm'";
+                              if (section.version != 1)
+                                throw_error("{} has version {}, this build reads 1", what, section.version);
+                              vmm_->restore(section.bytes, what);
+                            }});
 }
 
 void GuidingFeature::write_log(nlohmann::json& log) const {
@@ -557,11 +567,28 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                       "split", "refine", "index"}},
                     {"training_iterations", training_times_}};
   log["guiding"]["field"] = options_.field;
-  if (vmm_)
+  if (vmm_) {
+    // Per fitted region: lobes of weight >= kVMMActiveWeight, and their concentrations.
+    size_t fitted = 0;
+    double active_sum = 0.0, kappa_mean = 0.0, kappa_max = 0.0;
+    int active_min = kVMMLobes, active_max = 0;
+    for (uint32_t l = 0; l < vmm_->region_count(); ++l) {
+      const VMMRegion& r = vmm_->region_state(l);
+      if (!r.fitted) continue;
+      const VMMSummary s = vmm_summary(r.mixture);
+      ++fitted, active_sum += s.active_lobes, kappa_mean += s.kappa_mean;
+      active_min = std::min(active_min, s.active_lobes), active_max = std::max(active_max, s.active_lobes);
+      kappa_max = std::max(kappa_max, double(s.kappa_max));
+    }
+    const double n = std::max<double>(double(fitted), 1.0);
     log["guiding"]["vmm"] = {{"regions", vmm_->region_count()},
                              {"lobes", kVMMLobes},
+                             {"fitted_regions", fitted},
+                             {"active_lobes", {{"min", fitted ? active_min : 0}, {"mean", active_sum / n}, {"max", active_max}}},
+                             {"kappa", {{"mean", kappa_mean / n}, {"max", kappa_max}}},
                              {"fit_seconds", vmm_->fit_seconds()},
                              {"bytes", vmm_->memory_bytes()}};
+  }
   if (tree_->options().learn_selection) {
     // The learned share of guided directions over the leaves that guide.
     double lo = 1.0, hi = 0.0, sum = 0.0;

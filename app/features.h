@@ -153,7 +153,7 @@ void declare_options(V& v, GuidingOptions& o) {
           "share) or mis-learned (one-sample MIS, the share learned per region)");
   v.image("field", o.field,
           "Guiding field: sdtree (directional quadtrees per spatial leaf) or vmm (a parallax-aware von "
-          "Mises-Fisher mixture per spatial leaf; not with --checkpoint-dir or --save-field)");
+          "Mises-Fisher mixture per spatial leaf)");
   v.image("min_roughness", o.min_roughness, "Guide only where a BSDF lobe is rougher than this");
   v.image("defensive", o.defensive, "RIS: uniform share of the target's radiance estimate, in [0, 1]");
   v.image("roulette_correction", o.roulette_correction,

@@ -45,6 +45,25 @@ nlohmann::json stats_json(const FieldFile& f, const FieldSnapshot& s) {
   j["scene_bounds"] = box(f.scene_bounds);
   nlohmann::json& boxes = j["boxes"] = nlohmann::json::array();
   for (const FieldLeaf& leaf : s.leaves) boxes.push_back(box(leaf.box));
+  // A mixture field's lobes, per leaf (null where a leaf has none).
+  bool mixtures = false;
+  for (const FieldLeaf& leaf : s.leaves) mixtures = mixtures || !leaf.lobes.empty();
+  if (mixtures) {
+    nlohmann::json& m = j["mixtures"] = nlohmann::json::array();
+    for (const FieldLeaf& leaf : s.leaves) {
+      if (leaf.lobes.empty()) {
+        m.push_back(nullptr);
+        continue;
+      }
+      nlohmann::json lobes = nlohmann::json::array();
+      for (const VMMLobe& l : leaf.lobes)
+        lobes.push_back({{"mu", {l.mu.x, l.mu.y, l.mu.z}},
+                         {"kappa", l.kappa},
+                         {"weight", l.weight},
+                         {"inv_distance", l.inv_distance}});
+      m.push_back({{"pivot", {leaf.pivot.x, leaf.pivot.y, leaf.pivot.z}}, {"lobes", std::move(lobes)}});
+    }
+  }
   nlohmann::json& rows = j["per_leaf"] = nlohmann::json::object();
   for (size_t c = 0; c < s.columns.size(); ++c) {
     nlohmann::json column = nlohmann::json::array();
@@ -54,7 +73,23 @@ nlohmann::json stats_json(const FieldFile& f, const FieldSnapshot& s) {
   return j;
 }
 
-void print_stats(const std::string& path, const FieldFile& f, const FieldSnapshot& s) {
+void print_lobes(const FieldSnapshot& s, size_t leaf) {
+  const FieldLeaf& l = s.leaves[leaf];
+  if (l.lobes.empty()) {
+    std::printf("  leaf %zu: no mixture (%s)\n", leaf,
+                l.quadtree.empty() ? "it learned nothing" : "an SD-tree leaf: its quadtree guides");
+    return;
+  }
+  std::printf("  leaf %zu: mixture seen from the pivot (%.6g, %.6g, %.6g)\n", leaf, l.pivot.x, l.pivot.y, l.pivot.z);
+  std::printf("  %4s %10s %12s %30s %14s\n", "lobe", "weight", "kappa", "mean direction", "1 / distance");
+  for (size_t k = 0; k < l.lobes.size(); ++k) {
+    const VMMLobe& o = l.lobes[k];
+    std::printf("  %4zu %10.6f %12.6g %9.5f %9.5f %9.5f %14.6g%s\n", k, o.weight, o.kappa, o.mu.x, o.mu.y, o.mu.z,
+                o.inv_distance, o.weight >= kVMMActiveWeight ? "" : "  (inactive)");
+  }
+}
+
+void print_stats(const std::string& path, const FieldFile& f, const FieldSnapshot& s, int leaf) {
   std::printf("%s: iteration %d (%u spp), %zu leaves, %zu snapshot(s), wireframe %zu of %llu triangles\n",
               path.c_str(), s.iteration, s.spp, s.leaves.size(), f.snapshots.size(), f.wireframe.p.size() / 3,
               (unsigned long long)f.wireframe.scene_triangles);
@@ -64,6 +99,13 @@ void print_stats(const std::string& path, const FieldFile& f, const FieldSnapsho
     const ColumnSummary cs = summarise(s, int(c));
     std::printf("  %-28s %12.6g %12.6g %12.6g %14.8g\n", s.columns[c].c_str(), cs.min, cs.mean, cs.max, cs.sum);
   }
+  size_t mixtures = 0;
+  for (const FieldLeaf& l : s.leaves) mixtures += l.lobes.empty() ? 0 : 1;
+  if (mixtures > 0)
+    std::printf("  mixture field: %zu of %zu leaves fitted, %d lobes each (active: weight >= %g); --leaf N lists "
+                "a leaf's lobes, --json every leaf's\n",
+                mixtures, s.leaves.size(), kVMMLobes, double(kVMMActiveWeight));
+  if (leaf >= 0) print_lobes(s, size_t(leaf));
 }
 
 int run_field_image(const std::string& path, int iteration, const vec3& p, int width, const std::string& out) {
@@ -74,9 +116,9 @@ int run_field_image(const std::string& path, int iteration, const vec3& p, int w
   const FieldFile f = load_field(path);
   const FieldSnapshot& s = field_snapshot(f, iteration, path);
   const size_t leaf = s.leaf_at(p);
-  if (s.leaves[leaf].quadtree.empty())
+  if (s.leaves[leaf].quadtree.empty() && s.leaves[leaf].lobes.empty())
     log_warning("{}: leaf {} (holding {}, {}, {}) learned nothing: the image is black", path, leaf, p.x, p.y, p.z);
-  const std::vector<uint8_t> rgb = field_map_rgb(s.leaves[leaf], width);
+  const std::vector<uint8_t> rgb = field_map_rgb(s.leaves[leaf], width, p);
   // write_png_srgb encodes linear values; these are already 8-bit sRGB codes, decoded so they come back exact.
   ImageBuffer img(width, width / 2, {"R", "G", "B"});
   for (size_t i = 0; i < rgb.size(); ++i) img.data[i] = srgb8_to_linear(rgb[i]);
@@ -97,7 +139,8 @@ FieldCommands::FieldCommands(CLI::App& app) {
   view_->add_option("-o,--output", output_, "Output directory")->required();
   stats_ = field->add_subcommand("stats", "Print the field's statistics: field-wide, and per-leaf columns summarised");
   stats_->add_option("file", file_, "Field file")->required();
-  stats_->add_flag("--json", json_, "JSON (every leaf's values too), for scripts");
+  stats_->add_flag("--json", json_, "JSON (every leaf's values too, and a mixture field's lobes), for scripts");
+  stats_->add_option("--leaf", leaf_, "Also list this leaf's mixture lobes (--guiding-field vmm)");
   image_ = field->add_subcommand("image", "Write the directional distribution at a point as a cylindrical-map PNG");
   image_->add_option("file", file_, "Field file")->required();
   image_->add_option("--point", point_, "X Y Z: the point (its leaf's distribution)")->required();
@@ -119,8 +162,10 @@ int FieldCommands::run() const {
     return 0;
   }
   const FieldSnapshot& s = field_snapshot(f, iteration_, file_);
+  if (leaf_ >= 0 && size_t(leaf_) >= s.leaves.size())
+    throw_error("--leaf {}: the snapshot has {} leaves", leaf_, s.leaves.size());
   if (json_) std::printf("%s\n", stats_json(f, s).dump(1).c_str());
-  else print_stats(file_, f, s);
+  else print_stats(file_, f, s, leaf_);
   return 0;
 }
 

@@ -21,6 +21,7 @@ class FieldCommands {
   std::string file_, output_;
   int iteration_ = -1;  // snapshot by iteration; -1: the last
   bool json_ = false;
+  int leaf_ = -1;  // stats: also list this leaf's mixture lobes; -1: none
   std::array<float, 3> point_{0.0f, 0.0f, 0.0f};
   int width_ = 256;
 };

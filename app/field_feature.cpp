@@ -135,7 +135,7 @@ class FieldFeature::Sink final : public TrainingSampleSink {
 constexpr size_t kWireframeTriangles = 60000;
 
 FieldFeature::FieldFeature(const FieldOptions& options, const Scene& scene, const GuidingFeature& guiding)
-    : options_(options), tree_(guiding.tree()), trainer_(guiding.trainer()) {
+    : options_(options), tree_(guiding.tree()), vmm_(guiding.vmm()), trainer_(guiding.trainer()) {
   if (options_.save_field.empty()) return;
   if (!tree_) {
     log_warning("--save-field {}: guiding is off in this render, so there is no field to save", options_.save_field);
@@ -160,7 +160,7 @@ void FieldFeature::add_tasks(IterationTasks& tasks) {
   if (!sink_) return;
   tasks.add(BetweenIterationSlot::GuidingUpdate, [this](const IterationInfo& it) {
     const auto start = std::chrono::steady_clock::now();
-    FieldSnapshot snap = recorder_.snapshot(*tree_, it.index, it.spp_end);
+    FieldSnapshot snap = recorder_.snapshot(*tree_, it.index, it.spp_end, vmm_);
     if (!options_.save_field_every_iteration) file_.snapshots.clear();
     file_.snapshots.push_back(std::move(snap));
     const std::vector<uint8_t> bytes = serialize_field(file_);

@@ -49,6 +49,7 @@ class FieldFeature final : public Feature {
   class Sink;
   FieldOptions options_;
   const SDTree* tree_ = nullptr;
+  const VMMField* vmm_ = nullptr;  // with --guiding-field vmm: what the snapshots show
   TrainingSampleSink* trainer_ = nullptr;
   std::unique_ptr<Sink> sink_;
   FieldRecorder recorder_;

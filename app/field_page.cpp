@@ -57,7 +57,11 @@ nlohmann::json snapshot_json(const FieldSnapshot& s) {
   for (const auto& [key, value] : s.summary) j["summary"][key] = value;
   nlohmann::json& leaves = j["leaves"] = nlohmann::json::array();
   for (const FieldLeaf& leaf : s.leaves)
-    leaves.push_back({{"box", box_json(leaf.box)}, {"quadtree", base64(leaf.quadtree)}, {"samples", base64(leaf.samples)}});
+    leaves.push_back({{"box", box_json(leaf.box)},
+                      {"quadtree", base64(leaf.quadtree)},
+                      {"samples", base64(leaf.samples)},
+                      {"lobes", base64(leaf.lobes)},
+                      {"pivot", vec_json(leaf.pivot)}});
   return j;
 }
 
@@ -91,13 +95,13 @@ void copy_three_file(const std::filesystem::path& from, const std::filesystem::p
 
 }  // namespace
 
-std::vector<uint8_t> field_map_rgb(const FieldLeaf& leaf, int width) {
+std::vector<uint8_t> field_map_rgb(const FieldLeaf& leaf, int width, const vec3& p) {
   const int height = width / 2;
   std::vector<double> density(size_t(width) * size_t(height));
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
       const vec2 c(float(1.0 - (y + 0.5) / height), float((x + 0.5) / width));
-      density[size_t(y) * size_t(width) + size_t(x)] = field_density(leaf.quadtree, c);
+      density[size_t(y) * size_t(width) + size_t(x)] = field_leaf_density(leaf, p, c);
     }
   const double peak = *std::max_element(density.begin(), density.end());
   std::vector<uint8_t> rgb(density.size() * 3);

@@ -13,9 +13,10 @@
 namespace theia {
 
 // width x (width / 2) RGB8: columns phi / 2 pi from 0 at the left, rows cos theta
-// from +1 at the top (world axes), each pixel's density (field_density at its
-// centre) on a log scale over three decades below the image's maximum.
-std::vector<uint8_t> field_map_rgb(const FieldLeaf& leaf, int width);
+// from +1 at the top (world axes), each pixel's density (field_leaf_density at
+// its centre, seen from p: a mixture's lobes are re-pointed to p) on a log
+// scale over three decades below the image's maximum.
+std::vector<uint8_t> field_map_rgb(const FieldLeaf& leaf, int width, const vec3& p);
 
 // index.html, viewer.js, field.js (the data) and three.js's files from Debian's libjs-three.
 void write_field_page(const FieldFile& field, const std::string& dir);

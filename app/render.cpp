@@ -77,10 +77,6 @@ void check_config(const RenderConfig& c) {
   check(c.checkpoint);
   if (RecorderFeature::debug_layers(c.recorder) && !c.checkpoint.dir.empty())
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
-  if (c.guiding.field == "vmm" && !c.checkpoint.dir.empty())
-    throw_error("--guiding-field vmm cannot be combined with --checkpoint-dir: the mixture field is not checkpointed");
-  if (c.guiding.field == "vmm" && !c.save_field.empty())
-    throw_error("--guiding-field vmm cannot be combined with --save-field: the saved field holds SD-tree leaves");
   if (RecorderFeature::debug_layers(c.recorder) && c.guiding.auto_off)
     throw_error("--recorder-debug cannot be combined with --guiding-auto: the recorder stops when guiding does");
   if (c.aov_events && c.combine == "inverse-variance")

@@ -16,7 +16,9 @@ namespace theia {
 namespace {
 
 constexpr char kMagic[8] = {'T', 'H', 'E', 'I', 'A', 'F', 'L', 'D'};
-constexpr uint32_t kVersion = 1;
+// 2: each leaf's mixture (lobes, pivot) after its samples.  Written only
+// when some leaf has one, so an SD-tree field's file is what it was.
+constexpr uint32_t kVersion = 2;
 
 void put_box(ByteWriter& w, const Bounds3& b) { w.put(b.min), w.put(b.max); }
 
@@ -39,7 +41,7 @@ uint64_t get_count(ByteReader& r, const char* what, size_t record_bytes) {
   return n;
 }
 
-void put_snapshot(ByteWriter& w, const FieldSnapshot& s) {
+void put_snapshot(ByteWriter& w, const FieldSnapshot& s, uint32_t version) {
   w.put(s.iteration);
   w.put(s.spp);
   w.put(uint64_t(s.summary.size()));
@@ -52,6 +54,7 @@ void put_snapshot(ByteWriter& w, const FieldSnapshot& s) {
     put_box(w, leaf.box);
     w.put_vector(leaf.quadtree);
     w.put_vector(leaf.samples);
+    if (version >= 2) w.put_vector(leaf.lobes), w.put(leaf.pivot);
   }
 }
 
@@ -65,7 +68,19 @@ void check_quadtree(const std::vector<SamplingQuadNode>& nodes, const std::strin
     }
 }
 
-FieldSnapshot get_snapshot(ByteReader& r) {
+// None or kVMMLobes lobes, every number finite, weights and concentrations
+// non-negative: the map then has a finite density everywhere.
+void check_lobes(const std::vector<VMMLobe>& lobes, const vec3& pivot, const std::string& name, size_t leaf) {
+  bool ok = (lobes.empty() || lobes.size() == size_t(kVMMLobes)) && std::isfinite(pivot.x) &&
+            std::isfinite(pivot.y) && std::isfinite(pivot.z);
+  for (const VMMLobe& l : lobes)
+    ok = ok && std::isfinite(l.mu.x) && std::isfinite(l.mu.y) && std::isfinite(l.mu.z) && l.kappa >= 0.0f &&
+         std::isfinite(l.kappa) && l.weight >= 0.0f && l.weight <= 1.0f && l.inv_distance >= 0.0f &&
+         std::isfinite(l.inv_distance);
+  if (!ok) throw_error("{}: field file corrupt: leaf {} mixture is malformed", name, leaf);
+}
+
+FieldSnapshot get_snapshot(ByteReader& r, uint32_t version) {
   FieldSnapshot s;
   s.iteration = r.get<int32_t>();
   s.spp = r.get<uint32_t>();
@@ -87,6 +102,11 @@ FieldSnapshot get_snapshot(ByteReader& r) {
     leaf.quadtree = r.get_vector<SamplingQuadNode>();
     check_quadtree(leaf.quadtree, r.what, l);
     leaf.samples = r.get_vector<FieldSample>();
+    if (version >= 2) {
+      leaf.lobes = r.get_vector<VMMLobe>();
+      leaf.pivot = r.get<vec3>();
+      check_lobes(leaf.lobes, leaf.pivot, r.what, l);
+    }
     s.leaves.push_back(std::move(leaf));
   }
   return s;
@@ -113,16 +133,20 @@ size_t FieldSnapshot::leaf_at(const vec3& p) const {
 }
 
 std::vector<uint8_t> serialize_field(const FieldFile& f) {
+  bool mixtures = false;
+  for (const FieldSnapshot& s : f.snapshots)
+    for (const FieldLeaf& leaf : s.leaves) mixtures = mixtures || !leaf.lobes.empty();
+  const uint32_t version = mixtures ? kVersion : 1;
   ByteWriter w;
   w.bytes.assign(std::begin(kMagic), std::end(kMagic));
-  w.put(kVersion);
+  w.put(version);
   w.put(f.camera);
   put_box(w, f.scene_bounds);
   put_box(w, f.root_bounds);
   w.put_vector(f.wireframe.p);
   w.put(f.wireframe.scene_triangles);
   w.put(uint64_t(f.snapshots.size()));
-  for (const FieldSnapshot& s : f.snapshots) put_snapshot(w, s);
+  for (const FieldSnapshot& s : f.snapshots) put_snapshot(w, s, version);
   w.put(hash_bytes(w.bytes.data(), w.bytes.size()));
   return std::move(w.bytes);
 }
@@ -133,8 +157,8 @@ FieldFile deserialize_field(std::span<const uint8_t> bytes, const std::string& n
     throw_error("{}: not a theia field file (no THEIAFLD header)", name);
   uint32_t version;
   std::memcpy(&version, bytes.data() + sizeof(kMagic), sizeof(version));
-  if (version != kVersion)
-    throw_error("{}: field file version {}, this theia reads version {} (save the field again)", name, version,
+  if (version < 1 || version > kVersion)
+    throw_error("{}: field file version {}, this theia reads versions 1 to {} (save the field again)", name, version,
                 kVersion);
   const size_t body = bytes.size() - sizeof(uint64_t);
   uint64_t checksum;
@@ -152,7 +176,7 @@ FieldFile deserialize_field(std::span<const uint8_t> bytes, const std::string& n
   if (f.wireframe.p.size() % 3 != 0) throw_error("{}: field file corrupt: the wireframe is not triangles", name);
   f.wireframe.scene_triangles = r.get<uint64_t>();
   const uint64_t snapshots = get_count(r, "snapshot", 2 * sizeof(uint32_t) + 4 * sizeof(uint64_t));
-  for (uint64_t i = 0; i < snapshots; ++i) f.snapshots.push_back(get_snapshot(r));
+  for (uint64_t i = 0; i < snapshots; ++i) f.snapshots.push_back(get_snapshot(r, version));
   if (r.pos != body) throw_error("{}: field file corrupt: {} bytes after the last snapshot", name, body - r.pos);
   return f;
 }
@@ -185,6 +209,18 @@ double field_density(std::span<const SamplingQuadNode> nodes, vec2 c) {
     if (node.child[i] == 0 || density == 0.0) return density;
     n = node.child[i];
   }
+}
+
+VMMixture field_mixture_at(const FieldLeaf& leaf, const vec3& p) {
+  VMMixture m;
+  for (VMMLobe& l : m.lobes) l = VMMLobe{vec3(0.0f, 0.0f, 1.0f), 0.0f, 0.0f, 0.0f};
+  std::copy_n(leaf.lobes.begin(), std::min(leaf.lobes.size(), m.lobes.size()), m.lobes.begin());
+  return vmm_at(m, leaf.pivot, p);
+}
+
+double field_leaf_density(const FieldLeaf& leaf, const vec3& p, vec2 c) {
+  if (leaf.lobes.empty()) return field_density(leaf.quadtree, c);
+  return double(vmm_pdf(field_mixture_at(leaf, p), sd_square_to_direction(c))) * 4.0 * 3.14159265358979323846;
 }
 
 // --- FieldRecorder -----------------------------------------------------------
@@ -230,9 +266,15 @@ const std::vector<std::string> kColumns = {
     "samples_min_z",        "samples_max_x",         "samples_max_y",     "samples_max_z",
     "radiance_integral",    "samples_clamped",       "draw_failures"};
 
+// With a mixture field: whether the region learned (fitted), its lobes of at
+// least kVMMActiveWeight and their concentrations (vmm_summary), and the
+// effective non-zero samples it has fitted (decayed, VMMRegion::weight_sum).
+const std::vector<std::string> kMixtureColumns = {"vmm_fitted", "vmm_active_lobes", "vmm_kappa_min",
+                                                  "vmm_kappa_max", "vmm_kappa_mean", "vmm_samples"};
+
 }  // namespace
 
-FieldSnapshot FieldRecorder::snapshot(const SDTree& tree, int iteration, uint32_t spp) {
+FieldSnapshot FieldRecorder::snapshot(const SDTree& tree, int iteration, uint32_t spp, const VMMField* vmm) {
   const std::vector<Bounds3> boxes = tree.leaf_boxes();
   // Leaves the update kept carry their records; a leaf from a split starts afresh.
   std::map<BoxKey, LeafRecord> records;
@@ -256,12 +298,30 @@ FieldSnapshot FieldRecorder::snapshot(const SDTree& tree, int iteration, uint32_
                   {"bytes", double(st.bytes)},                   {"updates", double(st.updates)},
                   {"samples_recorded", double(st.samples_recorded)}, {"samples_dropped", double(st.samples_dropped)}};
   snap.columns = kColumns;
+  // The mixture's regions are the tree's leaves once both have updated.
+  if (vmm && vmm->region_count() != boxes.size()) vmm = nullptr;
+  if (vmm) {
+    snap.columns.insert(snap.columns.end(), kMixtureColumns.begin(), kMixtureColumns.end());
+    snap.summary.emplace_back("vmm_lobes", double(kVMMLobes));
+    snap.summary.emplace_back("vmm_bytes", double(vmm->memory_bytes()));
+  }
   for (size_t l = 0; l < boxes.size(); ++l) {
     const SpatialLeaf& leaf = tree.leaf(uint32_t(l));
     const LeafRecord& r = *of_leaf[l];
     FieldLeaf out;
     out.box = boxes[l];
-    if (leaf.has_energy) out.quadtree = leaf.sampling;
+    const VMMRegion* region = vmm ? &vmm->region_state(uint32_t(l)) : nullptr;
+    if (region) {
+      // What the renderer samples here: the mixture where the region has learned, else nothing.
+      if (region->fitted) {
+        out.lobes.assign(region->mixture.lobes.begin(), region->mixture.lobes.end());
+        if (!vmm->options().parallax)
+          for (VMMLobe& lobe : out.lobes) lobe.inv_distance = 0.0f;
+        out.pivot = region->pivot;
+      }
+    } else if (leaf.has_energy) {
+      out.quadtree = leaf.sampling;
+    }
     for (const Reservoir& e : r.reservoir) out.samples.push_back(e.sample);
     // Clipped to the leaf: the positions of samples, not the box they were filed under.
     const Bounds3 seen = r.samples > 0 ? Bounds3(glm::clamp(r.seen.min, out.box.min, out.box.max),
@@ -283,6 +343,13 @@ FieldSnapshot FieldRecorder::snapshot(const SDTree& tree, int iteration, uint32_
                           double(leaf.draw_failures)};
     static_assert(std::size(row) == 19);
     snap.table.insert(snap.table.end(), std::begin(row), std::end(row));
+    if (region) {
+      const VMMSummary m = region->fitted ? vmm_summary(region->mixture) : VMMSummary{};
+      const double mixture_row[] = {region->fitted ? 1.0 : 0.0, double(m.active_lobes), double(m.kappa_min),
+                                    double(m.kappa_max),        double(m.kappa_mean),   region->weight_sum};
+      static_assert(std::size(mixture_row) == 6);
+      snap.table.insert(snap.table.end(), std::begin(mixture_row), std::end(mixture_row));
+    }
     snap.leaves.push_back(std::move(out));
   }
   return snap;

@@ -2,19 +2,23 @@
 // field view|stats|image` read: the render camera, the scene bounds, a
 // decimated triangle list of the scene for a wireframe, and one snapshot per
 // saved iteration.  A snapshot holds every spatial leaf's box, its sampling
-// quadtree (what the renderer samples from the next iteration on), a bounded
+// quadtree or, with --guiding-field vmm, its mixture (what the renderer
+// samples from the next iteration on), a bounded
 // reservoir of the training directions recorded in it, and a table of
 // per-leaf statistics as named columns of doubles, so that a statistic added
 // to the table needs no change in the readers (they list what the file has).
 //
 // Layout (little-endian, as the host writes it):
 //   "THEIAFLD" | u32 version | camera | bounds | wireframe | snapshots | u64 hash_bytes(everything before)
+// Version 2 adds each leaf's mixture (lobes, pivot) after its samples; a file
+// without mixtures (an SD-tree field) is written as version 1, as before.
 // The reader checks length, magic, version, checksum and structure and throws
 // theia::Error naming the file and what is wrong.
 #pragma once
 
 #include "core/bounds.h"
 #include "guiding/sd_tree.h"
+#include "guiding/vmm.h"
 
 #include <cstdint>
 #include <array>
@@ -51,8 +55,14 @@ struct FieldSample {
 
 struct FieldLeaf {
   Bounds3 box;
-  std::vector<SamplingQuadNode> quadtree;  // empty: nothing learned (no guiding here)
+  std::vector<SamplingQuadNode> quadtree;  // empty: nothing learned (no guiding here) or a mixture field
   std::vector<FieldSample> samples;        // the reservoir (FieldRecorder)
+  // A mixture field's region (kVMMLobes lobes; empty: an SD-tree leaf, or a
+  // region that learned nothing): the lobes as seen from `pivot`.  A lookup at
+  // p re-points them (vmm_at(lobes, pivot, p)); inverse distances are 0 where
+  // the render did not use parallax.
+  std::vector<VMMLobe> lobes;
+  vec3 pivot{0.0f};
 };
 
 struct FieldSnapshot {
@@ -88,6 +98,12 @@ FieldFile load_field(const std::string& path);
 // The quadtree's density per unit area of Müller's square at c in [0,1)^2
 // (the solid-angle pdf times 4 pi); 0 where it learned nothing.
 double field_density(std::span<const SamplingQuadNode> nodes, vec2 c);
+// The leaf's mixture as the renderer samples it at p (lobes re-pointed from the pivot).
+VMMixture field_mixture_at(const FieldLeaf& leaf, const vec3& p);
+// What the leaf guides with, as a density per unit area of Müller's square at
+// c (the solid-angle pdf x 4 pi), seen from p: the quadtree's (p does not
+// matter) or the mixture's at p; 0 where it learned nothing.
+double field_leaf_density(const FieldLeaf& leaf, const vec3& p, vec2 c);
 
 // Turns a training run into snapshots.  add() keeps the iteration's samples
 // (only those the tree records); snapshot(), called after tree.update(),
@@ -102,7 +118,10 @@ class FieldRecorder {
   static constexpr size_t kReservoir = 256;
   using BoxKey = std::array<float, 6>;
   void add(const SDTree& tree, std::span<const SDTreeSample> samples);
-  FieldSnapshot snapshot(const SDTree& tree, int iteration, uint32_t spp);
+  // With `vmm` (the field the render samples, after its update) each leaf
+  // carries its region's mixture instead of the quadtree, and the table the
+  // mixture's columns (vmm_*).
+  FieldSnapshot snapshot(const SDTree& tree, int iteration, uint32_t spp, const VMMField* vmm = nullptr);
   // Everything it has seen, for a checkpoint: a resumed render's field file
   // counts every sample, not only those since the resume.  restore() throws
   // theia::Error (prefixed `what`) for bytes it cannot take.

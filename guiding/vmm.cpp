@@ -1,5 +1,8 @@
 #include "guiding/vmm.h"
 
+#include "core/bytes.h"
+#include "core/hash.h"
+#include "core/log.h"
 #include "core/stats.h"
 #include "guiding/sd_tree.h"
 
@@ -8,6 +11,8 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
+#include <iterator>
 #include <limits>
 
 namespace theia {
@@ -124,6 +129,20 @@ VMMixture vmm_initial(float kappa) {
     l.inv_distance = 0.0f;
   }
   return m;
+}
+
+VMMSummary vmm_summary(const VMMixture& m) {
+  VMMSummary s;
+  double total = 0.0, weighted = 0.0;
+  for (const VMMLobe& l : m.lobes) {
+    total += double(l.weight), weighted += double(l.weight) * double(l.kappa);
+    if (!(l.weight >= kVMMActiveWeight)) continue;
+    s.kappa_min = s.active_lobes == 0 ? l.kappa : std::min(s.kappa_min, l.kappa);
+    s.kappa_max = std::max(s.kappa_max, l.kappa);
+    ++s.active_lobes;
+  }
+  s.kappa_mean = total > 0.0 ? float(weighted / total) : 0.0f;
+  return s;
 }
 
 VMMixture vmm_at(const VMMixture& m, const vec3& pivot, const vec3& p) {
@@ -391,6 +410,158 @@ void VMMField::count_failed_draw(uint32_t region) const {
 size_t VMMField::memory_bytes() const {
   return sizeof(*this) + regions_.capacity() * sizeof(VMMRegion) + boxes_.capacity() * sizeof(Bounds3) +
          pending_.capacity() * sizeof(VMMSample);
+}
+
+// ---------------------------------------------------------------- checkpoint
+
+namespace {
+
+constexpr char kVMMMagic[8] = {'T', 'H', 'E', 'I', 'A', 'V', 'M', 'M'};
+constexpr uint32_t kVMMVersion = 1;
+// What one region takes on disk (the reader refuses a count the input cannot hold).
+constexpr size_t kRegionBytes = kVMMLobes * (sizeof(vec3) + 3 * sizeof(float)) +
+                                kVMMLobes * (3 * sizeof(double) + sizeof(dvec3)) + sizeof(dvec3) +
+                                2 * sizeof(double) + sizeof(vec3) + 1;
+
+bool finite3d(const dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
+
+void put_options(ByteWriter& w, const VMMOptions& o) {
+  w.put(int32_t(o.em_iterations));
+  w.put(o.weight_prior);
+  w.put(o.mean_cosine_prior);
+  w.put(o.mean_cosine_strength);
+  w.put(o.max_kappa);
+  w.put(o.decay);
+  w.put(uint8_t(o.parallax));
+  w.put(o.pdf_floor);
+  w.put(o.split_decay);
+}
+
+// The options the bytes were written with, as put_options lays them out
+// (compared whole: a field fitted with other options is not this render's).
+std::vector<uint8_t> options_bytes(const VMMOptions& o) {
+  ByteWriter w;
+  put_options(w, o);
+  return std::move(w.bytes);
+}
+
+}  // namespace
+
+std::vector<uint8_t> VMMField::serialize() const {
+  ByteWriter w;
+  w.bytes.assign(std::begin(kVMMMagic), std::end(kVMMMagic));
+  w.put(kVMMVersion);
+  put_options(w, options_);
+  w.put(int32_t(cell_bits_));
+  w.put(uint64_t(regions_.size()));
+  for (const VMMRegion& r : regions_) {
+    for (const VMMLobe& l : r.mixture.lobes) w.put(l.mu), w.put(l.kappa), w.put(l.weight), w.put(l.inv_distance);
+    for (const VMMLobeStats& st : r.stats)
+      w.put(st.weight), w.put(st.direction), w.put(st.inv_distance), w.put(st.distance_weight);
+    w.put(r.position_sum);
+    w.put(r.position_count);
+    w.put(r.pivot);
+    w.put(r.weight_sum);
+    w.put(uint8_t(r.fitted));
+  }
+  w.put(uint64_t(boxes_.size()));
+  for (const Bounds3& b : boxes_) w.put(b.min), w.put(b.max);
+  w.put_vector(pending_);
+  w.put(hash_bytes(w.bytes.data(), w.bytes.size()));
+  return std::move(w.bytes);
+}
+
+// Every value is checked against what update() can produce (finite, weights
+// and concentrations in range, unit directions), so no input makes a lookup
+// read out of bounds or return a non-finite density.
+void VMMField::restore(std::span<const uint8_t> bytes, const std::string& what) {
+  constexpr size_t kHeader = sizeof(kVMMMagic) + sizeof(uint32_t);
+  if (bytes.size() < kHeader + sizeof(uint64_t))
+    throw_error("{}: mixture field truncated: {} bytes, a header and checksum need {}", what, bytes.size(),
+                kHeader + sizeof(uint64_t));
+  if (std::memcmp(bytes.data(), kVMMMagic, sizeof(kVMMMagic)) != 0)
+    throw_error("{}: mixture field corrupt: expected the magic \"THEIAVMM\"", what);
+  uint32_t version;
+  std::memcpy(&version, bytes.data() + sizeof(kVMMMagic), sizeof(version));
+  if (version != kVMMVersion)
+    throw_error("{}: mixture field has version {}, this build reads {}", what, version, kVMMVersion);
+  const size_t body = bytes.size() - sizeof(uint64_t);
+  uint64_t stored;
+  std::memcpy(&stored, bytes.data() + body, sizeof(stored));
+  if (stored != hash_bytes(bytes.data(), body))
+    throw_error("{}: mixture field corrupt or truncated: checksum mismatch over {} bytes", what, body);
+
+  ByteReader r(bytes.first(body), what + ": mixture field");
+  r.pos = kHeader;
+  const std::vector<uint8_t> options = options_bytes(options_);
+  r.need(options.size());
+  if (std::memcmp(r.data + r.pos, options.data(), options.size()) != 0)
+    throw_error("{}: the mixture field was fitted with other options", what);
+  r.pos += options.size();
+  const int32_t cell_bits = r.get<int32_t>();
+  const uint64_t count = r.get<uint64_t>();
+  if (count != tree_.leaf_count())
+    throw_error("{}: mixture field of {} regions for an SD-tree of {} leaves", what, count, tree_.leaf_count());
+  r.need(count * kRegionBytes);
+  if (cell_bits < 0 || cell_bits > kVMMCellBits || 3 * cell_bits + std::bit_width(count) > 31)
+    throw_error("{}: mixture field corrupt: {} cell bits for {} regions", what, cell_bits, count);
+  std::vector<VMMRegion> regions(count);
+  for (size_t i = 0; i < count; ++i) {
+    VMMRegion& g = regions[i];
+    auto corrupt = [&](const char* part) { throw_error("{}: mixture field corrupt: region {} {}", what, i, part); };
+    for (VMMLobe& l : g.mixture.lobes) {
+      l.mu = r.get<vec3>();
+      l.kappa = r.get<float>();
+      l.weight = r.get<float>();
+      l.inv_distance = r.get<float>();
+      const float len = glm::length(l.mu);
+      if (!finite3(l.mu) || !(std::abs(len - 1.0f) < 1e-3f)) corrupt("has a lobe direction that is not unit");
+      if (!(l.kappa >= 0.0f && l.kappa <= options_.max_kappa)) corrupt("has a lobe concentration out of range");
+      if (!(l.weight >= 0.0f && l.weight <= 1.0f)) corrupt("has a lobe weight out of [0, 1]");
+      if (!non_negative(l.inv_distance)) corrupt("has a negative or non-finite inverse distance");
+    }
+    for (VMMLobeStats& st : g.stats) {
+      st.weight = r.get<double>();
+      st.direction = r.get<dvec3>();
+      st.inv_distance = r.get<double>();
+      st.distance_weight = r.get<double>();
+      if (!non_negative(st.weight) || !finite3d(st.direction) || !non_negative(st.inv_distance) ||
+          !non_negative(st.distance_weight))
+        corrupt("has malformed lobe statistics");
+    }
+    g.position_sum = r.get<dvec3>();
+    g.position_count = r.get<double>();
+    g.pivot = r.get<vec3>();
+    g.weight_sum = r.get<double>();
+    const uint8_t fitted = r.get<uint8_t>();
+    if (!finite3d(g.position_sum) || !non_negative(g.position_count) || !finite3(g.pivot) ||
+        !non_negative(g.weight_sum) || fitted > 1)
+      corrupt("has a malformed pivot or sample count");
+    g.fitted = fitted != 0;
+    double weights = 0.0;
+    for (const VMMLobe& l : g.mixture.lobes) weights += double(l.weight);
+    if (!(std::abs(weights - 1.0) < 1e-4)) corrupt("has lobe weights that do not sum to one");
+    // Not stored: vmm_fit sets it from the kappas, which nothing else changes.
+    g.norm = g.fitted ? norms(g.mixture) : std::array<float, kVMMLobes>{};
+  }
+  const uint64_t box_count = r.get<uint64_t>();
+  if (box_count != count) throw_error("{}: mixture field corrupt: {} boxes for {} regions", what, box_count, count);
+  r.need(box_count * sizeof(Bounds3));
+  const std::vector<Bounds3> tree_boxes = tree_.leaf_boxes();
+  std::vector<Bounds3> boxes(box_count);
+  for (size_t i = 0; i < box_count; ++i) {
+    boxes[i].min = r.get<vec3>();
+    boxes[i].max = r.get<vec3>();
+    if (boxes[i].min != tree_boxes[i].min || boxes[i].max != tree_boxes[i].max)
+      throw_error("{}: mixture field region {}'s box is not the SD-tree's leaf {}'s", what, i, i);
+  }
+  std::vector<VMMSample> pending = r.get_vector<VMMSample>();
+  if (r.pos != r.size) throw_error("{}: mixture field corrupt: {} unread bytes before the checksum", what, r.size - r.pos);
+  regions_ = std::move(regions);
+  boxes_ = std::move(boxes);
+  pending_ = std::move(pending);
+  cell_bits_ = cell_bits;
 }
 
 }  // namespace theia

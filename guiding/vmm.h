@@ -25,6 +25,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace theia {
@@ -68,6 +69,17 @@ VMMixture vmm_initial(float kappa = 5.0f);
 // Each lobe re-pointed from `pivot` to `p`: towards pivot + mu / inv_distance
 // (unchanged where inv_distance is 0 or the source is at p).
 VMMixture vmm_at(const VMMixture& m, const vec3& pivot, const vec3& p);
+
+// What the log and the saved field say about a mixture: how many lobes carry
+// at least kVMMActiveWeight of it (the MAP prior keeps every lobe's weight
+// above 0; a lobe below 1% guides next to nothing), and their concentrations
+// (min and max over those lobes; the mean weighted by the lobes' weights).
+inline constexpr float kVMMActiveWeight = 0.01f;
+struct VMMSummary {
+  int active_lobes = 0;
+  float kappa_min = 0.0f, kappa_max = 0.0f, kappa_mean = 0.0f;
+};
+VMMSummary vmm_summary(const VMMixture& m);
 
 struct VMMOptions {
   int em_iterations = 8;               // per update, over that iteration's samples
@@ -152,6 +164,18 @@ class VMMField final : public DirectionalGuide {
   // The mixture the handle's lookup samples (re-pointed to its position).
   VMMixture mixture_at(uint32_t region) const;
   double fit_seconds() const { return fit_seconds_; }
+
+  // Everything update() and the lookups read (every region's mixture,
+  // statistics, pivot and position sums, the leaf boxes, samples not yet
+  // fitted, the handle's cell bits), for a checkpoint: a restored field fits
+  // and samples as the saved one would have.  Layout as the host writes it:
+  //   "THEIAVMM" | u32 version | options | regions | boxes | pending | u64 hash_bytes(everything before)
+  std::vector<uint8_t> serialize() const;
+  // Replaces the state with `bytes` (all or nothing), once the tree has been
+  // restored: the regions must be the tree's leaves.  Throws theia::Error,
+  // prefixed `what`, for a truncated or corrupt input, another version, other
+  // options or another tree; nothing is allocated beyond what the input holds.
+  void restore(std::span<const uint8_t> bytes, const std::string& what);
 
   static constexpr int kVMMCellBits = 8;
 

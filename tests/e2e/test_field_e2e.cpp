@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <fstream>
 
 using namespace theia;
@@ -105,4 +106,105 @@ TEST(FieldCommands, StatsAndImageReadTheFileAndNameABadOne) {
   r = run_theia("field image " + c.save_field + " --point 0 0 0 --iteration 99 -o " + tmp.file("x.png"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("no snapshot of iteration 99"), std::string::npos) << r.output;
+}
+
+// --guiding-field vmm with --save-field: each leaf carries its region's
+// mixture (and no quadtree: the mixture is what the renderer samples), the
+// stats list the lobes, and `field image` draws the mixture's own pdf seen
+// from the point (parallax included).  Saving changes no pixel.
+TEST(FieldCommands, MixtureFieldIsSavedListedAndImaged) {
+  TempDir tmp("theia_field_vmm");
+  const Scene scene = small_cornell();
+  RenderConfig c = guided(8);
+  c.guiding.field = "vmm";
+  c.threads = 1;
+  const RenderResult plain = render_scene(scene, c);
+  c.save_field = tmp.file("f.field");
+  const RenderResult saved = render_scene(scene, c);
+  EXPECT_EQ(plain.image.data, saved.image.data) << "saving the field must not change the render";
+
+  const FieldFile f = load_field(c.save_field);
+  const FieldSnapshot& s = f.snapshots.back();
+  const int active = s.column("vmm_active_lobes"), fitted = s.column("vmm_fitted");
+  ASSERT_GE(active, 0);
+  ASSERT_GE(fitted, 0);
+  std::vector<size_t> mixtures;
+  for (size_t l = 0; l < s.leaves.size(); ++l) {
+    EXPECT_TRUE(s.leaves[l].quadtree.empty()) << l;
+    EXPECT_EQ(s.leaves[l].lobes.empty(), s.value(l, fitted) == 0.0) << l;
+    if (s.leaves[l].lobes.empty()) continue;
+    mixtures.push_back(l);
+    EXPECT_EQ(s.leaves[l].lobes.size(), size_t(kVMMLobes));
+    EXPECT_GE(s.value(l, active), 1.0);
+    EXPECT_LE(s.value(l, active), double(kVMMLobes));
+    EXPECT_GT(s.value(l, s.column("vmm_kappa_max")), 0.0);
+  }
+  ASSERT_GT(mixtures.size(), 1u);
+  EXPECT_EQ(saved.log["guiding"]["vmm"]["fitted_regions"].get<size_t>(), mixtures.size());
+
+  RunResult r = run_theia("field stats --json " + c.save_field);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output);
+  ASSERT_EQ(j["mixtures"].size(), s.leaves.size());
+  const size_t leaf = mixtures.front();
+  const nlohmann::json& m = j["mixtures"][leaf];
+  ASSERT_EQ(m["lobes"].size(), size_t(kVMMLobes));
+  EXPECT_EQ(m["lobes"][0]["kappa"].get<float>(), s.leaves[leaf].lobes[0].kappa);
+  EXPECT_EQ(m["lobes"][7]["weight"].get<float>(), s.leaves[leaf].lobes[7].weight);
+  r = run_theia("field stats " + c.save_field + " --leaf " + std::to_string(leaf));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("mixture field: " + std::to_string(mixtures.size()) + " of"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("leaf " + std::to_string(leaf) + ": mixture seen from the pivot"), std::string::npos)
+      << r.output;
+
+  // The image at a point inside the leaf, off its centre: the brightest pixel is where the mixture's pdf
+  // (re-pointed to the point) peaks, pixels three decades below the peak are the darkest, and between
+  // them brightness follows the pdf (inferno's green rises with it).
+  const Bounds3& box = s.leaves[leaf].box;
+  const vec3 p = box.min + vec3(0.3f, 0.6f, 0.4f) * box.diagonal();
+  const int width = 64, height = 32;
+  r = run_theia(fmt::format("field image {} --point {} {} {} --width {} -o {}", c.save_field, p.x, p.y, p.z, width,
+                            tmp.file("m.png")));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const ImageBuffer png = read_image_file(tmp.file("m.png"));
+  ASSERT_EQ(png.width, width);
+  const VMMixture at = vmm_at(
+      [&] {
+        VMMixture mix;
+        std::copy(s.leaves[leaf].lobes.begin(), s.leaves[leaf].lobes.end(), mix.lobes.begin());
+        return mix;
+      }(),
+      s.leaves[leaf].pivot, p);
+  std::vector<double> pdf(size_t(width * height));
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      pdf[size_t(y * width + x)] = vmm_pdf(
+          at, sd_square_to_direction(vec2(float(1.0 - (y + 0.5) / height), float((x + 0.5) / width))));
+  const double peak = *std::max_element(pdf.begin(), pdf.end());
+  float brightest = -1.0f, darkest = 1e30f;
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      brightest = std::max(brightest, pixel_channel(png, x, y, 1)), darkest = std::min(darkest, pixel_channel(png, x, y, 1));
+  size_t compared = 0;
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const double d = pdf[size_t(y * width + x)];
+      if (d == peak) {
+        EXPECT_EQ(pixel_channel(png, x, y, 1), brightest) << x << " " << y;
+        ++compared;
+      }
+      if (d < 1e-3 * peak) {
+        EXPECT_EQ(pixel_channel(png, x, y, 1), darkest) << x << " " << y;
+        ++compared;
+      }
+    }
+  EXPECT_GE(compared, 1u);
+  EXPECT_GT(brightest, darkest);
+  for (int k = 0; k + 1 < width * height; k += 7) {
+    const int a = k, b = (k * 131 + 17) % (width * height);
+    if (!(pdf[size_t(a)] > 1.3 * pdf[size_t(b)]) || !(pdf[size_t(b)] > 1e-3 * peak)) continue;
+    EXPECT_GE(pixel_channel(png, a % width, a / width, 1), pixel_channel(png, b % width, b / width, 1)) << a << " " << b;
+    ++compared;
+  }
+  EXPECT_GT(compared, 10u);
 }

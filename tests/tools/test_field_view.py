@@ -6,8 +6,9 @@ JavaScript errors, draws as many leaves as the field has, and that clicking a le
 its distribution: the page's map, screenshotted, against the PNG `theia field image`
 writes for the same leaf.
 
-usage: test_field_view.py THEIA SCENES_DIR [--docs DIR]
---docs DIR writes the README's screenshots there.  Exit 77 (CTest: skipped), saying why,
+usage: test_field_view.py THEIA SCENES_DIR [--docs DIR] [--field sdtree|vmm]
+--docs DIR writes the README's screenshots there; --field vmm saves the mixture field (the page then
+evaluates each leaf's lobes, re-pointed to the leaf's centre, as `theia field image` does).  Exit 77 (CTest: skipped), saying why,
 only when Chromium is missing or cannot start.
 """
 import argparse
@@ -175,13 +176,15 @@ def main():
     ap.add_argument("theia")
     ap.add_argument("scenes")
     ap.add_argument("--docs")
+    ap.add_argument("--field", default="sdtree", choices=["sdtree", "vmm"])
     args = ap.parse_args()
     start = time.time()
     with tempfile.TemporaryDirectory(prefix="theia_field_view_") as tmp:
         tmp = pathlib.Path(tmp)
         field = tmp / "ajar.field"
         run([args.theia, "render", f"{args.scenes}/veach-ajar/scene.pbrt", "--guiding", "--spp", "8", "-q",
-             "--save-field", field, "--save-field-every-iteration", "-o", tmp / "ajar.exr"])
+             "--guiding-field", args.field, "--save-field", field, "--save-field-every-iteration",
+             "-o", tmp / "ajar.exr"])
         run([args.theia, "field", "view", field, "-o", tmp / "page"])
         stats = json.loads(run([args.theia, "field", "stats", "--json", field]))
         browser = Browser()
@@ -240,7 +243,8 @@ def check_page(browser, args, tmp, field, stats):
 
     # Click the busiest leaves' centres until one is picked: a leaf in front may be the one hit.
     samples = stats["per_leaf"]["samples"]
-    energy = stats["per_leaf"]["has_energy"]
+    # Leaves that guide: a mixture field's fitted regions, an SD-tree's leaves with energy.
+    energy = stats["per_leaf"].get("vmm_fitted", stats["per_leaf"]["has_energy"])
     order = sorted(range(len(samples)), key=lambda i: -samples[i])
     picked = -1
     for leaf in [i for i in order if energy[i] > 0][:40]:

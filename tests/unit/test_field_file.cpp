@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -269,6 +270,116 @@ TEST(FieldDensity, MatchesTheTreesPdf) {
       EXPECT_NEAR(saved, double(tree.pdf(uint32_t(l), w)), 1e-6 * saved) << "leaf " << l;
       ++compared;
     }
+  }
+  EXPECT_GT(compared, 0u);
+}
+
+namespace {
+
+// A mixture field trained beside its tree, the recorder taking snapshots with it.
+struct MixtureRun {
+  SDTree tree{kBox, small_threshold()};
+  VMMField field{tree, VMMOptions{}};
+  FieldRecorder recorder;
+  FieldSnapshot last;
+  MixtureRun() {
+    std::mt19937 rng(5);
+    for (int it = 0; it < 3; ++it) {
+      const std::vector<SDTreeSample> s = iteration_samples(rng, 6000, false);
+      std::vector<VMMSample> v;
+      for (const SDTreeSample& t : s) v.push_back({t.p, t.wi, t.radiance, t.pdf, 1.5f});
+      recorder.add(tree, s);
+      tree.add_samples(s);
+      field.add_samples(v);
+      tree.update();
+      field.update();
+      last = recorder.snapshot(tree, it, uint32_t(it + 1), &field);
+    }
+  }
+};
+
+}  // namespace
+
+// A file with mixtures is version 2 and round-trips them; one without (an
+// SD-tree field) is still written as version 1, byte for byte as before.
+TEST(FieldFile, MixturesRoundTripAndAnSDTreeFileStaysVersion1) {
+  const FieldFile sdtree = sample_file();
+  const std::vector<uint8_t> v1 = serialize_field(sdtree);
+  EXPECT_EQ(v1[8], 1);
+  EXPECT_EQ(serialize_field(deserialize_field(v1, "v1")), v1);
+
+  MixtureRun run;
+  FieldFile f = sample_file();
+  f.snapshots.push_back(run.last);
+  const std::vector<uint8_t> v2 = serialize_field(f);
+  EXPECT_EQ(v2[8], 2);
+  const FieldFile g = deserialize_field(v2, "v2");
+  EXPECT_EQ(serialize_field(g), v2);
+  const FieldSnapshot& s = g.snapshots.back();
+  size_t mixtures = 0;
+  for (size_t l = 0; l < s.leaves.size(); ++l) {
+    ASSERT_EQ(s.leaves[l].lobes.size(), run.last.leaves[l].lobes.size());
+    EXPECT_EQ(s.leaves[l].pivot, run.last.leaves[l].pivot);
+    if (s.leaves[l].lobes.empty()) continue;
+    ++mixtures;
+    EXPECT_EQ(std::memcmp(s.leaves[l].lobes.data(), run.field.region_state(uint32_t(l)).mixture.lobes.data(),
+                          sizeof(VMMLobe) * kVMMLobes),
+              0);
+  }
+  EXPECT_GT(mixtures, 1u);
+
+  // A well-formed checksum over a malformed mixture (three lobes) is refused.
+  FieldFile bad = f;
+  for (FieldLeaf& leaf : bad.snapshots.back().leaves)
+    if (!leaf.lobes.empty()) leaf.lobes.resize(3);
+  try {
+    deserialize_field(serialize_field(bad), "bad.field");
+    ADD_FAILURE() << "a three-lobe mixture was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("mixture is malformed"), std::string::npos) << e.what();
+  }
+}
+
+// The saved mixture gives the density the field samples with, seen from any
+// point in the leaf (each lobe re-pointed from the pivot: vmm_at), x 4 pi; the
+// columns say how many lobes are active and how concentrated they are.
+TEST(FieldDensity, MixtureMatchesTheFieldsPdfWithParallax) {
+  MixtureRun run;
+  const FieldSnapshot& s = run.last;
+  const int active = s.column("vmm_active_lobes"), kappa_max = s.column("vmm_kappa_max");
+  ASSERT_GE(active, 0);
+  ASSERT_GE(kappa_max, 0);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  size_t compared = 0;
+  for (size_t l = 0; l < s.leaves.size(); ++l) {
+    const VMMRegion& region = run.field.region_state(uint32_t(l));
+    EXPECT_EQ(s.leaves[l].lobes.empty(), !region.fitted);
+    EXPECT_TRUE(s.leaves[l].quadtree.empty());
+    if (!region.fitted) continue;
+    const VMMSummary m = vmm_summary(region.mixture);
+    EXPECT_EQ(s.value(l, active), double(m.active_lobes));
+    EXPECT_EQ(s.value(l, kappa_max), double(m.kappa_max));
+    EXPECT_GE(m.active_lobes, 1);
+    for (int k = 0; k < 50; ++k) {
+      const Bounds3& b = s.leaves[l].box;
+      const vec3 p = b.min + vec3(u(rng), u(rng), u(rng)) * b.diagonal();
+      const vec2 c(u(rng), u(rng));
+      const vec3 w = sd_square_to_direction(c);
+      const double expected = double(vmm_pdf(vmm_at(region.mixture, region.pivot, p), w));
+      EXPECT_NEAR(field_leaf_density(s.leaves[l], p, c) / (4.0 * M_PI), expected, 1e-6 * expected) << l;
+      ++compared;
+    }
+    // At the centre of the field's lookup cell (VMMField::mixture_at: 2^bits cells per axis), the renderer's own pdf.
+    const Bounds3& box = s.leaves[l].box;
+    const int bits = std::min(VMMField::kVMMCellBits, (31 - int(std::bit_width(s.leaves.size()))) / 3);
+    const vec3 q = glm::floor(box.offset(box.centroid()) * float(1u << bits));
+    const vec3 cell = box.min + (q + 0.5f) / float(1u << bits) * box.diagonal();
+    const uint32_t handle = run.field.region(cell);
+    ASSERT_NE(handle, kNoGuideRegion);
+    const vec2 c(0.8f, 0.3f);
+    const double renderer = run.field.pdf(handle, sd_square_to_direction(c));
+    EXPECT_NEAR(field_leaf_density(s.leaves[l], cell, c) / (4.0 * M_PI), renderer, 1e-6 * renderer) << l;
   }
   EXPECT_GT(compared, 0u);
 }

@@ -6,6 +6,7 @@
 #include "guiding/vmm.h"
 
 #include "core/hash.h"
+#include "core/log.h"
 #include "core/sampling.h"
 #include "guiding/sd_tree.h"
 #include "tests/unit/chi2.h"
@@ -13,6 +14,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <cmath>
 #include <cstring>
 #include <functional>
 
@@ -216,31 +218,42 @@ TEST(VMMField, RegionsFollowTheTreeAndRepointPerPosition) {
   EXPECT_EQ(field.pdf(kNoGuideRegion, vec3(0, 0, 1)), 0.0f);
 }
 
+namespace {
+
+// Iteration `it` of a training run with splits: the tree's samples and the field's.
+void train(SDTree& tree, VMMField& field, int it) {
+  std::vector<VMMSample> samples;
+  std::vector<SDTreeSample> tree_samples;
+  for (int i = 0; i < 8000; ++i) {
+    const uint64_t h = hash(uint64_t(it), uint64_t(i), 9);
+    const vec3 p = vec3(u2(h).x, u2(hash(h, 1)).x, u2(h).y) * 2.0f - 1.0f;
+    const vec3 w = sample_uniform_sphere(u2(hash(h, 2)));
+    const float L = w.y > 0.7f ? 4.0f : 0.1f;
+    samples.push_back({p, w, L, uniform_sphere_pdf(), 1.0f + u2(h).y});
+    tree_samples.push_back({p, w, L, uniform_sphere_pdf(), h});
+  }
+  tree.add_samples(tree_samples);
+  field.add_samples(samples);
+  tree.update();
+  field.update();
+}
+
+SDTreeOptions splitting() {
+  SDTreeOptions o;
+  o.spatial_threshold = 2000.0;
+  return o;
+}
+
+}  // namespace
+
 // Training is a pure function of the samples: the same mixtures, bit for
 // bit, with 1, 2 or 4 threads, through spatial splits.
 TEST(VMMField, DeterministicAcrossThreadCountsThroughSplits) {
   auto run = [](int threads) {
     tbb::global_control c(tbb::global_control::max_allowed_parallelism, size_t(threads));
-    SDTreeOptions to;
-    to.spatial_threshold = 2000.0;
-    SDTree tree(kUnitBox, to);
+    SDTree tree(kUnitBox, splitting());
     VMMField field(tree, VMMOptions{});
-    for (int it = 0; it < 4; ++it) {
-      std::vector<VMMSample> samples;
-      std::vector<SDTreeSample> tree_samples;
-      for (int i = 0; i < 8000; ++i) {
-        const uint64_t h = hash(uint64_t(it), uint64_t(i), 9);
-        const vec3 p = vec3(u2(h).x, u2(hash(h, 1)).x, u2(h).y) * 2.0f - 1.0f;
-        const vec3 w = sample_uniform_sphere(u2(hash(h, 2)));
-        const float L = w.y > 0.7f ? 4.0f : 0.1f;
-        samples.push_back({p, w, L, uniform_sphere_pdf(), 1.0f + u2(h).y});
-        tree_samples.push_back({p, w, L, uniform_sphere_pdf(), h});
-      }
-      tree.add_samples(tree_samples);
-      field.add_samples(samples);
-      tree.update();
-      field.update();
-    }
+    for (int it = 0; it < 4; ++it) train(tree, field, it);
     std::vector<VMMixture> out;
     for (uint32_t l = 0; l < field.region_count(); ++l) out.push_back(field.region_state(l).mixture);
     return out;
@@ -253,4 +266,118 @@ TEST(VMMField, DeterministicAcrossThreadCountsThroughSplits) {
     for (size_t l = 0; l < one.size(); ++l)
       EXPECT_EQ(std::memcmp(&one[l], &other[l], sizeof(VMMixture)), 0) << threads << " threads, leaf " << l;
   }
+}
+
+// The checkpoint's state: a field restored after two iterations (over the
+// tree restored from its own bytes) trains on and samples exactly as the one
+// that never stopped, through further splits.
+TEST(VMMCheckpoint, RestoredFieldContinuesBitForBit) {
+  SDTree tree(kUnitBox, splitting());
+  VMMField field(tree, VMMOptions{});
+  EXPECT_NO_THROW(VMMField(tree, VMMOptions{}).restore(field.serialize(), "fresh"));
+  for (int it = 0; it < 2; ++it) train(tree, field, it);
+  // Samples added but not yet fitted travel too.
+  field.add_samples(std::vector<VMMSample>{{vec3(0.1f), vec3(0, 1, 0), 2.0f, 0.5f, 1.0f}});
+  SDTree tree2 = SDTree::deserialize(tree.serialize());
+  VMMField field2(tree2, VMMOptions{});
+  field2.restore(field.serialize(), "test");
+  EXPECT_EQ(field2.serialize(), field.serialize());
+  for (int it = 2; it < 5; ++it) train(tree, field, it), train(tree2, field2, it);
+  EXPECT_GT(field.region_count(), 4u);
+  EXPECT_EQ(field2.serialize(), field.serialize());
+  for (int i = 0; i < 200; ++i) {
+    const vec3 p = vec3(u2(hash(uint64_t(i), 5)).x, u2(hash(uint64_t(i), 6)).x, u2(hash(uint64_t(i), 7)).x) * 2.0f - 1.0f;
+    const uint32_t r = field.region(p);
+    ASSERT_EQ(r, field2.region(p));
+    if (r == kNoGuideRegion) continue;
+    const GuideSample a = field.sample(r, u2(hash(uint64_t(i), 8))), b = field2.sample(r, u2(hash(uint64_t(i), 8)));
+    EXPECT_EQ(a.wi, b.wi);
+    EXPECT_EQ(a.pdf, b.pdf);
+  }
+}
+
+// A truncated, modified, other-version or other-tree input is one theia::Error
+// naming the section, and leaves the field as it was.
+TEST(VMMCheckpoint, CorruptTruncatedOrMismatchedIsRefused) {
+  SDTree tree(kUnitBox, splitting());
+  VMMField field(tree, VMMOptions{});
+  for (int it = 0; it < 2; ++it) train(tree, field, it);
+  const std::vector<uint8_t> good = field.serialize();
+  auto refused = [&](const std::vector<uint8_t>& bytes, const std::string& expect, const SDTree& over,
+                     const VMMOptions& options = {}) {
+    VMMField other(over, options);
+    const std::vector<uint8_t> before = other.serialize();
+    try {
+      other.restore(bytes, "section 'x'");
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("section 'x'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(expect), std::string::npos) << e.what();
+      EXPECT_EQ(other.serialize(), before) << "a refused input changed the field";
+      return;
+    }
+    ADD_FAILURE() << "accepted: expected '" << expect << "'";
+  };
+  std::vector<uint8_t> flipped = good;
+  flipped[flipped.size() / 2] ^= 0x10;
+  refused(flipped, "checksum", tree);
+  refused(std::vector<uint8_t>(good.begin(), good.end() - 9), "checksum", tree);
+  refused(std::vector<uint8_t>(good.begin(), good.begin() + 10), "truncated", tree);
+  refused({}, "truncated", tree);
+  std::vector<uint8_t> version = good;
+  version[8] = 99;
+  refused(version, "version 99", tree);
+  std::vector<uint8_t> magic = good;
+  magic[0] = 'X';
+  refused(magic, "magic", tree);
+  SDTree one(kUnitBox, one_leaf());
+  refused(good, "regions for an SD-tree of 1 leaves", one);
+  VMMOptions other_options;
+  other_options.em_iterations = 3;
+  refused(good, "other options", tree, other_options);
+  // A well-formed checksum over a lobe weight of 2 (the first region's first lobe, after header, options, cell bits, count).
+  std::vector<uint8_t> weight = good;
+  const size_t at = 12 + 41 + 4 + 8 + sizeof(vec3) + sizeof(float);
+  const float two = 2.0f;
+  std::memcpy(weight.data() + at, &two, sizeof(two));
+  const uint64_t checksum = hash_bytes(weight.data(), weight.size() - 8);
+  std::memcpy(weight.data() + weight.size() - 8, &checksum, 8);
+  refused(weight, "weight", tree);
+}
+
+// Random bytes changed and the checksum made to match again: restore() either
+// takes the field (whose lookups then give finite densities) or throws
+// theia::Error, never anything else.
+TEST(VMMCheckpoint, AnyModifiedByteIsReadOrRefusedCleanly) {
+  SDTree tree(kUnitBox, splitting());
+  VMMField field(tree, VMMOptions{});
+  for (int it = 0; it < 2; ++it) train(tree, field, it);
+  const std::vector<uint8_t> good = field.serialize();
+  uint64_t state = 17;
+  int refused = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    std::vector<uint8_t> bytes = good;
+    for (int c = 0; c < 1 + trial % 4; ++c) {
+      state = hash(state, uint64_t(trial), uint64_t(c));
+      const size_t limit = trial % 2 ? 256 : bytes.size() - 8;
+      bytes[12 + size_t(state % (limit - 12))] = uint8_t(state >> 32);
+    }
+    const uint64_t checksum = hash_bytes(bytes.data(), bytes.size() - 8);
+    std::memcpy(bytes.data() + bytes.size() - 8, &checksum, 8);
+    VMMField other(tree, VMMOptions{});
+    try {
+      other.restore(bytes, "x");
+    } catch (const Error&) {
+      ++refused;
+      continue;
+    }
+    for (int i = 0; i < 16; ++i) {
+      const vec3 p = vec3(u2(hash(uint64_t(i), 3)).x, u2(hash(uint64_t(i), 4)).x, 0.5f) * 2.0f - 1.0f;
+      const uint32_t r = other.region(p);
+      if (r == kNoGuideRegion) continue;
+      const GuideSample s = other.sample(r, u2(hash(uint64_t(i), 9)));
+      EXPECT_TRUE(std::isfinite(s.pdf) && s.pdf >= 0.0f);
+      EXPECT_TRUE(std::isfinite(other.pdf(r, vec3(0, 0, 1))));
+    }
+  }
+  EXPECT_GT(refused, 100);
 }

@@ -45,6 +45,44 @@ function density(q, cx, cy) {
   }
 }
 
+// A mixture leaf's lobes (--guiding-field vmm): 24-byte VMMLobe records of mu x y z, kappa, weight,
+// inverse source distance, seen from leaf.pivot.  guiding/vmm.cpp's vmm_at and vmm_pdf follow, their
+// float arithmetic rounded as C++ rounds it (Math.fround), so the map is `theia field image`'s.
+const f32 = Math.fround;
+const kMinKappa = f32(1e-3);
+function vmfNorm(kappa) {
+  if (kappa < kMinKappa) return f32(f32(1 / (4 * Math.PI)));
+  return f32(Math.exp(Math.log(kappa) - Math.log(2 * Math.PI) - Math.log(-Math.expm1(-2 * kappa))));
+}
+// Each lobe re-pointed from the pivot towards its source, seen from p.
+function mixtureAt(leaf, p) {
+  const l = new Float32Array(bytes(leaf.lobes)), out = [];
+  for (let k = 0; k + 5 < l.length; k += 6) {
+    let mu = [l[k], l[k + 1], l[k + 2]];
+    const inv = l[k + 5];
+    if (inv > 0) {
+      const v = [0, 1, 2].map((a) => f32(mu[a] + f32(inv * f32(leaf.pivot[a] - p[a]))));
+      const len = f32(Math.sqrt(f32(f32(f32(v[0] * v[0]) + f32(v[1] * v[1])) + f32(v[2] * v[2]))));
+      if (len > 1e-6 && isFinite(len)) mu = v.map((x) => f32(x / len));
+    }
+    out.push({ mu, kappa: l[k + 3] < kMinKappa ? 0 : l[k + 3], weight: l[k + 4], norm: vmfNorm(l[k + 3]) });
+  }
+  return out;
+}
+// The density per unit area of the square (pdf x 4 pi) at (cx, cy): guiding/field_file.cpp's field_leaf_density.
+function mixtureDensity(m, cx, cy) {
+  const cosTheta = f32(f32(2 * cx) - 1), sinTheta = f32(Math.sqrt(Math.max(0, f32(1 - f32(cosTheta * cosTheta)))));
+  const phi = f32(f32(2 * f32(Math.PI)) * cy);
+  const w = [f32(sinTheta * f32(Math.cos(phi))), f32(sinTheta * f32(Math.sin(phi))), cosTheta];
+  let p = 0;
+  for (const l of m) {
+    if (!(l.weight > 0)) continue;
+    const dot = f32(f32(f32(l.mu[0] * w[0]) + f32(l.mu[1] * w[1])) + f32(l.mu[2] * w[2]));
+    p = f32(p + f32(f32(l.weight * l.norm) * f32(Math.exp(f32(l.kappa * f32(Math.min(dot, 1) - 1))))));
+  }
+  return p * 4 * Math.PI;
+}
+
 // Inferno at t = 0, 1/8, ..., 1: app/field_page.cpp has the same table and rounding.
 const kColours = [[0, 0, 4], [31, 12, 72], [85, 15, 109], [136, 34, 106], [186, 54, 85], [227, 89, 51],
                   [249, 140, 10], [249, 201, 50], [252, 255, 164]];
@@ -67,12 +105,18 @@ function drawMap(canvas, values) {
   ctx.putImageData(img, 0, 0);
 }
 
-// The learned map, pixel for pixel as `theia field image` writes it.
+// The learned map, pixel for pixel as `theia field image` writes it at the leaf's centre
+// (where the sphere shows it: a mixture's lobes are re-pointed to that point).
 function learnedMap(leaf, width, height) {
-  const q = quadtree(leaf.quadtree), values = new Float64Array(width * height);
+  const values = new Float64Array(width * height);
+  const b = leaf.box, centre = [0, 1, 2].map((a) => f32((b[a] + b[a + 3]) / 2));
+  const m = leaf.lobes ? mixtureAt(leaf, centre) : [];
+  const q = quadtree(leaf.quadtree);
   for (let y = 0; y < height; ++y)
-    for (let x = 0; x < width; ++x)
-      values[y * width + x] = density(q, Math.fround(1 - (y + 0.5) / height), Math.fround((x + 0.5) / width));
+    for (let x = 0; x < width; ++x) {
+      const cx = Math.fround(1 - (y + 0.5) / height), cy = Math.fround((x + 0.5) / width);
+      values[y * width + x] = m.length ? mixtureDensity(m, cx, cy) : density(q, cx, cy);
+    }
   return values;
 }
 
@@ -251,7 +295,9 @@ function selectLeaf(i) {
   viewer.selected = i;
   const leaf = snapshot.leaves[i], map = ui('map'), hist = ui('hist');
   ui('leaf').style.display = '';
-  ui('leaftitle').textContent = 'leaf ' + i + (leaf.quadtree.length ? '' : ': learned nothing (no guiding here)');
+  const learned = leaf.quadtree.length || (leaf.lobes && leaf.lobes.length);
+  ui('leaftitle').textContent = 'leaf ' + i + (learned ? '' : ': learned nothing (no guiding here)') +
+      (leaf.lobes && leaf.lobes.length ? ' (mixture, seen from the leaf\'s centre)' : '');
   drawMap(map, learnedMap(leaf, map.width, map.height));
   drawMap(hist, histogramMap(leaf, hist.width, hist.height, ui('weighted').checked));
   showLeafStats(i);
@@ -271,9 +317,13 @@ function loadSnapshot(k) {
   ui('iteration').textContent = snapshot.iteration + ' (' + snapshot.spp + ' spp, ' + snapshot.leaves.length + ' leaves)';
   const summary = Object.entries(snapshot.summary).map(([key, v]) => key + ' ' + v).join(', ');
   ui('carries').innerHTML = 'per leaf: ' + snapshot.columns.join(', ') + '<br>field: ' + summary +
-      '<br>per leaf also: its quadtree, up to 256 recorded directions with their radiance / pdf.' +
-      '<br>The SD-tree looks up one leaf per point (no parallax compensation, no stochastic lookup), so a leaf\'s ' +
-      'distribution is the one the renderer samples anywhere in it.';
+      (snapshot.leaves.some((l) => l.lobes && l.lobes.length)
+        ? '<br>per leaf also: its von Mises-Fisher mixture (lobes seen from a pivot), up to 256 recorded directions ' +
+          'with their radiance / pdf.<br>The mixture field re-points each lobe towards its source from the lookup ' +
+          'position (parallax), so a leaf\'s distribution changes within it: the map shows it at the leaf\'s centre.'
+        : '<br>per leaf also: its quadtree, up to 256 recorded directions with their radiance / pdf.' +
+          '<br>The SD-tree looks up one leaf per point (no parallax compensation, no stochastic lookup), so a leaf\'s ' +
+          'distribution is the one the renderer samples anywhere in it.');
   buildLeaves();
   if (viewer.selected >= 0 && viewer.selected < snapshot.leaves.length) selectLeaf(viewer.selected);
 }

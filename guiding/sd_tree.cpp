@@ -206,14 +206,35 @@ SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
   return at;
 }
 
+namespace {
+// Every index_lookups() takes a new generation, so that a thread's last leaf
+// is never read against another tree or another update's boxes.
+std::atomic<uint64_t> next_lookup_generation{1};
+struct LastLeaf {
+  uint64_t generation = 0;
+  uint32_t leaf = 0;
+};
+thread_local LastLeaf last_leaf;
+}  // namespace
+
 uint32_t SDTree::leaf_at(const vec3& p) const {
   const vec3 q = (p - root_.min) / root_size_;  // as find_leaf computes it
   const float c[3] = {std::clamp(q.x, 0.0f, kOneMinusEpsilon), std::clamp(q.y, 0.0f, kOneMinusEpsilon),
                       std::clamp(q.z, 0.0f, kOneMinusEpsilon)};
+  // The box test and the descent compare with the same planes, so they agree
+  // exactly: the leaf does not depend on what the thread looked up before.
+  LastLeaf& last = last_leaf;
+  if (last.generation == lookup_generation_) {
+    const LeafBox& b = leaf_box_[last.leaf];
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) inside &= double(c[a]) >= b.lo[a] && double(c[a]) < b.hi[a];
+    if (inside) return last.leaf;
+  }
   const RegionNode* nodes = region_nodes_.data();
   uint32_t n = 0;
   while (nodes[n].first_child != 0)
     n = nodes[n].first_child + uint32_t(double(c[nodes[n].axis_or_leaf]) >= nodes[n].split);
+  last = {lookup_generation_, nodes[n].axis_or_leaf};
   return nodes[n].axis_or_leaf;
 }
 
@@ -227,6 +248,8 @@ void SDTree::index_lookups() {
   };
   region_nodes_.assign(nodes_.size(), RegionNode{});
   leaf_size_.assign(leaves_.size(), vec3(0.0f));
+  leaf_box_.assign(leaves_.size(), LeafBox{});
+  lookup_generation_ = next_lookup_generation.fetch_add(1, std::memory_order_relaxed);
   std::vector<Item> stack{{0, glm::dvec3(0.0), glm::dvec3(1.0), root_size_}};
   while (!stack.empty()) {
     Item it = stack.back();
@@ -236,6 +259,10 @@ void SDTree::index_lookups() {
     if (n.first_child == 0) {
       r.axis_or_leaf = n.leaf;
       leaf_size_[n.leaf] = it.world_size;
+      for (int a = 0; a < 3; ++a) {
+        leaf_box_[n.leaf].lo[a] = it.lo[a];
+        leaf_box_[n.leaf].hi[a] = it.lo[a] + it.size[a];
+      }
       continue;
     }
     r.first_child = n.first_child;
@@ -658,7 +685,8 @@ size_t SDTree::memory_bytes() const {
   for (const SpatialLeaf& leaf : leaves_)
     bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.steps.capacity() * sizeof(SamplingStep) +
              leaf.building.capacity() * sizeof(BuildingQuadNode);
-  bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3);
+  bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3) +
+           leaf_box_.capacity() * sizeof(LeafBox);
   bytes += (leaf_of_.capacity() + order_.capacity() + first_.capacity() + busiest_.capacity()) * sizeof(uint32_t);
   return bytes;
 }

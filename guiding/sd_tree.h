@@ -258,6 +258,15 @@ class SDTree final : public DirectionalGuide {
     uint32_t axis_or_leaf = 0;
   };
   std::vector<RegionNode> region_nodes_;  // nodes_, for leaf_at
+  // Each leaf's box in the root box's unit coordinates, [lo, hi) per axis
+  // (the split planes that bound it, exactly): leaf_at tries the leaf it
+  // found last on the calling thread first, since shading visits hits sorted
+  // by primitive and the next point is mostly in the same leaf.
+  struct LeafBox {
+    double lo[3], hi[3];
+  };
+  std::vector<LeafBox> leaf_box_;
+  uint64_t lookup_generation_ = 0;  // names this index_lookups(): a thread's last leaf is for it alone
   std::vector<vec3> leaf_size_;           // each leaf's box size, as find_leaf gives it (the spatial filter's)
   uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
   uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration

@@ -341,6 +341,7 @@ void WavefrontEngine::Impl::shade_surface_hits(const Batch& b) {
         __builtin_prefetch(&b.rays[j]);
         __builtin_prefetch(&hits[j]);
         __builtin_prefetch(&pool[b.paths[j]]);
+        pool.prefetch_cold(b.paths[j]);
       }
       // The path record fetched above names the observer's vertex: fetch that too.
       if (observer && k + kPrefetchDistance / 2 < n)

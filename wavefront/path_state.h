@@ -91,6 +91,19 @@ struct PathStatePool {
 #undef THEIA_ALLOCATE_COLD_FIELD
   }
 
+  // GCC drops __builtin_prefetch here (the addresses come from the vectors'
+  // own pointers); the instruction itself stays.
+  static void prefetch_line(const void* p) { asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p))); }
+  // Fetches a slot's cold fields of the features that are on: shading visits
+  // paths in hit order, so each table costs a cache miss per vertex unless
+  // it is asked for a few hits ahead, as the hot record is.
+  void prefetch_cold(uint32_t slot) const {
+#define THEIA_PREFETCH_COLD_FIELD(type, name, feature, doc) \
+  if (!name.empty()) prefetch_line(&name[slot]);
+    THEIA_PATH_COLD_FIELDS(THEIA_PREFETCH_COLD_FIELD)
+#undef THEIA_PREFETCH_COLD_FIELD
+  }
+
   PathState& operator[](uint32_t slot) { return paths[slot]; }
   const PathState& operator[](uint32_t slot) const { return paths[slot]; }
   size_t capacity() const { return paths.size(); }

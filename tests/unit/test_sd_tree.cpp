@@ -262,6 +262,49 @@ TEST(SDTreeSpatial, ConcentratedSamplesSplitOnlyThere) {
 
 // A leaf splits once the samples it accumulated over any number of
 // iterations exceed the threshold; each half keeps split_decay of the count.
+// leaf_at tries the calling thread's last leaf before descending: whatever
+// was looked up before (nearby points, far ones, another tree, the same tree
+// before an update), every point gets the leaf whose box holds it.
+TEST(SDTreeSpatial, LastLeafShortcutGivesTheDescentsLeaf) {
+  SDTreeOptions o;
+  o.spatial_threshold = 500.0;
+  SDTree a(kUnitBox, o), b(Bounds3(vec3(-3.0f), vec3(2.0f)), o);
+  auto train = [](SDTree& t, int it) {
+    for (int i = 0; i < 8'000; ++i) {
+      uint64_t key = hash(uint64_t(it), uint64_t(i), 77);
+      vec2 u = u2(hash(key, 1)), v = u2(hash(key, 2));
+      vec3 p = t.root_bounds().min + t.root_bounds().diagonal() * vec3(u.x * u.x, u.y, v.x);
+      t.add_sample(p, sample_uniform_sphere(u2(hash(key, 3))), 1.0f, uniform_sphere_pdf(), key);
+    }
+    t.update();
+  };
+  auto check = [](const SDTree& t, uint64_t seed) {
+    const std::vector<Bounds3> boxes = t.leaf_boxes();
+    vec3 p = t.root_bounds().centroid();
+    for (int i = 0; i < 4'000; ++i) {
+      const uint64_t h = hash(seed, uint64_t(i));
+      const vec2 u = u2(h), v = u2(hash(h, 1));
+      // Mostly small steps (the shortcut's case), now and then a jump anywhere.
+      const vec3 d = t.root_bounds().diagonal();
+      p = i % 7 == 0 ? t.root_bounds().min + d * vec3(u.x, u.y, v.x)
+                     : glm::clamp(p + 0.02f * d * (vec3(u.x, u.y, v.x) - 0.5f), t.root_bounds().min,
+                                  t.root_bounds().max);
+      const Bounds3 box = boxes[t.leaf_index(p)], want = t.leaf_bounds(p);
+      ASSERT_EQ(box.min, want.min) << i;
+      ASSERT_EQ(box.max, want.max) << i;
+    }
+  };
+  for (int it = 0; it < 3; ++it) {
+    train(a, it);
+    train(b, it);
+    check(a, 10 + it);
+    check(b, 20 + it);  // the last leaf is a's: it must not be read against b
+    check(a, 30 + it);
+  }
+  EXPECT_GT(a.leaf_count(), 20u);
+  EXPECT_GT(b.leaf_count(), 20u);
+}
+
 TEST(SDTreeSpatial, SplitsOnCountsAccumulatedOverIterations) {
   SDTreeOptions o;
   o.spatial_filter = false;  // every sample lands in the leaf holding kCentre

@@ -547,6 +547,79 @@ void GuidingFeature::add_participants(std::vector<CheckpointParticipant>& partic
                             }});
 }
 
+namespace {
+
+// The mixture's summary: per fitted region, lobes of weight >= kVMMActiveWeight and their concentrations.
+nlohmann::json vmm_log(const VMMField& vmm) {
+  size_t fitted = 0;
+  double active_sum = 0.0, kappa_mean = 0.0, kappa_max = 0.0;
+  int active_min = kVMMLobes, active_max = 0;
+  for (uint32_t l = 0; l < vmm.region_count(); ++l) {
+    const VMMRegion& r = vmm.region_state(l);
+    if (!r.fitted) continue;
+    const VMMSummary s = vmm_summary(r.mixture);
+    ++fitted, active_sum += s.active_lobes, kappa_mean += s.kappa_mean;
+    active_min = std::min(active_min, s.active_lobes), active_max = std::max(active_max, s.active_lobes);
+    kappa_max = std::max(kappa_max, double(s.kappa_max));
+  }
+  const double n = std::max<double>(double(fitted), 1.0);
+  return {{"regions", vmm.region_count()},
+          {"lobes", kVMMLobes},
+          {"fitted_regions", fitted},
+          {"active_lobes", {{"min", fitted ? active_min : 0}, {"mean", active_sum / n}, {"max", active_max}}},
+          {"kappa", {{"mean", kappa_mean / n}, {"max", kappa_max}}},
+          {"fit_seconds", vmm.fit_seconds()},
+          {"bytes", vmm.memory_bytes()}};
+}
+
+// The learned share of guided directions over the leaves that guide.
+nlohmann::json selection_log(const SDTree& tree) {
+  double lo = 1.0, hi = 0.0, sum = 0.0;
+  size_t n = 0;
+  for (size_t l = 0; l < tree.leaf_count(); ++l) {
+    const SpatialLeaf& leaf = tree.leaf(uint32_t(l));
+    if (!leaf.has_energy) continue;
+    lo = std::min(lo, double(leaf.selection)), hi = std::max(hi, double(leaf.selection));
+    sum += leaf.selection, ++n;
+  }
+  return {{"mean", n ? sum / double(n) : 0.0}, {"min", n ? lo : 0.0}, {"max", n ? hi : 0.0}};
+}
+
+}  // namespace
+
+nlohmann::json GuidingFeature::auto_log() const {
+  static const char* kStates[] = {"undecided", "on", "off", "provisional"};
+  auto side_log = [](const GuidingVerdict::Side& s) {
+    return nlohmann::json{{"iterations", s.iterations},
+                          {"spp", s.spp},
+                          {"variance", s.per_sample(false)},
+                          {"variance_full", s.per_sample(true)},
+                          {"cpu_seconds_per_spp", s.cpu_seconds_per_spp()},
+                          {"wall_seconds_per_spp", s.spp > 0 ? s.wall_seconds / double(s.spp) : 0.0}};
+  };
+  auto round_log = [&](const GuidingVerdict::Round& r) {
+    const GuidingRule& rule = rule_of(r);
+    return nlohmann::json{{"unguided_iteration", r.unguided_iteration},
+                          {"length", r.length},
+                          {"measured", r.measured()},
+                          {"unguided", side_log(r.unguided)},
+                          {"guided", side_log(r.guided)},
+                          // Guided / unguided; guiding pays if the robust figure, and with
+                          // the rule's "full" the full one too, exceed the threshold.
+                          {"efficiency_ratio", r.efficiency_ratio(false)},
+                          {"efficiency_ratio_full", r.efficiency_ratio(true)},
+                          {"variance_ratio", r.variance_ratio(false)},
+                          {"variance_ratio_full", r.variance_ratio(true)},
+                          {"threshold", rule.threshold},
+                          {"full", rule.full},
+                          {"pays", r.measured() && guiding_pays(r, rule)}};
+  };
+  return {{"verdict", kStates[verdict_.state]},
+          {"probe", round_log(verdict_.probe)},
+          {"recheck", round_log(verdict_.recheck)},
+          {"final", round_log(verdict_.final)}};
+}
+
 void GuidingFeature::write_log(nlohmann::json& log) const {
   if (!tree_) return;
   SDTreeStats gs = tree_->stats();
@@ -567,72 +640,9 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                       "split", "refine", "index"}},
                     {"training_iterations", training_times_}};
   log["guiding"]["field"] = options_.field;
-  if (vmm_) {
-    // Per fitted region: lobes of weight >= kVMMActiveWeight, and their concentrations.
-    size_t fitted = 0;
-    double active_sum = 0.0, kappa_mean = 0.0, kappa_max = 0.0;
-    int active_min = kVMMLobes, active_max = 0;
-    for (uint32_t l = 0; l < vmm_->region_count(); ++l) {
-      const VMMRegion& r = vmm_->region_state(l);
-      if (!r.fitted) continue;
-      const VMMSummary s = vmm_summary(r.mixture);
-      ++fitted, active_sum += s.active_lobes, kappa_mean += s.kappa_mean;
-      active_min = std::min(active_min, s.active_lobes), active_max = std::max(active_max, s.active_lobes);
-      kappa_max = std::max(kappa_max, double(s.kappa_max));
-    }
-    const double n = std::max<double>(double(fitted), 1.0);
-    log["guiding"]["vmm"] = {{"regions", vmm_->region_count()},
-                             {"lobes", kVMMLobes},
-                             {"fitted_regions", fitted},
-                             {"active_lobes", {{"min", fitted ? active_min : 0}, {"mean", active_sum / n}, {"max", active_max}}},
-                             {"kappa", {{"mean", kappa_mean / n}, {"max", kappa_max}}},
-                             {"fit_seconds", vmm_->fit_seconds()},
-                             {"bytes", vmm_->memory_bytes()}};
-  }
-  if (tree_->options().learn_selection) {
-    // The learned share of guided directions over the leaves that guide.
-    double lo = 1.0, hi = 0.0, sum = 0.0;
-    size_t n = 0;
-    for (size_t l = 0; l < tree_->leaf_count(); ++l) {
-      const SpatialLeaf& leaf = tree_->leaf(uint32_t(l));
-      if (!leaf.has_energy) continue;
-      lo = std::min(lo, double(leaf.selection)), hi = std::max(hi, double(leaf.selection));
-      sum += leaf.selection, ++n;
-    }
-    log["guiding"]["selection"] = {{"mean", n ? sum / double(n) : 0.0}, {"min", n ? lo : 0.0}, {"max", n ? hi : 0.0}};
-  }
-  if (options_.auto_off) {
-    static const char* kStates[] = {"undecided", "on", "off", "provisional"};
-    auto side_log = [](const GuidingVerdict::Side& s) {
-      return nlohmann::json{{"iterations", s.iterations},
-                            {"spp", s.spp},
-                            {"variance", s.per_sample(false)},
-                            {"variance_full", s.per_sample(true)},
-                            {"cpu_seconds_per_spp", s.cpu_seconds_per_spp()},
-                            {"wall_seconds_per_spp", s.spp > 0 ? s.wall_seconds / double(s.spp) : 0.0}};
-    };
-    auto round_log = [&](const GuidingVerdict::Round& r) {
-      const GuidingRule& rule = rule_of(r);
-      return nlohmann::json{{"unguided_iteration", r.unguided_iteration},
-                            {"length", r.length},
-                            {"measured", r.measured()},
-                            {"unguided", side_log(r.unguided)},
-                            {"guided", side_log(r.guided)},
-                            // Guided / unguided; guiding pays if the robust figure, and with
-                            // the rule's "full" the full one too, exceed the threshold.
-                            {"efficiency_ratio", r.efficiency_ratio(false)},
-                            {"efficiency_ratio_full", r.efficiency_ratio(true)},
-                            {"variance_ratio", r.variance_ratio(false)},
-                            {"variance_ratio_full", r.variance_ratio(true)},
-                            {"threshold", rule.threshold},
-                            {"full", rule.full},
-                            {"pays", r.measured() && guiding_pays(r, rule)}};
-    };
-    log["guiding"]["auto"] = {{"verdict", kStates[verdict_.state]},
-                              {"probe", round_log(verdict_.probe)},
-                              {"recheck", round_log(verdict_.recheck)},
-                              {"final", round_log(verdict_.final)}};
-  }
+  if (vmm_) log["guiding"]["vmm"] = vmm_log(*vmm_);
+  if (tree_->options().learn_selection) log["guiding"]["selection"] = selection_log(*tree_);
+  if (options_.auto_off) log["guiding"]["auto"] = auto_log();
   log["memory"]["guiding"] = tree_->memory_bytes() + (vmm_ ? vmm_->memory_bytes() : 0);
 }
 

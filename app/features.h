@@ -299,6 +299,8 @@ class GuidingFeature final : public Feature {
   void set_hooks(bool guide, bool record);
   void judge(GuidingVerdict::Round& round);
   const GuidingRule& rule_of(const GuidingVerdict::Round& round) const;
+  // The log's guiding.auto: the verdict and every round's figures.
+  nlohmann::json auto_log() const;
   // The round an iteration belongs to (held out or judged), if it is being decided now.
   GuidingVerdict::Round* round_of(const IterationInfo& it);
   // Once the probe has passed, plans the final round (from where training

@@ -53,9 +53,10 @@ Chi2Result chi2(const VMMixture& m, const std::string& name, int n_tests) {
 
 const Bounds3 kUnitBox(vec3(-1.0f), vec3(1.0f));
 
-SDTreeOptions one_leaf() {
+// An SD-tree that splits space at `spatial_threshold` samples (1e15: one leaf).
+SDTreeOptions splitting_at(double spatial_threshold) {
   SDTreeOptions o;
-  o.spatial_threshold = 1e15;
+  o.spatial_threshold = spatial_threshold;
   return o;
 }
 
@@ -186,7 +187,7 @@ TEST(VMMParallax, PointSourceIsRepointedFromEachPosition) {
 // The field over the SD-tree's leaves: no region before training, handles
 // that re-point to the lookup position, sample() and pdf() agreeing.
 TEST(VMMField, RegionsFollowTheTreeAndRepointPerPosition) {
-  SDTree tree(kUnitBox, one_leaf());
+  SDTree tree(kUnitBox, splitting_at(1e15));
   VMMField field(tree, VMMOptions{});
   EXPECT_EQ(field.region(vec3(0.0f)), kNoGuideRegion);
   const vec3 source(0.0f, 0.9f, 0.0f);
@@ -238,12 +239,6 @@ void train(SDTree& tree, VMMField& field, int it) {
   field.update();
 }
 
-SDTreeOptions splitting() {
-  SDTreeOptions o;
-  o.spatial_threshold = 2000.0;
-  return o;
-}
-
 }  // namespace
 
 // Training is a pure function of the samples: the same mixtures, bit for
@@ -251,7 +246,7 @@ SDTreeOptions splitting() {
 TEST(VMMField, DeterministicAcrossThreadCountsThroughSplits) {
   auto run = [](int threads) {
     tbb::global_control c(tbb::global_control::max_allowed_parallelism, size_t(threads));
-    SDTree tree(kUnitBox, splitting());
+    SDTree tree(kUnitBox, splitting_at(2000.0));
     VMMField field(tree, VMMOptions{});
     for (int it = 0; it < 4; ++it) train(tree, field, it);
     std::vector<VMMixture> out;
@@ -272,7 +267,7 @@ TEST(VMMField, DeterministicAcrossThreadCountsThroughSplits) {
 // tree restored from its own bytes) trains on and samples exactly as the one
 // that never stopped, through further splits.
 TEST(VMMCheckpoint, RestoredFieldContinuesBitForBit) {
-  SDTree tree(kUnitBox, splitting());
+  SDTree tree(kUnitBox, splitting_at(2000.0));
   VMMField field(tree, VMMOptions{});
   EXPECT_NO_THROW(VMMField(tree, VMMOptions{}).restore(field.serialize(), "fresh"));
   for (int it = 0; it < 2; ++it) train(tree, field, it);
@@ -299,7 +294,7 @@ TEST(VMMCheckpoint, RestoredFieldContinuesBitForBit) {
 // A truncated, modified, other-version or other-tree input is one theia::Error
 // naming the section, and leaves the field as it was.
 TEST(VMMCheckpoint, CorruptTruncatedOrMismatchedIsRefused) {
-  SDTree tree(kUnitBox, splitting());
+  SDTree tree(kUnitBox, splitting_at(2000.0));
   VMMField field(tree, VMMOptions{});
   for (int it = 0; it < 2; ++it) train(tree, field, it);
   const std::vector<uint8_t> good = field.serialize();
@@ -329,7 +324,7 @@ TEST(VMMCheckpoint, CorruptTruncatedOrMismatchedIsRefused) {
   std::vector<uint8_t> magic = good;
   magic[0] = 'X';
   refused(magic, "magic", tree);
-  SDTree one(kUnitBox, one_leaf());
+  SDTree one(kUnitBox, splitting_at(1e15));
   refused(good, "regions for an SD-tree of 1 leaves", one);
   VMMOptions other_options;
   other_options.em_iterations = 3;
@@ -348,7 +343,7 @@ TEST(VMMCheckpoint, CorruptTruncatedOrMismatchedIsRefused) {
 // takes the field (whose lookups then give finite densities) or throws
 // theia::Error, never anything else.
 TEST(VMMCheckpoint, AnyModifiedByteIsReadOrRefusedCleanly) {
-  SDTree tree(kUnitBox, splitting());
+  SDTree tree(kUnitBox, splitting_at(2000.0));
   VMMField field(tree, VMMOptions{});
   for (int it = 0; it < 2; ++it) train(tree, field, it);
   const std::vector<uint8_t> good = field.serialize();

@@ -281,9 +281,11 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     const int shape = accel.shape_index(hit);
     const ShadowCrossing what = shape >= 0 ? shadow_crossing(scene, shape) : ShadowCrossing::Passes;
     if (what == ShadowCrossing::Blocks) return RGB(0.0f);
-    // Spheres and cylinders were met without their (u, v): the same hit again, with them.
+    // Instanced spheres and cylinders were met without their (u, v): the same
+    // hit again, with them (top-level ones find theirs in compute_interaction).
     const ShapeKind kind = shape >= 0 ? scene.shapes[size_t(shape)].kind : ShapeKind::TriangleMesh;
-    if (kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) hit = accel.intersect1(ray, skip);
+    if ((kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) && hit.inst != kInvalidId)
+      hit = accel.intersect1(ray, skip);
     const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
     if (what == ShadowCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
     if (!track(hit.t)) return T;

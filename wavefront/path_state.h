@@ -92,8 +92,14 @@ struct PathStatePool {
   }
 
   // GCC drops __builtin_prefetch here (the addresses come from the vectors'
-  // own pointers); the instruction itself stays.
-  static void prefetch_line(const void* p) { asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p))); }
+  // own pointers); on x86-64 the instruction itself stays.
+  static void prefetch_line(const void* p) {
+#if defined(__x86_64__)
+    asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
+#else
+    __builtin_prefetch(p);
+#endif
+  }
   // Fetches a slot's cold fields of the features that are on: shading visits
   // paths in hit order, so each table costs a cache miss per vertex unless
   // it is asked for a few hits ahead, as the hot record is.

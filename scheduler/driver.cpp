@@ -272,6 +272,10 @@ class IterationRun {
   void resume_from_newest_checkpoint();
   void add_between_iteration_tasks();
   void start_deadline();
+  // Where this iteration's camera samples must stop for its tail to end by the time limit.
+  void reserve_tail(uint64_t camera_total);
+  // Under a time limit, shortens the iteration about to begin to what the time left fits.
+  void fit_to_time_left();
   bool done() const { return pos_.finished || pos_.iteration >= int(sizes_.size()); }
   // Renders iteration pos_.iteration (from pos_.camera_done); false when the render stops there.
   bool render_iteration();
@@ -315,6 +319,9 @@ class IterationRun {
   bool wrote_this_iteration_ = false;
   std::optional<Deadline> deadline_;
   bool interrupted_ = false, ended_by_time_limit_ = false;
+  double tail_seconds_before_ = 0.0;  // reserve_tail's
+  double seconds_per_spp_ = 0.0;      // the last finished iteration's, its tasks included
+  uint64_t camera_rays_before_ = 0;
   IterationInfo info_;
   // The iteration in progress: its clocks.
   std::chrono::steady_clock::time_point iteration_t0_;
@@ -421,11 +428,58 @@ void IterationRun::start_deadline() {
                                                          std::chrono::duration<double>(cfg_.time_limit)));
 }
 
+// Once an iteration's camera samples are in (all, or those a time limit let
+// through), the caustic pass traces its light paths: one per camera sample
+// of the whole iteration, since the samples rendered are whole pixels' (the
+// pixel-sample order) and a pixel's splats come from every light path.
+// Stopping only the camera samples at the limit, that tail overran it
+// (veach-mis: 32.3 s for --time-limit 30), so they stop short of it by the
+// tail this iteration will have, at the last iteration's rate.
+void IterationRun::reserve_tail(uint64_t camera_total) {
+  if (cfg_.time_limit <= 0) return;
+  using namespace std::chrono;
+  const EngineStats& stats = engine_.stats();
+  // The last iteration's alone: the caustic pass may have switched itself off since.
+  const double tail = stats.phases[Phase::Caustics] - tail_seconds_before_;
+  const uint64_t samples = stats.camera_rays - camera_rays_before_;
+  tail_seconds_before_ = stats.phases[Phase::Caustics];
+  camera_rays_before_ = stats.camera_rays;
+  if (!(tail > 0.0 && samples > 0)) return engine_.stop_camera_samples_at(std::nullopt);
+  const double reserve = tail / double(samples) * double(camera_total);
+  engine_.stop_camera_samples_at(cfg_.clock_start +
+                                 duration_cast<steady_clock::duration>(duration<double>(cfg_.time_limit - reserve)));
+}
+
+// The iteration that would overrun a time limit is cut to the samples the
+// time left fits, at the last iteration's pace (the rest of its samples
+// become an iteration after it): every pixel then ends with as many samples,
+// and the caustic pass, which traces the whole iteration's light paths
+// however few camera samples a stop let through (reserve_tail), is not paid
+// for a strip of pixels.  The stop at the limit still ends a slow one.
+void IterationRun::fit_to_time_left() {
+  if (cfg_.time_limit <= 0 || cfg_.adaptive || pos_.camera_done > 0) return;
+  const int i = pos_.iteration;
+  const double left = cfg_.time_limit - seconds_since(cfg_.clock_start);
+  std::vector<int> cut = fit_iteration(sizes_, i, left, seconds_per_spp_);
+  if (cut == sizes_) return;
+  log_info("schedule: iteration {} cut from {} to {} spp, what the time limit's {:.3g} s left fit", i + 1,
+           sizes_[size_t(i)], cut[size_t(i)], left);
+  sizes_ = std::move(cut);
+  plan();
+  // A checkpoint's schedule may differ from the planned one only after a switch.
+  if (pos_.switched_at < 0) {
+    pos_.switched_at = i;
+    log_switch();
+  }
+  info_.count = int(sizes_.size());
+}
+
 bool IterationRun::render_iteration() {
   if (time_up()) {  // between iterations: the render ends with the ones done
     pos_.finished = ended_by_time_limit_ = true;
     return false;
   }
+  fit_to_time_left();
   const int i = pos_.iteration;
   info_.index = i;
   info_.spp_begin = cfg_.sample_begin + uint32_t(cumulative_[size_t(i)] - sizes_[size_t(i)]);
@@ -439,14 +493,11 @@ bool IterationRun::render_iteration() {
     const double before = cumulative_[size_t(i)] - sizes_[size_t(i)];
     cfg_.progress(i, f, (before + f * sizes_[size_t(i)]) / cumulative_.back());
   };
-  uint64_t camera_total, done;
-  if (cfg_.adaptive) {
-    camera_total = cfg_.adaptive->ranges().total();
-    done = engine_.render(cfg_.adaptive->ranges(), progress, pos_.camera_done);
-  } else {
-    camera_total = uint64_t(film_.pixel_count()) * uint64_t(sizes_[size_t(i)]);
-    done = engine_.render(info_.spp_begin, info_.spp_end, progress, pos_.camera_done);
-  }
+  const uint64_t camera_total = cfg_.adaptive ? cfg_.adaptive->ranges().total()
+                                              : uint64_t(film_.pixel_count()) * uint64_t(sizes_[size_t(i)]);
+  reserve_tail(camera_total);
+  const uint64_t done = cfg_.adaptive ? engine_.render(cfg_.adaptive->ranges(), progress, pos_.camera_done)
+                                      : engine_.render(info_.spp_begin, info_.spp_end, progress, pos_.camera_done);
   if (engine_.abandoned()) {
     // Paths still in flight seconds after the signal were dropped: this
     // iteration is incomplete and is not written; the newest checkpoint
@@ -459,6 +510,8 @@ bool IterationRun::render_iteration() {
     return false;
   }
   if (done < camera_total) {
+    // Not stopped by a signal or the limit itself: by reserve_tail's time, which is the limit's.
+    if (cfg_.stop && !cfg_.stop->raised()) cfg_.stop->raise(StopReason::TimeLimit);
     if (time_up())
       keep_stopped_iteration(done, camera_total);
     else
@@ -511,6 +564,7 @@ bool IterationRun::fold_finished_iteration() {
   if (cfg_.evaluate) evaluation = cfg_.evaluate(info_, acc_);
   const double checkpoint_before = checkpoint_seconds_;
   tasks_.end_iteration(info_);
+  seconds_per_spp_ = seconds_since(iteration_t0_) / double(std::max(info_.spp_end - info_.spp_begin, 1u));
   iterations_.push_back({{"spp", {info_.spp_begin, info_.spp_end}},
                          {"seconds", seconds_since(iteration_t0_)},
                          // The between-iteration tasks included, as in "seconds".

@@ -42,6 +42,17 @@ std::vector<int> clip_schedule(const std::vector<int>& sizes, int begin, int end
   return clipped;
 }
 
+std::vector<int> fit_iteration(const std::vector<int>& sizes, int at, double seconds_left, double seconds_per_spp) {
+  if (at < 0 || at >= int(sizes.size()) || !(seconds_per_spp > 0.0)) return sizes;
+  const int planned = sizes[size_t(at)];
+  const int fits = int(std::clamp(std::floor(seconds_left / seconds_per_spp), 1.0, double(planned)));
+  if (fits >= planned) return sizes;
+  std::vector<int> cut = sizes;
+  cut[size_t(at)] = fits;
+  cut.insert(cut.begin() + at + 1, planned - fits);
+  return cut;
+}
+
 std::vector<int> switch_schedule(const std::vector<int>& sizes, int at, const ScheduleOptions& options) {
   if (at < 0 || at >= int(sizes.size())) return sizes;
   int done = 0, total = 0;

@@ -47,6 +47,11 @@ std::vector<int> clip_schedule(const std::vector<int>& sizes, int begin, int end
 // that schedule from the start.  `at` past the end: `sizes` unchanged.
 std::vector<int> switch_schedule(const std::vector<int>& sizes, int at, const ScheduleOptions& options);
 
+// A time limit's last iteration: iteration `at` cut to the samples per pixel
+// `seconds_left` fits at `seconds_per_spp` (at least 1), the rest of its
+// samples an iteration after it, so the total stays.  Unchanged when it fits.
+std::vector<int> fit_iteration(const std::vector<int>& sizes, int at, double seconds_left, double seconds_per_spp);
+
 // Running totals of a schedule: cumulative[i] = sizes[0] + ... + sizes[i].
 std::vector<int> cumulative_spp(const std::vector<int>& sizes);
 

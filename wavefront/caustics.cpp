@@ -267,7 +267,8 @@ void CausticTracer::Pass::splat() {
 
 void CausticTracer::trace(Film& film, const CausticSamples& samples,
                           const std::function<UVFootprint(const SurfaceInteraction&)>& footprint) {
-  if (!active_ || samples.sample_end <= samples.sample_begin) return;
+  // A time limit may stop an iteration before its first camera sample: nothing to splat into.
+  if (!active_ || samples.sample_end <= samples.sample_begin || samples.rendered == 0) return;
   auto t0 = std::chrono::steady_clock::now();
   Pass pass(*this, film, samples, footprint);
   for (pass.first = 0; pass.first < pass.total; pass.first += kChunk) {

@@ -150,7 +150,8 @@ bool WavefrontEngine::Impl::advance() {
 // Once stopped, no camera ray is generated: the paths in flight finish,
 // so exactly the pixel-samples [first_camera, next_camera) are complete.
 bool WavefrontEngine::Impl::can_generate() const {
-  return next_camera < camera_end && !pool.free_slots.empty() && !(opt.stop && opt.stop->raised());
+  return next_camera < camera_end && !pool.free_slots.empty() && !(opt.stop && opt.stop->raised()) &&
+         !(camera_deadline && std::chrono::steady_clock::now() >= *camera_deadline);
 }
 
 // A signal (not the time limit) bounds the time left to the paths in flight.
@@ -416,6 +417,10 @@ void WavefrontEngine::finish_stopped_iteration() {
   auto t0 = std::chrono::steady_clock::now();
   impl_->trace_caustics();
   impl_->stats.render_seconds += seconds_since(t0);
+}
+
+void WavefrontEngine::stop_camera_samples_at(std::optional<std::chrono::steady_clock::time_point> at) {
+  impl_->camera_deadline = at;
 }
 
 const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }

@@ -27,6 +27,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace theia {
@@ -170,6 +171,10 @@ class WavefrontEngine {
   // that iteration's samples, as a finished iteration's does.  Its splats are
   // parts of camera samples, so only the samples rendered get theirs.
   void finish_stopped_iteration();
+  // Between render() calls: no camera sample is generated from `at` on (none:
+  // no such time), and render() returns as if stopped.  A time limit sets it
+  // short of the limit by the tail that follows the camera samples.
+  void stop_camera_samples_at(std::optional<std::chrono::steady_clock::time_point> at);
   // The last render() abandoned paths in flight after a signal (see
   // EngineOptions::abandon_after_seconds): its film and its samples are not
   // a consistent state to keep.

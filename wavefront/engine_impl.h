@@ -152,6 +152,7 @@ struct WavefrontEngine::Impl {
   const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
   size_t refill_below = 0;  // camera rays refill the pool below this many live paths
   std::optional<std::chrono::steady_clock::time_point> signal_seen;
+  std::optional<std::chrono::steady_clock::time_point> camera_deadline;  // stop_camera_samples_at
 
   Impl(const RenderableScene& rs, Film& film, const EngineOptions& options, const EngineHooks& hooks);
 

@@ -57,6 +57,20 @@ TEST(Schedule, SwitchedScheduleIsTheRegularOneFromThatPoint) {
   EXPECT_EQ(switch_schedule({1, 1, 2, 4}, 2, regular_schedule()), (std::vector<int>{1, 1, 6}));
 }
 
+// A time limit's last iteration is cut to what the time left fits, the rest
+// of its samples after it: the total stays, so a checkpoint's schedule still
+// follows the plan.
+TEST(Schedule, TheIterationATimeLimitEndsInIsCutToWhatFits) {
+  const std::vector<int> sizes{16, 16, 32, 64, 128, 256};
+  EXPECT_EQ(fit_iteration(sizes, 5, 3.3, 0.02), (std::vector<int>{16, 16, 32, 64, 128, 165, 91}));
+  EXPECT_EQ(fit_iteration(sizes, 5, 10.0, 0.02), sizes);  // it fits
+  EXPECT_EQ(fit_iteration(sizes, 2, 0.001, 0.02), (std::vector<int>{16, 16, 1, 31, 64, 128, 256}));  // at least 1
+  EXPECT_EQ(fit_iteration(sizes, 2, -1.0, 0.02), (std::vector<int>{16, 16, 1, 31, 64, 128, 256}));
+  EXPECT_EQ(fit_iteration(sizes, 5, 1.0, 0.0), sizes);  // no pace known yet
+  EXPECT_EQ(fit_iteration(sizes, 6, 1.0, 0.02), sizes);  // past the end
+  EXPECT_EQ(cumulative_spp(fit_iteration(sizes, 4, 1.0, 0.02)).back(), cumulative_spp(sizes).back());
+}
+
 TEST(Schedule, ImpossibleOptionsAreRefused) {
   EXPECT_THROW(make_schedule({0, 1, 2.0, 16}, 16), Error);
   EXPECT_THROW(make_schedule({4, 1, 0.5, 16}, 16), Error);

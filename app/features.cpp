@@ -426,14 +426,7 @@ std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInf
                                             (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0)
                                       : trained_spp_ >= 0;
   if (!done) return std::nullopt;
-  // A time limit stops inside an iteration, whose pixels are rendered in
-  // order: those it reached have the whole iteration's samples more than the
-  // others.  Capped at 64 spp, that unevenness stays a fraction of a
-  // 30-second render's few hundred spp, and a drain per 64 spp costs a
-  // quarter of one per 16.
-  ScheduleOptions regular = regular_schedule();
-  if (time_limit_ > 0.0) regular.max = std::min(regular.max, 64);
-  return regular;
+  return regular_schedule();
 }
 
 // The field learns from each training iteration's samples (handed over by

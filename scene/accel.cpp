@@ -2,6 +2,7 @@
 
 #include "core/hash.h"
 #include "core/log.h"
+#include "scene/shape_bounds.h"
 #include "scene/shapes.h"
 #include "scene/texture.h"
 
@@ -231,33 +232,6 @@ float flat_curve_tessellation_rate(const CurveSet& c) {
     if (width > 0.0f) rate = std::max(rate, std::ceil(std::sqrt(c2 / (8.0f * kFlatCurveSag * width))));
   }
   return std::min(rate, kFlatCurveMaxRate);
-}
-
-Bounds3 quadric_object_bounds(const Shape& s) {
-  if (s.kind == ShapeKind::Sphere) {
-    SphereShape sp = make_sphere_shape(s.sphere);
-    return Bounds3(vec3(-sp.radius, -sp.radius, sp.zmin), vec3(sp.radius, sp.radius, sp.zmax));
-  }
-  if (s.kind == ShapeKind::Cylinder) {
-    CylinderShape cy = make_cylinder_shape(s.cylinder);
-    return Bounds3(vec3(-cy.radius, -cy.radius, cy.zmin), vec3(cy.radius, cy.radius, cy.zmax));
-  }
-  DiskShape dk = make_disk_shape(s.disk);
-  return Bounds3(vec3(-dk.radius, -dk.radius, dk.height), vec3(dk.radius, dk.radius, dk.height));
-}
-
-// Box of the transformed corners, padded so that float rounding of the
-// transform can never clip a hit.
-Bounds3 transform_bounds(const glm::dmat4& m, const Bounds3& b) {
-  Bounds3 r;
-  for (int c = 0; c < 8; ++c) {
-    glm::dvec3 p((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y, (c & 4) ? b.max.z : b.min.z);
-    r = union_bounds(r, vec3(glm::dvec3(m * glm::dvec4(p, 1.0))));
-  }
-  vec3 pad = 1e-5f * glm::max(glm::abs(r.min), glm::abs(r.max)) + vec3(1e-30f);
-  r.min -= pad;
-  r.max += pad;
-  return r;
 }
 
 }  // namespace

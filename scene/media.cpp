@@ -44,34 +44,55 @@ float majorant_scale(const Medium& m) {
   return m.kind == MediumKind::RGBGrid ? 1.0f : max_component(m.sigma_a + m.sigma_s);
 }
 
-// The distance to the next tentative collision at majorant rate sigma_maj.
-// log(1 - u), not log1p(-u): u is a multiple of 2^-24 (to_unit_float, and
-// the sampler's to_sample), so 1 - u is exact and the two differ by rounding
-// only, while glibc's logf takes about half the instructions of its log1pf,
-// which was a tenth of a smoke-grid render.
-float exponential_step(float sigma_maj, float u) { return -std::log(1.0f - u) / sigma_maj; }
+// The optical depth to the next tentative collision, -log(1 - u): divided by
+// the majorant it is the distance.  log(1 - u), not log1p(-u): u is a
+// multiple of 2^-24 (to_unit_float, and the sampler's to_sample), so 1 - u is
+// exact and the two differ by rounding only, while glibc's logf takes about
+// half the instructions of its log1pf, which was a tenth of a smoke-grid render.
+float exponential_depth(float u) { return -std::log(1.0f - u); }
 
-// Walks the tentative collisions of `m` along `ray` in [0, tmax]: visit(s,
-// point props, t) returns false to stop.  Returns true if the walk left the
-// segment (no stop).
+// Optical depth not drawn yet (kNoDepth) or left over from the spans walked so far.
+constexpr float kNoDepth = -1.0f;
+
 // Collisions at rate sigma_maj in [s, s_end]; false when visit stopped.
-// Past s_end the walk restarts at s_end (the exponential is memoryless).
+// Past s_end the walk goes on at s_end with the optical depth it has not used
+// (`depth`): the next span's collision is where the leftover runs out at its
+// own rate.  That is the same Poisson process as a fresh exponential per span
+// (which is memoryless), but a ray that crosses many majorant cells draws one
+// number per collision instead of one per cell (smoke-grid crossed ~14 cells
+// per collision, each with its logf and hash).  Within one span (a
+// homogeneous medium) the distances are those of a fresh draw per collision.
+// Inlined: a grid's walk calls it once per majorant cell, most of which it
+// only crosses.
 template <class Visit>
-bool walk_span(const Medium& m, const MediumSegment& seg, double& s, double s_end, float sigma_maj, TrackingRng& rng,
-               Visit& visit) {
+[[gnu::always_inline]] inline bool walk_span(const Medium& m, const MediumSegment& seg, double& s, double s_end,
+                                             float sigma_maj, float& depth, TrackingRng& rng, Visit& visit) {
   if (!(sigma_maj > 0.0f)) {
     s = s_end;
     return true;
   }
   while (true) {
-    s += exponential_step(sigma_maj, rng.next());
-    if (!(s < s_end)) {
+    if (depth == kNoDepth) depth = exponential_depth(rng.next());
+    const double s_next = s + double(depth / sigma_maj);
+    if (!(s_next < s_end)) {
+      depth = std::max(depth - float((s_end - s) * double(sigma_maj)), 0.0f);
       s = s_end;
       return true;
     }
+    s = s_next;
+    depth = kNoDepth;
     const vec3 p = seg.o + seg.d * float(s);
     if (!visit(medium_props(m, p), sigma_maj, float(s * double(seg.t_per_s)))) return false;
   }
+}
+
+// walk_span out of line, for a medium walked as one span (homogeneous, or a
+// grid without majorants): compiled as before the grid's walk inlined
+// walk_span, so that homogeneous media's images stay bit for bit.
+template <class Visit>
+[[gnu::noinline]] bool walk_one_span(const Medium& m, const MediumSegment& seg, double& s, double s_end,
+                                     float sigma_maj, float& depth, TrackingRng& rng, Visit& visit) {
+  return walk_span(m, seg, s, s_end, sigma_maj, depth, rng, visit);
 }
 
 // A grid's walk, cell by cell of its majorant grid (a 3D DDA), so that the
@@ -97,11 +118,12 @@ bool walk_grid(const Medium& m, const MediumSegment& seg, TrackingRng& rng, Visi
   }
   const float sigma_t_max = majorant_scale(m);
   double s = seg.s0;
+  float depth = kNoDepth;
   while (true) {
     const int a = next[0] < next[1] ? (next[0] < next[2] ? 0 : 2) : (next[1] < next[2] ? 1 : 2);
     const double s_end = std::min(double(seg.s1), next[a]);
     const float majorant = m.majorants[(size_t(cell[2]) * res + size_t(cell[1])) * res + size_t(cell[0])];
-    if (!walk_span(m, seg, s, s_end, sigma_t_max * majorant, rng, visit)) return false;
+    if (!walk_span(m, seg, s, s_end, sigma_t_max * majorant, depth, rng, visit)) return false;
     if (s_end >= double(seg.s1)) return true;
     cell[a] += step[a];
     if (cell[a] < 0 || cell[a] >= res) return true;
@@ -119,7 +141,8 @@ bool walk_collisions(const Medium& m, const Ray& ray, float tmax, TrackingRng& r
   if (seg.empty()) return true;
   if (m.kind != MediumKind::Homogeneous && !m.majorants.empty()) return walk_grid(m, seg, rng, visit);
   double s = seg.s0;
-  return walk_span(m, seg, s, double(seg.s1), medium_majorant(m), rng, visit);
+  float depth = kNoDepth;
+  return walk_one_span(m, seg, s, double(seg.s1), medium_majorant(m), depth, rng, visit);
 }
 
 float average(const RGB& c) { return (c.x + c.y + c.z) * (1.0f / 3.0f); }

@@ -2,6 +2,7 @@
 
 #include "core/log.h"
 #include "scene/curve_params.h"
+#include "scene/shape_bounds.h"
 
 #include <cmath>
 
@@ -157,6 +158,35 @@ vec2 cylinder_uv(const CylinderShape& s, double phi, double z) {
 double triangle_area(const TriangleMesh& m, size_t tri) {
   dvec3 p0(m.p[m.indices[3 * tri]]), p1(m.p[m.indices[3 * tri + 1]]), p2(m.p[m.indices[3 * tri + 2]]);
   return 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
+}
+
+Bounds3 quadric_object_bounds(const Shape& s) {
+  if (s.kind == ShapeKind::Sphere) {
+    SphereShape sp = make_sphere_shape(s.sphere);
+    return Bounds3(vec3(-sp.radius, -sp.radius, sp.zmin), vec3(sp.radius, sp.radius, sp.zmax));
+  }
+  if (s.kind == ShapeKind::Cylinder) {
+    CylinderShape cy = make_cylinder_shape(s.cylinder);
+    return Bounds3(vec3(-cy.radius, -cy.radius, cy.zmin), vec3(cy.radius, cy.radius, cy.zmax));
+  }
+  DiskShape dk = make_disk_shape(s.disk);
+  return Bounds3(vec3(-dk.radius, -dk.radius, dk.height), vec3(dk.radius, dk.radius, dk.height));
+}
+
+Bounds3 padded_bounds(Bounds3 b) {
+  vec3 pad = 1e-5f * glm::max(glm::abs(b.min), glm::abs(b.max)) + vec3(1e-30f);
+  b.min -= pad;
+  b.max += pad;
+  return b;
+}
+
+Bounds3 transform_bounds(const glm::dmat4& m, const Bounds3& b) {
+  Bounds3 r;
+  for (int c = 0; c < 8; ++c) {
+    glm::dvec3 p((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y, (c & 4) ? b.max.z : b.min.z);
+    r = union_bounds(r, vec3(glm::dvec3(m * glm::dvec4(p, 1.0))));
+  }
+  return padded_bounds(r);
 }
 
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {

@@ -4,6 +4,8 @@
 #include "core/sampler.h"
 #include "core/stats.h"
 #include "scene/bsdf.h"
+#include "scene/shape_bounds.h"
+#include "scene/shapes.h"
 #include "wavefront/sample_dims.h"
 
 #include <tbb/parallel_for.h>
@@ -49,6 +51,55 @@ bool may_cast(const Scene& scene, int shape) {
   if (m < 0) return false;  // the default diffuse
   const MaterialKind k = scene.materials[size_t(m)].kind;
   return k == MaterialKind::Mix || caster_kind(k);
+}
+
+// Boxes around the shapes may_cast accepts, for the light paths' first rays:
+// most leave the light in directions where no caster is (veach-mis: 88% end
+// at their first hit), and a ray that meets none of the boxes cannot have a
+// caster as its first hit, so it need not be traced.  At most kMaxCasterBoxes
+// (beyond that their union, one box); none when a caster is instanced or a
+// curve (the pass then traces every ray, as without boxes).
+constexpr size_t kMaxCasterBoxes = 8;
+
+std::vector<Bounds3> find_caster_boxes(const Scene& scene) {
+  std::vector<uint8_t> top_level(scene.shapes.size(), 0);
+  for (int i : scene.top_level_shapes) top_level[size_t(i)] = 1;
+  std::vector<Bounds3> boxes;
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& s = scene.shapes[i];
+    if (!may_cast(scene, int(i))) continue;
+    if (!top_level[i] || s.kind == ShapeKind::Curve) return {};
+    if (s.kind != ShapeKind::TriangleMesh) {
+      boxes.push_back(transform_bounds(glm::dmat4(s.render_from_object.m), quadric_object_bounds(s)));
+      continue;
+    }
+    Bounds3 b;
+    for (const vec3& p : scene.meshes[size_t(s.mesh)].p) b = union_bounds(b, p);  // meshes are baked
+    if (!b.empty()) boxes.push_back(padded_bounds(b));
+  }
+  if (boxes.size() > kMaxCasterBoxes) {
+    Bounds3 all;
+    for (const Bounds3& b : boxes) all = union_bounds(union_bounds(all, b.min), b.max);
+    boxes.assign(1, all);
+  }
+  return boxes;
+}
+
+// Whether the ray may meet box b at t >= 0: a slab test that only a sure
+// miss fails (a NaN from a ray in a slab's plane keeps the box; the far
+// distance is widened by pbrt-v4's gamma(3) bound).
+bool may_meet(const Ray& ray, const Bounds3& b) {
+  float t0 = 0.0f, t1 = kInfinity;
+  for (int a = 0; a < 3; ++a) {
+    const float inv = 1.0f / ray.d[a];
+    float near = (b.min[a] - ray.o[a]) * inv, far = (b.max[a] - ray.o[a]) * inv;
+    if (near > far) std::swap(near, far);
+    far += 2.0f * gamma_bound(3) * std::abs(far);
+    if (near > t0) t0 = near;
+    if (far < t1) t1 = far;
+    if (t0 > t1) return false;
+  }
+  return true;
 }
 
 // A finished path's connection to the camera, waiting for its shadow ray.
@@ -103,6 +154,9 @@ struct CausticTracer::Pass {
   const int width, height;
   const vec2 radius;
   const float inv_integral;  // the filter's
+  // Found per pass (a pass traces a light path per camera sample, far more
+  // than the casters' vertices), so that the tracer's header stays as it was.
+  const std::vector<Bounds3> caster_boxes;
 
   // The chunk in flight.
   uint64_t first = 0;
@@ -120,9 +174,16 @@ struct CausticTracer::Pass {
       : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
         pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
         height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
-        rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk), dense_hits(kChunk), blocked(kChunk),
-        dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
+        caster_boxes(find_caster_boxes(t.scene_)), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
+        dense_hits(kChunk), blocked(kChunk), dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
 
+  // Whether a light path's first ray may meet a caster (caster_boxes).
+  bool may_reach_caster(const Ray& ray) const {
+    if (caster_boxes.empty()) return true;
+    for (const Bounds3& b : caster_boxes)
+      if (may_meet(ray, b)) return true;
+    return false;
+  }
   SamplerKey key(size_t i) const {
     uint64_t k = first + i;
     return SamplerKey{seed, uint32_t(k % pixels), samples.sample_begin + uint32_t(k / pixels)};
@@ -191,8 +252,11 @@ void CausticTracer::Pass::leave_light() {
     if (!le || !(pmf > 0.0f)) return;
     RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
     if (!keep(beta)) return;
+    const Ray ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
+    // The path would end at its first hit in the_caster: not traced at all.
+    if (!may_reach_caster(ray)) return;
     paths[i] = {beta, true};
-    rays[i] = Ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
+    rays[i] = ray;
   });
 }
 

@@ -1,6 +1,7 @@
 #include "guiding/sd_tree.h"
 
 #include "core/hash.h"
+#include "core/huge_pages.h"
 #include "core/log.h"
 #include "core/stats.h"
 
@@ -464,6 +465,7 @@ void SDTree::add_samples(std::span<const SDTreeSample> samples) {
   // The leaf of every sample, then the samples of each leaf in index order
   // (a counting sort), then the leaves in parallel.
   const size_t count = samples.size();
+  reserve_huge(leaf_of_, count);
   if (leaf_of_.size() < count) leaf_of_.resize(count);
   std::optional<ScopedTimer> timer(std::in_place, times_.classify);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -488,6 +490,7 @@ void SDTree::add_samples(std::span<const SDTreeSample> samples) {
   const uint64_t valid = first_.back();
   recorded_ += valid;
   dropped_ += count - valid;
+  reserve_huge(order_, valid);
   if (order_.size() < valid) order_.resize(valid);
   for (size_t i = 0; i < count; ++i)
     if (leaf_of_[i] != kInvalidLeaf) order_[first_[leaf_of_[i]]++] = uint32_t(i);

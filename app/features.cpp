@@ -2,6 +2,7 @@
 
 #include "cachepoints/light_sampler.h"
 #include "core/hash.h"
+#include "core/huge_pages.h"
 #include "core/log.h"
 
 #include <tbb/blocked_range.h>
@@ -187,7 +188,9 @@ class SDTreeTrainer final : public TrainingSampleSink {
       return;
     }
     // Each sample converted once, into a buffer kept across iterations.
+    reserve_huge(converted_, samples.size());
     if (converted_.size() < samples.size()) converted_.resize(samples.size());
+    if (vmm_) reserve_huge(vmm_samples_, samples.size());
     if (vmm_ && vmm_samples_.size() < samples.size()) vmm_samples_.resize(samples.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, samples.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i != r.end(); ++i) {

@@ -1,6 +1,7 @@
 #include "guiding/sd_tree.h"
 
 #include "core/hash.h"
+#include "core/huge_pages.h"
 #include "core/log.h"
 #include "core/stats.h"
 
@@ -231,7 +232,9 @@ uint32_t SDTree::leaf_at(const vec3& p) const {
     if (inside) return last.leaf;
   }
   const RegionNode* nodes = region_nodes_.data();
-  uint32_t n = 0;
+  constexpr float kCells = float(1 << kLookupGridBits);
+  uint32_t n = lookup_grid_[(uint32_t(c[2] * kCells) << kLookupGridBits | uint32_t(c[1] * kCells)) << kLookupGridBits |
+                            uint32_t(c[0] * kCells)];
   while (nodes[n].first_child != 0)
     n = nodes[n].first_child + uint32_t(double(c[nodes[n].axis_or_leaf]) >= nodes[n].split);
   last = {lookup_generation_, nodes[n].axis_or_leaf};
@@ -273,6 +276,33 @@ void SDTree::index_lookups() {
     stack.push_back({n.first_child, it.lo, it.size, it.world_size});
     it.lo[n.axis] = r.split;
     stack.push_back({n.first_child + 1, it.lo, it.size, it.world_size});
+  }
+  // The grid: a node's box in cells [lo, lo + size) per axis; a node whose
+  // split falls inside a cell (or a leaf) names all of its cells.
+  constexpr uint32_t kCells = 1u << kLookupGridBits;
+  lookup_grid_.assign(size_t(kCells) * kCells * kCells, 0);
+  struct Cells {
+    uint32_t node;
+    uint32_t lo[3], size[3];
+  };
+  std::vector<Cells> cells{{0, {0, 0, 0}, {kCells, kCells, kCells}}};
+  while (!cells.empty()) {
+    Cells it = cells.back();
+    cells.pop_back();
+    const RegionNode& r = region_nodes_[it.node];
+    const uint32_t a = r.axis_or_leaf;
+    if (r.first_child != 0 && it.size[a] >= 2) {
+      it.size[a] /= 2;
+      cells.push_back({r.first_child, {it.lo[0], it.lo[1], it.lo[2]}, {it.size[0], it.size[1], it.size[2]}});
+      it.lo[a] += it.size[a];
+      it.node = r.first_child + 1;
+      cells.push_back(it);
+      continue;
+    }
+    for (uint32_t z = it.lo[2]; z < it.lo[2] + it.size[2]; ++z)
+      for (uint32_t y = it.lo[1]; y < it.lo[1] + it.size[1]; ++y)
+        for (uint32_t x = it.lo[0]; x < it.lo[0] + it.size[0]; ++x)
+          lookup_grid_[(size_t(z) * kCells + y) * kCells + x] = it.node;
   }
   tbb::parallel_for(size_t(0), leaves_.size(), [&](size_t l) {
     SpatialLeaf& leaf = leaves_[l];
@@ -464,6 +494,7 @@ void SDTree::add_samples(std::span<const SDTreeSample> samples) {
   // The leaf of every sample, then the samples of each leaf in index order
   // (a counting sort), then the leaves in parallel.
   const size_t count = samples.size();
+  reserve_huge(leaf_of_, count);
   if (leaf_of_.size() < count) leaf_of_.resize(count);
   std::optional<ScopedTimer> timer(std::in_place, times_.classify);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
@@ -488,6 +519,7 @@ void SDTree::add_samples(std::span<const SDTreeSample> samples) {
   const uint64_t valid = first_.back();
   recorded_ += valid;
   dropped_ += count - valid;
+  reserve_huge(order_, valid);
   if (order_.size() < valid) order_.resize(valid);
   for (size_t i = 0; i < count; ++i)
     if (leaf_of_[i] != kInvalidLeaf) order_[first_[leaf_of_[i]]++] = uint32_t(i);
@@ -687,7 +719,9 @@ size_t SDTree::memory_bytes() const {
              leaf.building.capacity() * sizeof(BuildingQuadNode);
   bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3) +
            leaf_box_.capacity() * sizeof(LeafBox);
-  bytes += (leaf_of_.capacity() + order_.capacity() + first_.capacity() + busiest_.capacity()) * sizeof(uint32_t);
+  bytes += (leaf_of_.capacity() + order_.capacity() + first_.capacity() + busiest_.capacity() +
+            lookup_grid_.capacity()) *
+           sizeof(uint32_t);
   return bytes;
 }
 

@@ -258,6 +258,13 @@ class SDTree final : public DirectionalGuide {
     uint32_t axis_or_leaf = 0;
   };
   std::vector<RegionNode> region_nodes_;  // nodes_, for leaf_at
+  // A uniform grid of 2^kLookupGridBits cells per axis over the root box,
+  // each naming the deepest node whose box holds the whole cell: leaf_at
+  // starts its descent there.  The planes above that node lie on cell edges
+  // (dyadic), so the cell decides them exactly as the comparisons would; it
+  // spares the first levels of a dependent chain of loads (~20 cycles each).
+  static constexpr int kLookupGridBits = 4;
+  std::vector<uint32_t> lookup_grid_;
   // Each leaf's box in the root box's unit coordinates, [lo, hi) per axis
   // (the split planes that bound it, exactly): leaf_at tries the leaf it
   // found last on the calling thread first, since shading visits hits sorted

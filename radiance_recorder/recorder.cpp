@@ -1,6 +1,7 @@
 #include "radiance_recorder/recorder.h"
 
 #include "core/hash.h"
+#include "core/huge_pages.h"
 #include "core/log.h"
 #include "core/stats.h"
 
@@ -440,6 +441,7 @@ void RadianceRecorder::record(ThreadCache& tc, Vertex& v) {
   s.sample = v.sample;
   s.depth = v.depth;
   s.flags = uint8_t(v.flags & ~kVertexTrains);
+  grow_huge_for_one_more(tc.samples);
   tc.samples.push_back(s);
 }
 
@@ -528,6 +530,8 @@ std::span<const TrainingSample> RadianceRecorder::sorted_samples() {
   const int key_bits = bits_for(max_pixel) + sample_bits + depth_bits + flag_bits;
 
   std::vector<SortPair>& keys = keys_;
+  reserve_huge(keys, n);
+  reserve_huge(scratch_, n);  // radix_sort resizes it to n
   if (keys.size() != n) keys.resize(n);
   if (key_bits <= 64) {
     tbb::parallel_for(size_t(0), parts.size(), [&](size_t p) {
@@ -546,6 +550,7 @@ std::span<const TrainingSample> RadianceRecorder::sorted_samples() {
       return std::tie(x.pixel, x.sample, x.depth, x.flags) < std::tie(y.pixel, y.sample, y.depth, y.flags);
     });
   }
+  reserve_huge(sorted_, n);
   if (sorted_.size() < n) sorted_.resize(n);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, size_t(1) << 14), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) sorted_[i] = sample_at(keys[i].index);

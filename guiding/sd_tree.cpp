@@ -220,8 +220,9 @@ thread_local LastLeaf last_leaf;
 
 uint32_t SDTree::leaf_at(const vec3& p) const {
   const vec3 q = (p - root_.min) / root_size_;  // as find_leaf computes it
-  const float c[3] = {std::clamp(q.x, 0.0f, kOneMinusEpsilon), std::clamp(q.y, 0.0f, kOneMinusEpsilon),
-                      std::clamp(q.z, 0.0f, kOneMinusEpsilon)};
+  // As a clamp to [0, 1), but a NaN lands in cell 0 too: it indexes the grid below.
+  auto unit = [](float x) { return x > 0.0f ? std::min(x, kOneMinusEpsilon) : 0.0f; };
+  const float c[3] = {unit(q.x), unit(q.y), unit(q.z)};
   // The box test and the descent compare with the same planes, so they agree
   // exactly: the leaf does not depend on what the thread looked up before.
   LastLeaf& last = last_leaf;

@@ -3,6 +3,7 @@
 #include "core/color.h"
 #include "core/memo.h"
 #include "scene/noise.h"
+#include "scene/shape_bounds.h"
 #include "scene/spectrum.h"
 
 #include <algorithm>
@@ -430,31 +431,14 @@ std::optional<Bounds3> light_bounds(const Scene& scene, const Light& l, const st
     for (const vec3& p : scene.meshes[size_t(s.mesh)].p) b = union_bounds(b, p);
     return b;
   }
-  // A quadric: the corners of a box around it in object space, carried to render space.
-  float r = 0.0f, z0 = 0.0f, z1 = 0.0f;
-  switch (s.kind) {
-    case ShapeKind::Sphere: r = std::abs(s.sphere.radius), z0 = -r, z1 = r; break;
-    case ShapeKind::Disk: r = std::abs(s.disk.radius), z0 = z1 = s.disk.height; break;
-    case ShapeKind::Cylinder:
-      r = std::abs(s.cylinder.radius);
-      z0 = std::min(s.cylinder.zmin, s.cylinder.zmax), z1 = std::max(s.cylinder.zmin, s.cylinder.zmax);
-      break;
-    case ShapeKind::TriangleMesh:
-    case ShapeKind::Curve: return std::nullopt;
-  }
-  for (int c = 0; c < 8; ++c)
-    b = union_bounds(b, s.render_from_object.point(vec3((c & 1) ? r : -r, (c & 2) ? r : -r, (c & 4) ? z1 : z0)));
-  return b;
+  if (s.kind == ShapeKind::Curve) return std::nullopt;
+  return transform_bounds(glm::dmat4(s.render_from_object.m), quadric_object_bounds(s));
 }
 
 // Whether box b (render space) lies outside sphere s by a margin.
 bool outside_sphere(const Shape& s, const Bounds3& b) {
   if (b.empty()) return true;
-  const Transform object_from_render = s.render_from_object.inverse();
-  Bounds3 o;
-  for (int c = 0; c < 8; ++c)
-    o = union_bounds(o, object_from_render.point(vec3((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y,
-                                                      (c & 4) ? b.max.z : b.min.z)));
+  const Bounds3 o = transform_bounds(glm::dmat4(s.render_from_object.m_inv), b);
   const vec3 nearest = glm::clamp(vec3(0.0f), o.min, o.max);
   return glm::length(nearest) > 1.001f * s.sphere.radius;
 }

@@ -425,14 +425,7 @@ std::optional<Bounds3> light_bounds(const Scene& scene, const Light& l, const st
     case LightKind::Area: break;
   }
   if (l.shape < 0 || !top_level[size_t(l.shape)]) return std::nullopt;
-  const Shape& s = scene.shapes[size_t(l.shape)];
-  Bounds3 b;
-  if (s.kind == ShapeKind::TriangleMesh) {
-    for (const vec3& p : scene.meshes[size_t(s.mesh)].p) b = union_bounds(b, p);
-    return b;
-  }
-  if (s.kind == ShapeKind::Curve) return std::nullopt;
-  return transform_bounds(glm::dmat4(s.render_from_object.m), quadric_object_bounds(s));
+  return top_level_shape_bounds(scene, scene.shapes[size_t(l.shape)]);
 }
 
 // Whether box b (render space) lies outside sphere s by a margin.

@@ -4,6 +4,8 @@
 #include "core/bounds.h"
 #include "scene/scene.h"
 
+#include <optional>
+
 namespace theia {
 
 // A quadric's object-space box (a sphere's z range, a disk's plane).
@@ -12,5 +14,8 @@ Bounds3 quadric_object_bounds(const Shape& s);
 Bounds3 padded_bounds(Bounds3 b);
 // The padded box of b's corners carried by m.
 Bounds3 transform_bounds(const glm::dmat4& m, const Bounds3& b);
+// A top-level triangle mesh's or quadric's padded render-space box (meshes
+// are baked to render space); nullopt for a curve.
+std::optional<Bounds3> top_level_shape_bounds(const Scene& scene, const Shape& s);
 
 }  // namespace theia

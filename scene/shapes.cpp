@@ -189,6 +189,15 @@ Bounds3 transform_bounds(const glm::dmat4& m, const Bounds3& b) {
   return padded_bounds(r);
 }
 
+std::optional<Bounds3> top_level_shape_bounds(const Scene& scene, const Shape& s) {
+  if (s.kind == ShapeKind::Curve) return std::nullopt;
+  if (s.kind != ShapeKind::TriangleMesh)
+    return transform_bounds(glm::dmat4(s.render_from_object.m), quadric_object_bounds(s));
+  Bounds3 b;
+  for (const vec3& p : scene.meshes[size_t(s.mesh)].p) b = union_bounds(b, p);
+  return b.empty() ? b : padded_bounds(b);
+}
+
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
   if (m.uv.empty()) {
     uv[0] = vec2(0, 0), uv[1] = vec2(1, 0), uv[2] = vec2(1, 1);

@@ -68,18 +68,13 @@ std::vector<Bounds3> find_caster_boxes(const Scene& scene) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& s = scene.shapes[i];
     if (!may_cast(scene, int(i))) continue;
-    if (!top_level[i] || s.kind == ShapeKind::Curve) return {};
-    if (s.kind != ShapeKind::TriangleMesh) {
-      boxes.push_back(transform_bounds(glm::dmat4(s.render_from_object.m), quadric_object_bounds(s)));
-      continue;
-    }
-    Bounds3 b;
-    for (const vec3& p : scene.meshes[size_t(s.mesh)].p) b = union_bounds(b, p);  // meshes are baked
-    if (!b.empty()) boxes.push_back(padded_bounds(b));
+    const std::optional<Bounds3> b = top_level[i] ? top_level_shape_bounds(scene, s) : std::nullopt;
+    if (!b) return {};
+    if (!b->empty()) boxes.push_back(*b);
   }
   if (boxes.size() > kMaxCasterBoxes) {
     Bounds3 all;
-    for (const Bounds3& b : boxes) all = union_bounds(union_bounds(all, b.min), b.max);
+    for (const Bounds3& b : boxes) all = union_bounds(all, b);
     boxes.assign(1, all);
   }
   return boxes;

@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <string>
@@ -162,26 +163,41 @@ struct Measurement {
 Measurement measure(const Scene& scene, int spp, bool sort) {
   RenderableScene rs(scene);
   const Accel& accel = rs.accel;
-  Film film(scene.film.width, scene.film.height);
-  std::vector<Ray> rays, shadow_rays;
   EngineOptions opt;
   opt.max_depth = scene.settings.max_depth;
   opt.sort = sort;
-  opt.capture_rays = &rays;
-  opt.capture_shadow_rays = &shadow_rays;
-  WavefrontEngine engine(rs, film, opt);
-  double cpu0 = process_cpu_seconds();
-  engine.render(0, uint32_t(spp));
-  double render_cpu = process_cpu_seconds() - cpu0;
-  const EngineStats& st = engine.stats();
   Measurement m;
-  m.rays = st.total_rays();
-  m.render_seconds = st.render_seconds;
-  m.render_cpu_seconds = render_cpu;
-  m.engine_mrays = double(m.rays) / st.render_seconds * 1e-6;
-  m.trace_phase_mrays = double(m.rays) / (st.phases[Phase::Trace] + st.phases[Phase::TraceShadow]) * 1e-6;
+  {
+    Film film(scene.film.width, scene.film.height);
+    WavefrontEngine engine(rs, film, opt);
+    double cpu0 = process_cpu_seconds();
+    engine.render(0, uint32_t(spp));
+    double render_cpu = process_cpu_seconds() - cpu0;
+    const EngineStats& st = engine.stats();
+    m.rays = st.total_rays();
+    m.render_seconds = st.render_seconds;
+    m.render_cpu_seconds = render_cpu;
+    m.engine_mrays = double(m.rays) / st.render_seconds * 1e-6;
+    m.trace_phase_mrays = double(m.rays) / (st.phases[Phase::Trace] + st.phases[Phase::TraceShadow]) * 1e-6;
+  }
 
-  // The same rays, in the same (sorted or queue) order, traced alone.
+  // The same rays, in the same (sorted or queue) order, traced alone.  They
+  // are captured by a second, untimed render (the engine is deterministic):
+  // appending every batch to one growing array is serial work and page faults
+  // that the timed render must not carry.
+  std::vector<Ray> rays, shadow_rays;
+  {
+    Film film(scene.film.width, scene.film.height);
+    opt.capture_rays = &rays;
+    opt.capture_shadow_rays = &shadow_rays;
+    WavefrontEngine engine(rs, film, opt);
+    engine.render(0, uint32_t(spp));
+    if (rays.size() + shadow_rays.size() != m.rays) {
+      std::fprintf(stderr, "theia_bench: the capturing render traced %zu rays, the timed one %llu\n",
+                   rays.size() + shadow_rays.size(), static_cast<unsigned long long>(m.rays));
+      std::exit(1);
+    }
+  }
   std::vector<Hit> hits(rays.size());
   std::vector<uint8_t> blocked(shadow_rays.size());
   auto t0 = std::chrono::steady_clock::now();

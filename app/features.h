@@ -399,7 +399,7 @@ class AdaptiveFeature final : public Feature {
 struct SchedulingOptions {
   std::string schedule;           // regular | guiding; empty: guiding with --guiding, else regular
   std::string combine;            // equal | inverse-variance; empty: combine_name()
-  int combine_window = 0;         // spp; 0: the last half of the samples rendered
+  int combine_window = 0;         // spp; 0: every iteration
   bool resume = false;            // fail unless a checkpoint is found
   double time_limit = 0.0;        // seconds of render clock; 0: none (IterationConfig::time_limit)
 };
@@ -410,12 +410,11 @@ void declare_options(V& v, SchedulingOptions& o) {
           "Iteration schedule: regular (16 16 32 ... 256) or guiding (1 x8, 2 ... 16); default: guiding with "
           "--guiding, else regular");
   v.image("combine", o.combine,
-          "Combining iterations: equal, or inverse-variance (whole-image weights over the last --combine-window "
-          "spp, used only where estimated less noisy than equal weights); default: inverse-variance with --guiding "
+          "Combining iterations: equal, or inverse-variance (whole-image weights per iteration, "
+          "used only where estimated less noisy than equal weights); default: inverse-variance with --guiding "
           "(equal with --sample-range, --aov-events or --recorder-debug), else equal");
   v.image("combine_window", o.combine_window,
-          "Inverse-variance weighting: the iterations in the last this many spp (0: the last half of the samples "
-          "rendered)");
+          "Inverse-variance weighting: only the iterations in the last this many spp (0: every iteration)");
   v.output("resume", o.resume, "Resume from --checkpoint-dir; fail if there is no checkpoint");
   // Where the render ends, not what a sample is: outside the fingerprint, so
   // a checkpoint resumes with another limit or none.

@@ -100,10 +100,9 @@ void ImageAccumulator::fold(const Film& it, uint32_t spp_begin, uint32_t spp_end
   if (combination == Combination::Equal) return;
 
   // Runs that ended before the window leave it (the boundary only moves forward).
-  const uint32_t w = window > 0 ? window : (spp_end + 1) / 2;
   // settled_from is known from the iteration that begins there on, and every
   // boundary before lay at or before it: the boundary still only moves forward.
-  const uint32_t boundary = std::min(spp_end > w ? spp_end - w : 0, settled_from);
+  const uint32_t boundary = window > 0 ? std::min(spp_end > window ? spp_end - window : 0, settled_from) : 0;
   std::erase_if(runs, [&](const WeightedRun& r) { return r.spp_end <= boundary; });
 
   const std::vector<float> var = half_buffer_variance(it);

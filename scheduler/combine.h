@@ -16,12 +16,15 @@
 // without bias (a pixel an iteration did not reach gets nothing from it), and
 // equal lambdas are exactly equal weighting.
 //
-// Only the iterations in the last `window` spp take part: the early guided
-// iterations are the ones learning (Mueller 2017 keeps only the last, which
-// has half the samples of a doubling schedule); the default is the last half
-// of the samples rendered, and never less than every sample since the
-// estimator settled (fold's `settled_from`).  The samples before the window are in the equal
-// image only, and resolve() uses the inverse-variance image only where it is
+// By default every iteration with a variance estimate takes part (seeds/001
+// 10.3 combines them all: a learning iteration's noise lowers its weight
+// rather than removing its samples).  A `window` in spp keeps only the
+// iterations in the last that many spp (Mueller 2017 keeps only the last
+// iteration, half the samples of a doubling schedule), and never fewer than
+// every sample since the estimator settled (fold's `settled_from`).  The
+// samples before the window, and those of iterations without a variance
+// estimate (1 spp), are in the equal image only, and resolve() uses the
+// inverse-variance image only where it is
 // estimated to be less noisy than the equal one (mean over the image of both
 // variance estimates, from the same half buffers), so it is never worse than
 // equal weights by that estimate; choice() says which it used and why.
@@ -98,7 +101,7 @@ struct ImageAccumulator {
 
   Film total;                      // every iteration summed
   Combination combination;
-  uint32_t window;                 // spp; 0: the last half of the samples rendered
+  uint32_t window;                 // spp; 0: every iteration
   std::vector<WeightedRun> runs;   // inverse-variance only: the runs in the window, oldest first
   uint32_t skipped = 0;            // iterations left out of the weighting (no variance estimate)
 

@@ -249,11 +249,11 @@ TEST(Combination, EqualPerSampleVarianceGivesTheEqualWeightImage) {
     accumulate(acc, sizes, std::vector<float>(sizes.size(), 0.3f), nullptr);
     EXPECT_LT(max_abs_difference(acc.resolve(), equal_image(acc)), 1e-6);
   }
-  // With noise drawn at random and the default window (the last half of the
-  // samples, whole iterations: here 32 of 48), the weighted image has fewer
-  // samples at the same per-sample variance: equal weights are used.
+  // With noise drawn at random and a window of the last 32 of 48 spp, the
+  // weighted image has fewer samples at the same per-sample variance: equal
+  // weights are used.
   std::mt19937 rng(7);
-  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 0);
+  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 32);
   accumulate(acc, sizes, std::vector<float>(sizes.size(), 0.3f), &rng);
   CombinationChoice c = acc.choice();
   EXPECT_EQ(c.used, Combination::Equal) << c.why;
@@ -269,7 +269,7 @@ TEST(Combination, MuchBetterLaterIterationsAreWeighted) {
   accumulate(acc, {16, 16, 16, 16, 16, 16, 16, 16}, {1, 1, 1, 1, 0.05f, 0.05f, 0.05f, 0.05f}, &rng);
   CombinationChoice c = acc.choice();
   ASSERT_EQ(c.used, Combination::InverseVariance) << c.why;
-  EXPECT_EQ(c.window_begin, 64u);
+  EXPECT_EQ(c.window_begin, 0u);  // every iteration: the noisy ones with 1/400 of the weight
   EXPECT_EQ(c.window_end, 128u);
   EXPECT_LT(c.weighted_variance, 0.1 * c.equal_variance);
   const double weighted = mse_against_truth(acc.resolve()), equal = mse_against_truth(equal_image(acc));
@@ -304,8 +304,8 @@ TEST(Combination, NeverWorseThanEqualWeights) {
   EXPECT_GT(weighted, 0);  // the cases include some the weighting wins
 }
 
-// A guided render's field froze at 32 spp of 256: the last-half window would
-// weigh only 128 of the 224 settled samples; told where the estimator
+// A guided render's field froze at 32 spp of 256: a window of the last half
+// would weigh only 128 of the 224 settled samples; told where the estimator
 // settled, the window keeps all of them and the image is less noisy.
 TEST(Combination, EverySampleSinceTheEstimatorSettledStaysInTheWindow) {
   const std::vector<uint32_t> sizes = {8, 8, 16, 32, 32, 32, 32, 32, 32, 32};
@@ -313,7 +313,8 @@ TEST(Combination, EverySampleSinceTheEstimatorSettledStaysInTheWindow) {
   double settled_mse = 0.0, half_mse = 0.0;
   for (int trial = 0; trial < 8; ++trial) {
     std::mt19937 rng_a(100 + trial), rng_b(100 + trial);  // the same samples for both
-    ImageAccumulator half(kW, kH, Combination::InverseVariance, 0), settled(kW, kH, Combination::InverseVariance, 0);
+    ImageAccumulator half(kW, kH, Combination::InverseVariance, 128),
+        settled(kW, kH, Combination::InverseVariance, 128);
     accumulate(half, sizes, sigmas, &rng_a);
     Film it(kW, kH);
     uint32_t begin = 0;
@@ -332,6 +333,34 @@ TEST(Combination, EverySampleSinceTheEstimatorSettledStaysInTheWindow) {
   }
   // 224 settled samples against 128: about 0.57x the variance.
   EXPECT_LT(settled_mse, 0.75 * half_mse);
+}
+
+// The default weighs every iteration: a learning phase whose samples are
+// noisier (here 2x, then 1.4x the standard deviation of the settled ones)
+// adds to the image with its lower weight.  Equal weights let its noise in
+// at full weight; a window of the last half drops its samples and those of
+// the first settled iteration, and is then estimated noisier than equal weights.
+TEST(Combination, TheDefaultWeighsTheLearningIterationsToo) {
+  const std::vector<uint32_t> sizes = {8, 8, 16, 32, 64, 64, 64};
+  const std::vector<float> sigmas = {1.0f, 1.0f, 0.7f, 0.7f, 0.5f, 0.5f, 0.5f};
+  double every_mse = 0.0, equal_mse = 0.0;
+  for (int trial = 0; trial < 8; ++trial) {
+    std::mt19937 rng_a(200 + trial), rng_b(200 + trial);  // the same samples for both
+    ImageAccumulator every(kW, kH, Combination::InverseVariance, 0),
+        half(kW, kH, Combination::InverseVariance, 128);
+    accumulate(every, sizes, sigmas, &rng_a);
+    accumulate(half, sizes, sigmas, &rng_b);
+    const CombinationChoice c = every.choice(), h = half.choice();
+    ASSERT_EQ(c.used, Combination::InverseVariance) << c.why;
+    EXPECT_EQ(c.window_begin, 0u);
+    EXPECT_EQ(h.window_begin, 128u);
+    EXPECT_GT(h.weighted_variance, h.equal_variance);  // 128 settled samples: 0.00195 against 0.00134
+    every_mse += mse_against_truth(every.resolve());
+    equal_mse += mse_against_truth(equal_image(every));
+  }
+  // Per pixel, equal weights: (16 x 1 + 48 x 0.49 + 192 x 0.25) / 256^2 = 0.00134;
+  // inverse variance: 0.25 / (16 / 4 + 48 / 1.96 + 192) = 0.00113, 0.85x.
+  EXPECT_LT(every_mse, 0.9 * equal_mse);
 }
 
 // However many iterations, the weighting keeps at most kMaxBlocks runs, all in the window.

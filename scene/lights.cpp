@@ -326,7 +326,10 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
   };
   switch (light.kind) {
     case LightKind::Area: {
-      auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim, primitive);
+      const Shape& shape = lights.scene->shapes[size_t(light.shape)];
+      // The uv is read only by an image's lookup and an alpha test.
+      const bool want_uv = light.image >= 0 || shape.alpha >= 0;
+      auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim, primitive, want_uv);
       if (!ss || ss->pdf == 0.0f) return std::nullopt;
       vec3 d = ss->p - ctx.p;
       float dist2 = glm::dot(d, d);
@@ -336,7 +339,6 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
       // pbrt-v4's invisible area light: a constant alpha of 0 hides the
       // shape from every ray but not its emission, and since rays never find
       // it, light samples take no MIS weight (pbrt-v4 makes it DeltaPosition).
-      const Shape& shape = lights.scene->shapes[size_t(light.shape)];
       bool invisible = shape.alpha >= 0 && lights.scene->textures[size_t(shape.alpha)].kind == TextureKind::Constant &&
                        lights.scene->textures[size_t(shape.alpha)].value.x <= 0.0f;
       if (!invisible && area_light_alpha_masked(*lights.scene, light.shape, ss->p, ss->uv)) return std::nullopt;

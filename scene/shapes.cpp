@@ -695,7 +695,7 @@ float ShapeSampling::area_pdf(const Entry& e, const vec3& p, int prim) const {
 }
 
 std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim,
-                                                 int triangle) const {
+                                                 int triangle, bool want_uv) const {
   if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
   const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
   if (!(e.area > 0.0f)) return std::nullopt;
@@ -726,9 +726,11 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       ss.p = e.center + e.render_radius * n_out;
       ss.p_error = gamma_bound(5) * glm::abs(ss.p);
       ss.n = e.flip ? -n_out : n_out;
-      dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
-      double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
-      ss.uv = sphere_uv(sp, phi_of(p_obj.x, p_obj.y), theta);  // what sphere_local gives, without its frame
+      if (want_uv) {
+        dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
+        double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
+        ss.uv = sphere_uv(sp, phi_of(p_obj.x, p_obj.y), theta);  // what sphere_local gives, without its frame
+      }
       ss.pdf = 1.0f / (2.0f * kPi * one_minus_cos_max);
       if (!std::isfinite(ss.pdf)) return std::nullopt;
       return ss;

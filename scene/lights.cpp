@@ -3,6 +3,7 @@
 #include "core/hash.h"
 #include "core/log.h"
 #include "core/sampling.h"
+#include "scene/emission_side.h"
 #include "scene/texture.h"
 #include "scene/tokenizer.h"
 
@@ -445,15 +446,7 @@ std::optional<LightLeSample> sample_le(const LightSet& lights, int light_index, 
   ls.n = ss->n;
   ls.pdf_pos = ss->pdf;
   vec3 n = ss->n;
-  if (light.two_sided) {
-    // The first coordinate picks the side and is stretched back to [0, 1).
-    if (u_dir.x < 0.5f) {
-      u_dir.x = std::min(u_dir.x * 2.0f, kOneMinusEpsilon);
-    } else {
-      u_dir.x = std::min((u_dir.x - 0.5f) * 2.0f, kOneMinusEpsilon);
-      n = -n;
-    }
-  }
+  if (light.two_sided && emission_back_side(u_dir)) n = -n;
   vec3 w_local = sample_cosine_hemisphere(u_dir);
   ls.pdf_dir = cosine_hemisphere_pdf(w_local.z) * (light.two_sided ? 0.5f : 1.0f);
   if (!(ls.pdf_dir > 0.0f)) return std::nullopt;

@@ -31,11 +31,25 @@ T trilinear(const Medium& m, const std::vector<T>& v, const vec3& p) {
   const vec3 f = glm::floor(g);
   const int x = int(f.x), y = int(f.y), z = int(f.z);
   const vec3 d = g - f;
+  // The 8 corners (c[dz][dy][dx]): inside the grid read straight from their
+  // first corner, at the border one by one (zero outside).  One lerp code for
+  // both, so that both round alike.
+  T c[2][2][2];
+  if (x >= 0 && y >= 0 && z >= 0 && x + 1 < m.nx && y + 1 < m.ny && z + 1 < m.nz) {
+    const size_t sy = size_t(m.nx), sz = size_t(m.nx) * size_t(m.ny);
+    const T* b = &v[size_t(z) * sz + size_t(y) * sy + size_t(x)];
+    c[0][0][0] = b[0], c[0][0][1] = b[1], c[0][1][0] = b[sy], c[0][1][1] = b[sy + 1];
+    c[1][0][0] = b[sz], c[1][0][1] = b[sz + 1], c[1][1][0] = b[sz + sy], c[1][1][1] = b[sz + sy + 1];
+  } else {
+    for (int k = 0; k < 2; ++k)
+      for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) c[k][j][i] = voxel(m, v, x + i, y + j, z + k);
+  }
   auto lerp = [](float t, const T& a, const T& b) { return (1.0f - t) * a + t * b; };
-  const T d00 = lerp(d.x, voxel(m, v, x, y, z), voxel(m, v, x + 1, y, z));
-  const T d10 = lerp(d.x, voxel(m, v, x, y + 1, z), voxel(m, v, x + 1, y + 1, z));
-  const T d01 = lerp(d.x, voxel(m, v, x, y, z + 1), voxel(m, v, x + 1, y, z + 1));
-  const T d11 = lerp(d.x, voxel(m, v, x, y + 1, z + 1), voxel(m, v, x + 1, y + 1, z + 1));
+  const T d00 = lerp(d.x, c[0][0][0], c[0][0][1]);
+  const T d10 = lerp(d.x, c[0][1][0], c[0][1][1]);
+  const T d01 = lerp(d.x, c[1][0][0], c[1][0][1]);
+  const T d11 = lerp(d.x, c[1][1][0], c[1][1][1]);
   return lerp(d.z, lerp(d.y, d00, d10), lerp(d.y, d01, d11));
 }
 

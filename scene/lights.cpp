@@ -3,6 +3,7 @@
 #include "core/hash.h"
 #include "core/log.h"
 #include "core/sampling.h"
+#include "scene/emission_side.h"
 #include "scene/texture.h"
 #include "scene/tokenizer.h"
 
@@ -326,7 +327,10 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
   };
   switch (light.kind) {
     case LightKind::Area: {
-      auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim, primitive);
+      const Shape& shape = lights.scene->shapes[size_t(light.shape)];
+      // The uv is read only by an image's lookup and an alpha test.
+      const bool want_uv = light.image >= 0 || shape.alpha >= 0;
+      auto ss = lights.shapes.sample(light.shape, ShapeSampleContext{ctx.p, ctx.ng}, u, u_prim, primitive, want_uv);
       if (!ss || ss->pdf == 0.0f) return std::nullopt;
       vec3 d = ss->p - ctx.p;
       float dist2 = glm::dot(d, d);
@@ -336,7 +340,6 @@ std::optional<LightLiSample> sample_li(const LightSet& lights, int light_index, 
       // pbrt-v4's invisible area light: a constant alpha of 0 hides the
       // shape from every ray but not its emission, and since rays never find
       // it, light samples take no MIS weight (pbrt-v4 makes it DeltaPosition).
-      const Shape& shape = lights.scene->shapes[size_t(light.shape)];
       bool invisible = shape.alpha >= 0 && lights.scene->textures[size_t(shape.alpha)].kind == TextureKind::Constant &&
                        lights.scene->textures[size_t(shape.alpha)].value.x <= 0.0f;
       if (!invisible && area_light_alpha_masked(*lights.scene, light.shape, ss->p, ss->uv)) return std::nullopt;
@@ -443,15 +446,7 @@ std::optional<LightLeSample> sample_le(const LightSet& lights, int light_index, 
   ls.n = ss->n;
   ls.pdf_pos = ss->pdf;
   vec3 n = ss->n;
-  if (light.two_sided) {
-    // The first coordinate picks the side and is stretched back to [0, 1).
-    if (u_dir.x < 0.5f) {
-      u_dir.x = std::min(u_dir.x * 2.0f, kOneMinusEpsilon);
-    } else {
-      u_dir.x = std::min((u_dir.x - 0.5f) * 2.0f, kOneMinusEpsilon);
-      n = -n;
-    }
-  }
+  if (light.two_sided && emission_back_side(u_dir)) n = -n;
   vec3 w_local = sample_cosine_hemisphere(u_dir);
   ls.pdf_dir = cosine_hemisphere_pdf(w_local.z) * (light.two_sided ? 0.5f : 1.0f);
   if (!(ls.pdf_dir > 0.0f)) return std::nullopt;

@@ -32,10 +32,12 @@ MediumProps medium_props(const Medium& m, const vec3& p_medium);
 bool medium_is_emissive(const Medium& m);
 // The majorant: the largest extinction of any channel anywhere in the medium.
 float medium_majorant(const Medium& m);
-// The majorant grid (Medium::majorants) of a grid or cloud medium:
-// kMajorantGridRes^3 cells over its box, each a bound on the density (an
-// rgbgrid: on sigma_t) anywhere inside it (pbrt-v4's 16^3), so that
-// tracking's cost follows the local density.  Also sets max_density.
+// The majorant grid (Medium::majorants) of a grid or cloud medium: res^3
+// cells over its box, each a bound on the density (an rgbgrid: on sigma_t)
+// anywhere inside it, so that tracking's cost follows the local density.
+// res is kMajorantGridRes (pbrt-v4's 16) for a cloud and for a grid of 61 or
+// more voxels along its longest axis, a cell per 4 of them below that
+// (media.cpp majorant_res; the grid holds res^3 values).  Also sets max_density.
 inline constexpr int kMajorantGridRes = 16;
 void build_majorant_grid(Medium& m);
 

@@ -1,4 +1,5 @@
 #include "scene/shapes.h"
+#include "scene/surface_crossing.h"
 
 #include "core/log.h"
 #include "scene/curve_params.h"
@@ -318,13 +319,22 @@ void triangle_normal_derivatives(const TriangleMesh& m, size_t tri, const vec2 u
   if (glm::dot(dn, dn) > 0.0f) coordinate_system(glm::normalize(dn), dndu, dndv);
 }
 
+// A triangle hit's point and error bound: where both the full interaction
+// and a crossing (surface_crossing.h) start.
+[[gnu::always_inline]] inline void triangle_point(const TriangleMesh& m, size_t tri, float b0, float b1, float b2,
+                                                  SurfaceInteraction& si) {
+  uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
+  const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
+  si.p = b0 * p0 + b1 * p1 + b2 * p2;
+  si.p_error = gamma_bound(7) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
+}
+
 SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, size_t tri, float b1, float b2) {
   float b0 = 1.0f - b1 - b2;
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
   const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
   SurfaceInteraction si;
-  si.p = b0 * p0 + b1 * p1 + b2 * p2;
-  si.p_error = gamma_bound(7) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
+  triangle_point(m, tri, b0, b1, b2, si);
   vec2 uv[3];
   triangle_uvs(m, tri, uv);
   si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
@@ -478,6 +488,26 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   si.material = s.material;
   si.area_light = s.area_light;
   si.instance = inst;
+  return si;
+}
+
+SurfaceInteraction crossing_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit) {
+  const int shape = accel.shape_index(hit);
+  if (shape < 0 || scene.shapes[size_t(shape)].kind != ShapeKind::TriangleMesh || accel.instance_index(hit) >= 0)
+    return compute_interaction(scene, accel, ray, hit);
+  const Shape& s = scene.shapes[size_t(shape)];
+  SurfaceInteraction si;
+  const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
+  const float b0 = 1.0f - hit.u - hit.v;
+  triangle_point(m, hit.prim, b0, hit.u, hit.v, si);
+  si.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, hit.prim, b0, hit.u, hit.v, &si.ns);
+  si.prim = int(hit.prim);
+  si.wo = -glm::normalize(ray.d);
+  si.t = hit.t;
+  si.shape = shape;
+  si.material = s.material;
+  si.area_light = s.area_light;
+  si.instance = -1;
   return si;
 }
 
@@ -695,7 +725,7 @@ float ShapeSampling::area_pdf(const Entry& e, const vec3& p, int prim) const {
 }
 
 std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim,
-                                                 int triangle) const {
+                                                 int triangle, bool want_uv) const {
   if (shape < 0 || size_t(shape) >= entry_of_shape_.size() || entry_of_shape_[size_t(shape)] < 0) return std::nullopt;
   const Entry& e = entries_[size_t(entry_of_shape_[size_t(shape)])];
   if (!(e.area > 0.0f)) return std::nullopt;
@@ -726,9 +756,11 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       ss.p = e.center + e.render_radius * n_out;
       ss.p_error = gamma_bound(5) * glm::abs(ss.p);
       ss.n = e.flip ? -n_out : n_out;
-      dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
-      double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
-      ss.uv = sphere_uv(sp, phi_of(p_obj.x, p_obj.y), theta);  // what sphere_local gives, without its frame
+      if (want_uv) {
+        dvec3 p_obj = dvec3(e.object_from_render * dvec4(dvec3(ss.p), 1.0));
+        double theta = std::acos(std::clamp(p_obj.z / sp.radius, -1.0, 1.0));
+        ss.uv = sphere_uv(sp, phi_of(p_obj.x, p_obj.y), theta);  // what sphere_local gives, without its frame
+      }
       ss.pdf = 1.0f / (2.0f * kPi * one_minus_cos_max);
       if (!std::isfinite(ss.pdf)) return std::nullopt;
       return ss;

@@ -124,8 +124,11 @@ class ShapeSampling {
   // `triangle` >= 0 on a mesh: that triangle, chosen by the caller (a light
   // sampler that treats each triangle as a light, as pbrt-v4 does); the pdf
   // is then the triangle's alone (per unit area 1 / its area), u_prim unused.
+  // `want_uv` false: the caller reads no uv (a light without an image or an
+  // alpha texture), so a sphere's cone sample leaves it 0 instead of paying
+  // an acos, an atan2 and a double transform for it.
   std::optional<ShapeSample> sample(int shape, const ShapeSampleContext& ref, vec2 u, float u_prim,
-                                    int triangle = -1) const;
+                                    int triangle = -1, bool want_uv = true) const;
   // A point by area (what sample() does where it does not sample a cone), pdf per unit area.
   std::optional<ShapeSample> sample_area(int shape, vec2 u, float u_prim, int triangle = -1) const;
   // Solid-angle density with which sample() returns light_hit's point in

@@ -4,6 +4,7 @@
 #include "core/sampler.h"
 #include "core/stats.h"
 #include "scene/bsdf.h"
+#include "scene/emission_side.h"
 #include "scene/shape_bounds.h"
 #include "scene/shapes.h"
 #include "wavefront/sample_dims.h"
@@ -97,6 +98,74 @@ bool may_meet(const Ray& ray, const Bounds3& b) {
   return true;
 }
 
+// A sphere light's emitted rays, estimated in float before sample_le computes
+// them exactly (in double, with the point's error bounds, its pdf and its
+// radiance): a light path whose first ray surely meets no caster box is
+// dropped from the estimate alone.  The estimate repeats sample_le's steps
+// (ShapeSampling::sample_area's uniform (z, phi) point, its normal through the
+// normal matrix, the side of a two-sided light, the cosine-weighted direction
+// in Frame::from_z) from the same numbers, so it lies within float rounding of
+// the exact ray: within kOriginSlack (relative to the point's size) of its
+// origin, the offset included, and kDirectionSlack of its unit direction.
+// A box grown by the origin's slack plus the direction's slack times the
+// farthest the box can be is then met by the estimate wherever the exact ray
+// meets the box, so the exact test (may_meet, itself widened by a few ulps
+// only) drops every path the estimate drops: the image stays bit for bit.
+// The slacks are ~100 times the float rounding they cover.  Where the frame's
+// branch (the sign of n.z) could differ between the two, nothing is dropped.
+struct SphereEmitter {
+  bool valid = false;
+  double zmin = 0.0, zmax = 0.0, radius = 1.0, phimax = 0.0;
+  mat4 render_from_object{1.0f};
+  mat3 normal_matrix{1.0f};
+  bool flip = false, two_sided = false;
+  float size = 0.0f;  // the transformed radius bound, for the origin's slack
+};
+constexpr float kOriginSlack = 1e-4f, kDirectionSlack = 1e-3f, kMinFrameZ = 1e-3f;
+
+SphereEmitter sphere_emitter(const Scene& scene, int light) {
+  SphereEmitter e;
+  const Light& l = scene.lights[size_t(light)];
+  if (l.kind != LightKind::Area || l.shape < 0) return e;
+  const Shape& s = scene.shapes[size_t(l.shape)];
+  if (s.kind != ShapeKind::Sphere) return e;
+  const SphereShape sp = make_sphere_shape(s.sphere);
+  e.zmin = sp.zmin, e.zmax = sp.zmax, e.radius = sp.radius, e.phimax = sp.phimax;
+  e.render_from_object = s.render_from_object.m;
+  e.normal_matrix = glm::transpose(mat3(s.render_from_object.m_inv));
+  e.flip = s.reverse_orientation != s.transform_swaps_handedness;
+  e.two_sided = l.two_sided;
+  const mat3 lin(s.render_from_object.m);
+  e.size = float(sp.radius) * (glm::length(lin[0]) + glm::length(lin[1]) + glm::length(lin[2]));
+  e.valid = sp.radius > 0.0 && std::isfinite(e.size);
+  return e;
+}
+
+// Whether the ray sample_le would make from (u_pos, u_dir) may meet one of
+// the boxes (see SphereEmitter); true wherever the estimate is unsure.
+bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir, const std::vector<Bounds3>& boxes) {
+  const double z = e.zmin + double(u_pos.x) * (e.zmax - e.zmin);
+  const double ct = std::clamp(z / e.radius, -1.0, 1.0);
+  const float st = float(std::sqrt(std::max(0.0, 1.0 - ct * ct)));
+  const float phi = float(double(u_pos.y) * e.phimax);
+  const vec3 n_obj(st * std::cos(phi), st * std::sin(phi), float(ct));
+  const vec3 p = vec3(e.render_from_object * vec4(float(e.radius) * n_obj, 1.0f));
+  vec3 n = glm::normalize(e.normal_matrix * n_obj);
+  if (e.flip) n = -n;
+  if (e.two_sided && emission_back_side(u_dir)) n = -n;
+  if (!(std::abs(n.z) >= kMinFrameZ)) return true;
+  const vec3 w = glm::normalize(Frame::from_z(n).from_local(sample_cosine_hemisphere(u_dir)));
+  const float origin_slack = kOriginSlack * (std::abs(p.x) + std::abs(p.y) + std::abs(p.z) + e.size);
+  const Ray ray{p, 0.0f, w, kInfinity};
+  for (const Bounds3& b : boxes) {
+    const vec3 centre = 0.5f * (b.min + b.max);
+    const float farthest = glm::length(p - centre) + 0.5f * glm::length(b.max - b.min) + origin_slack;
+    const float slack = origin_slack + kDirectionSlack * farthest;
+    if (may_meet(ray, Bounds3(b.min - vec3(slack), b.max + vec3(slack)))) return true;
+  }
+  return false;
+}
+
 // A finished path's connection to the camera, waiting for its shadow ray.
 struct Connection {
   vec2 raster{0.0f};
@@ -152,6 +221,8 @@ struct CausticTracer::Pass {
   // Found per pass (a pass traces a light path per camera sample, far more
   // than the casters' vertices), so that the tracer's header stays as it was.
   const std::vector<Bounds3> caster_boxes;
+  // Per traced light entry (light_of_entry_): its sphere's estimate, when it is one.
+  const std::vector<SphereEmitter> sphere_emitters;
 
   // The chunk in flight.
   uint64_t first = 0;
@@ -169,9 +240,14 @@ struct CausticTracer::Pass {
       : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
         pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
         height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
-        caster_boxes(find_caster_boxes(t.scene_)), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
+        caster_boxes(find_caster_boxes(t.scene_)), sphere_emitters(find_sphere_emitters(t)), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
         dense_hits(kChunk), blocked(kChunk), dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
 
+  static std::vector<SphereEmitter> find_sphere_emitters(const CausticTracer& t) {
+    std::vector<SphereEmitter> e;
+    for (int light : t.light_of_entry_) e.push_back(sphere_emitter(t.scene_, light));
+    return e;
+  }
   // Whether a light path's first ray may meet a caster (caster_boxes).
   bool may_reach_caster(const Ray& ray) const {
     if (caster_boxes.empty()) return true;
@@ -242,8 +318,11 @@ void CausticTracer::Pass::leave_light() {
     float pmf = 0.0f;
     int entry = tracer.light_distribution_.sample_discrete(sample_1d(k, kDimLight), &pmf);
     int light = tracer.light_of_entry_[size_t(entry)];
-    auto le = sample_le(tracer.lights_, light, sample_2d(k, kDimPosition), sample_1d(k, kDimPrim),
-                        sample_2d(k, kDimDirection));
+    const vec2 u_pos = sample_2d(k, kDimPosition), u_dir = sample_2d(k, kDimDirection);
+    // A sphere light's ray that surely misses every caster box is not made at all.
+    const SphereEmitter& se = sphere_emitters[size_t(entry)];
+    if (se.valid && !caster_boxes.empty() && !sphere_ray_may_meet(se, u_pos, u_dir, caster_boxes)) return;
+    auto le = sample_le(tracer.lights_, light, u_pos, sample_1d(k, kDimPrim), u_dir);
     if (!le || !(pmf > 0.0f)) return;
     RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
     if (!keep(beta)) return;

@@ -8,6 +8,7 @@
 #include "wavefront/engine_impl.h"
 
 #include "scene/microfacet.h"
+#include "scene/surface_crossing.h"
 
 #include <tbb/parallel_for.h>
 
@@ -286,7 +287,9 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     const ShapeKind kind = shape >= 0 ? scene.shapes[size_t(shape)].kind : ShapeKind::TriangleMesh;
     if ((kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) && hit.inst != kInvalidId)
       hit = accel.intersect1(ray, skip);
-    const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+    // A mix material's choice reads the whole interaction; passing on needs only the crossing.
+    const SurfaceInteraction si = what == ShadowCrossing::AtHit ? compute_interaction(scene, accel, ray, hit)
+                                                                : crossing_interaction(scene, accel, ray, hit);
     if (what == ShadowCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
     if (!track(hit.t)) return T;
     medium = medium_after(scene, si.shape, si.ng, ray.d, medium);

@@ -321,13 +321,16 @@ TEST(ParserMedia, BadMediaAreErrorsWithLocation) {
 // Every cell of the majorant grid bounds the density anywhere inside it.
 TEST(MediaGrid, MajorantGridBoundsTheDensity) {
   Medium m = test_grid();
+  // res^3 cells (media.h: fewer than kMajorantGridRes per axis for a small grid).
+  const int res = int(std::lround(std::cbrt(double(m.majorants.size()))));
+  ASSERT_EQ(size_t(res) * size_t(res) * size_t(res), m.majorants.size());
   uint64_t k = 0;
   for (int i = 0; i < 200'000; ++i) {
     vec3 u;
     for (int a = 0; a < 3; ++a) u[a] = to_unit_float(uint32_t(hash(k++)));
     const vec3 p = m.p0 + (m.p1 - m.p0) * u;
-    const vec3 c = glm::min((p - m.p0) / (m.p1 - m.p0) * float(kMajorantGridRes), vec3(float(kMajorantGridRes) - 0.5f));
-    const size_t cell = (size_t(c.z) * kMajorantGridRes + size_t(c.y)) * kMajorantGridRes + size_t(c.x);
+    const vec3 c = glm::min((p - m.p0) / (m.p1 - m.p0) * float(res), vec3(float(res) - 0.5f));
+    const size_t cell = (size_t(c.z) * size_t(res) + size_t(c.y)) * size_t(res) + size_t(c.x);
     ASSERT_LE(medium_density(m, p), m.majorants[cell] + 1e-6f) << p.x << " " << p.y << " " << p.z;
   }
 }

@@ -6,7 +6,7 @@
 // counter-based hash of the directions so that evaluation is deterministic.
 #include "core/hash.h"
 #include "core/sampling.h"
-#include "scene/bxdfs.h"
+#include "scene/bxdf_kinds.h"
 
 #include <bit>
 

@@ -307,6 +307,19 @@ BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootpri
   return bsdf;
 }
 
+bool material_reads_footprint(const Scene& scene, int material, int depth) {
+  if (material < 0) return false;
+  if (depth > 16) return true;
+  const Material& m = scene.materials[size_t(material)];
+  if (m.displacement >= 0) return true;
+  for (int t : {m.reflectance, m.transmittance, m.uroughness, m.vroughness, m.conductor_eta, m.conductor_k,
+                m.conductor_uroughness, m.conductor_vroughness, m.thickness, m.g, m.albedo, m.sigma_a, m.eumelanin,
+                m.pheomelanin, m.beta_m, m.beta_n, m.hair_alpha, m.amount})
+    if (texture_reads_footprint(scene, t)) return true;
+  return m.kind == MaterialKind::Mix &&
+         (material_reads_footprint(scene, m.mix[0], depth + 1) || material_reads_footprint(scene, m.mix[1], depth + 1));
+}
+
 // pbrt-v4's roughness parameters reach the distribution already as alphas
 // (remaproughness true: alpha = sqrt(roughness), else alpha = roughness), so
 // eq. 25 applies to alpha_x and alpha_y, each on its own.

@@ -65,6 +65,11 @@ struct BSDFSample {
 // `fp` is the texture filter footprint (scene/camera.h texture_footprint);
 // zero filters nothing (level-0 lookups).
 BSDF make_bsdf(const Scene& scene, const SurfaceInteraction& si, const UVFootprint& fp = {});
+// Whether make_bsdf reads `fp` at hits on material `material` (-1: the
+// default diffuse): a texture that filters with it, through mix materials
+// too, or a bump map (its offsets).  Where not, any footprint gives the same
+// BSDF, so the engine computes none.
+bool material_reads_footprint(const Scene& scene, int material, int depth = 0);
 // True for the "interface" material: the engine continues the ray unchanged.
 inline bool bsdf_is_passthrough(const BSDF& bsdf) { return bsdf.lobe_count == 0; }
 

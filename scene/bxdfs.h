@@ -145,23 +145,7 @@ std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, v
                                       TransportMode mode = TransportMode::Radiance,
                                       uint8_t sample_flags = kSampleAll);
 
-// The same for one known variant, without the dispatch: what the layered walk
-// (scene/layered.cpp) calls for its coat and base.  bxdf_sample's overloads
-// reject unusable samples exactly as the generic one does.
-RGB bxdf_f(const DielectricBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode);
-float bxdf_pdf(const DielectricBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t sample_flags);
-std::optional<BxDFSample> bxdf_sample(const DielectricBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
-                                      uint8_t sample_flags);
-RGB bxdf_f(const DiffuseBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode);
-float bxdf_pdf(const DiffuseBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t sample_flags);
-std::optional<BxDFSample> bxdf_sample(const DiffuseBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
-                                      uint8_t sample_flags);
-RGB bxdf_f(const ConductorBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode);
-float bxdf_pdf(const ConductorBxDF& b, const vec3& wo, const vec3& wi, TransportMode mode, uint8_t sample_flags);
-std::optional<BxDFSample> bxdf_sample(const ConductorBxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
-                                      uint8_t sample_flags);
-uint8_t bxdf_flags(const DielectricBxDF& b);
-uint8_t bxdf_flags(const DiffuseBxDF& b);
-uint8_t bxdf_flags(const ConductorBxDF& b);
+// The typed overloads for diffuse, conductor and dielectric BxDFs, which the
+// layered walk calls for its coat and base: scene/bxdf_kinds.h.
 
 }  // namespace theia

@@ -6,7 +6,7 @@
 // counter-based hash of the directions so that evaluation is deterministic.
 #include "core/hash.h"
 #include "core/sampling.h"
-#include "scene/bxdfs.h"
+#include "scene/bxdf_kinds.h"
 
 #include <bit>
 
@@ -18,6 +18,27 @@ struct WalkRng {
   uint64_t key;
   uint32_t i = 0;
   float operator()() { return std::min(to_unit_float(uint32_t(hash(key, i++) >> 32)), kOneMinusEpsilon); }
+  // The (uc, u) of one interface sample.  The walk's numbers are indexed as
+  // they were when the calls read `f(r(), vec2(r(), r()))`, which GCC
+  // evaluates right to left: u.y, u.x, then uc.
+  struct Draw {
+    float uc;
+    vec2 u;
+  };
+  Draw draw() {
+    const float uy = (*this)(), ux = (*this)();
+    return {(*this)(), vec2(ux, uy)};
+  }
+  // The same where only one half (reflection or transmission) is asked for:
+  // the choice is then certain and uc is never read, so its number is not
+  // computed (its index is still spent).
+  Draw draw_no_choice() {
+    const float uy = (*this)(), ux = (*this)();
+    ++i;
+    return {0.5f, vec2(ux, uy)};
+  }
+  // The numbers of a sample that is not needed: indices spent, nothing computed.
+  void skip_draw() { i += 3; }
 };
 
 uint64_t hash_dir(const vec3& w) {
@@ -92,9 +113,11 @@ RGB walk_f(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
   WalkRng r{hash(hash_dir(wo), hash_dir(wi))};
   for (int s = 0; s < n_samples; ++s) {
     // Into the layers through the top, and a presampled way out towards wi.
-    auto wos = bxdf_sample(L.top, wo, r(), vec2(r(), r()), mode, kSampleTransmission);
+    const auto d_wos = r.draw_no_choice();
+    auto wos = bxdf_sample(L.top, wo, d_wos.uc, d_wos.u, mode, kSampleTransmission);
     if (!usable(wos)) continue;
-    auto wis = bxdf_sample(exit, wi, r(), vec2(r(), r()), !mode, kSampleTransmission);
+    const auto d_wis = r.draw_no_choice();
+    auto wis = bxdf_sample(exit, wi, d_wis.uc, d_wis.u, !mode, kSampleTransmission);
     if (!usable(wis)) continue;
     const float tr_wis = transmittance(thickness, wis->wi);
     RGB beta = wos->f * std::abs(wos->wi.z) / wos->pdf;
@@ -144,7 +167,8 @@ RGB walk_f(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
       }
       if (z == exit_z) {
         // Reflection back down at the top.
-        auto bs = bxdf_sample(exit, -w, r(), vec2(r(), r()), mode, kSampleReflection);
+        const auto d = r.draw_no_choice();
+        auto bs = bxdf_sample(exit, -w, d.uc, d.u, mode, kSampleReflection);
         if (!usable(bs)) break;
         beta *= bs->f * std::abs(bs->wi.z) / bs->pdf;
         w = bs->wi;
@@ -156,7 +180,8 @@ RGB walk_f(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
           result += beta * bxdf_f(non_exit, -w, -wis->wi, mode) * std::abs(wis->wi.z) * wt *
                     tr_wis * wis->f / wis->pdf;
         }
-        auto bs = bxdf_sample(non_exit, -w, r(), vec2(r(), r()), mode, kSampleReflection);
+        const auto d = r.draw_no_choice();
+        auto bs = bxdf_sample(non_exit, -w, d.uc, d.u, mode, kSampleReflection);
         if (!usable(bs)) break;
         beta *= bs->f * std::abs(bs->wi.z) / bs->pdf;
         w = bs->wi;
@@ -224,8 +249,10 @@ std::optional<BxDFSample> walk_sample(const Coated& b, vec3 wo, float uc, vec2 u
       z = (z == thickness) ? 0.0f : thickness;
       f *= transmittance(thickness, w);
     }
-    auto sample_iface = [&](const auto& iface) { return bxdf_sample(iface, -w, r(), vec2(r(), r()), mode, kSampleAll); };
-    bs = (z == 0.0f) ? sample_iface(L.bottom) : sample_iface(L.top);
+    // The base is opaque: its sample never chooses between halves.
+    const auto d = (z == 0.0f) ? r.draw_no_choice() : r.draw();
+    bs = (z == 0.0f) ? bxdf_sample(L.bottom, -w, d.uc, d.u, mode, kSampleAll)
+                     : bxdf_sample(L.top, -w, d.uc, d.u, mode, kSampleAll);
     if (!usable(bs)) return std::nullopt;
     f *= bs->f;
     pdf *= bs->pdf;
@@ -270,14 +297,21 @@ float walk_pdf(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
   float pdf_sum = float(n_samples) * bxdf_pdf(L.top, wo, wi, mode, kSampleAll);
   for (int s = 0; s < n_samples; ++s) {
     // The transmission-reflection-transmission path, by MIS over which end was sampled.
-    auto wos = bxdf_sample(t_iface, wo, r(), vec2(r(), r()), mode, kSampleAll);
-    auto wis = bxdf_sample(t_iface, wi, r(), vec2(r(), r()), !mode, kSampleTransmission);
-    if (!usable(wos) || wos->is_reflection() || !usable(wis)) continue;
+    const auto d_wos = r.draw();
+    auto wos = bxdf_sample(t_iface, wo, d_wos.uc, d_wos.u, mode, kSampleAll);
+    if (!usable(wos) || wos->is_reflection()) {
+      r.skip_draw();  // wis's numbers
+      continue;
+    }
+    const auto d_wis = r.draw_no_choice();
+    auto wis = bxdf_sample(t_iface, wi, d_wis.uc, d_wis.u, !mode, kSampleTransmission);
+    if (!usable(wis)) continue;
     if (!t_nonspecular) {
       pdf_sum += bxdf_pdf(r_iface, -wos->wi, -wis->wi, mode, kSampleAll);
       continue;
     }
-    auto rs = bxdf_sample(r_iface, -wos->wi, r(), vec2(r(), r()), mode, kSampleAll);
+    const auto d_rs = r.draw_no_choice();
+    auto rs = bxdf_sample(r_iface, -wos->wi, d_rs.uc, d_rs.u, mode, kSampleAll);
     if (!usable(rs)) continue;
     if (!r_nonspecular) {
       pdf_sum += bxdf_pdf(t_iface, -rs->wi, wi, mode, kSampleAll);

@@ -40,6 +40,10 @@ void load_image(Image& image, const std::string& base_dir = "", const ImageReser
 struct UVFootprint {
   float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;
 };
+// Whether evaluating the texture (and the textures it reads) reads the
+// footprint: trilinear and EWA imagemaps and the 2D checkerboard; elsewhere the
+// engine need not compute one.  True past a nesting depth of 16 (a cycle).
+bool texture_reads_footprint(const Scene& scene, int texture, int depth = 0);
 // p is in render space; n is the geometric normal (only "directionmix" reads
 // it; zero where the caller has none, e.g. alpha tests).
 struct TextureEvalContext {

@@ -46,6 +46,17 @@ TexCoord2D map_texture_2d(const Texture& tex, const TextureEvalContext& ctx) {
   return {ctx.uv};
 }
 
+bool texture_reads_footprint(const Scene& scene, int texture, int depth) {
+  if (texture < 0) return false;
+  if (depth > 16) return true;
+  const Texture& t = scene.textures[size_t(texture)];
+  if ((t.kind == TextureKind::ImageMap && filter_uses_mipmap(t.filter)) ||
+      (t.kind == TextureKind::Checkerboard && t.mapping_kind != TextureMappingKind::Point3D))
+    return true;
+  return texture_reads_footprint(scene, t.tex1, depth + 1) || texture_reads_footprint(scene, t.tex2, depth + 1) ||
+         texture_reads_footprint(scene, t.amount, depth + 1);
+}
+
 // ---------------------------------------------------------------- pattern functions
 
 namespace {

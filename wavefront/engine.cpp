@@ -3,8 +3,6 @@
 // (engine_impl.h lists them).
 #include "wavefront/engine_impl.h"
 
-#include "scene/mipmap.h"
-
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
@@ -26,15 +24,6 @@ int direction_bin(const vec3& d) {
   return 2 * axis + (d[axis] < 0.0f ? 1 : 0);
 }
 
-bool scene_uses_footprint(const Scene& scene) {
-  bool uses = false;
-  for (const Texture& t : scene.textures)
-    uses |= (t.kind == TextureKind::ImageMap && filter_uses_mipmap(t.filter)) ||
-            (t.kind == TextureKind::Checkerboard && t.mapping_kind != TextureMappingKind::Point3D);
-  // Bump mapping takes its finite-difference offsets from the footprint too.
-  for (const Material& m : scene.materials) uses |= m.displacement >= 0;
-  return uses;
-}
 
 }  // namespace
 
@@ -67,7 +56,8 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
     bounds_min = b.min;
     bounds_inv_extent = 1.0f / glm::max(b.max - b.min, vec3(1e-30f));
   }
-  uses_footprint = scene_uses_footprint(scene);
+  material_footprint.resize(scene.materials.size());
+  for (size_t m = 0; m < scene.materials.size(); ++m) material_footprint[m] = material_reads_footprint(scene, int(m));
   check_media_hooks();
   if (rs.scene.has_media()) sealed_media = theia::sealed_media(scene);
   light_sampler_learns = light_sampler.wants_feedback();

@@ -506,5 +506,40 @@ TEST_F(TextureFiles, ManyImagesLoadInParallelAndErrorsNameTheFile) {
   }
 }
 
+// The engine computes a footprint only at hits on materials that read one:
+// a filtered texture anywhere beneath them (through texture and material
+// nesting) or a bump map.  Elsewhere any footprint gives the same BSDF.
+TEST(TextureFootprint, MaterialsReadItOnlyThroughFilteredTexturesOrBumps) {
+  Scene scene = parse_scene_string(R"(WorldBegin
+Texture "checks" "spectrum" "checkerboard" "rgb tex1" [0 0 0] "rgb tex2" [1 1 1]
+Texture "checks3d" "spectrum" "checkerboard" "integer dimension" [3]
+Texture "scaled" "spectrum" "scale" "texture tex" "checks"
+Texture "amount" "float" "checkerboard"
+MakeNamedMaterial "plain" "string type" "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+MakeNamedMaterial "checked" "string type" "diffuse" "texture reflectance" "checks"
+MakeNamedMaterial "checked3d" "string type" "diffuse" "texture reflectance" "checks3d"
+MakeNamedMaterial "scaled" "string type" "coateddiffuse" "texture reflectance" "scaled"
+MakeNamedMaterial "bumpy" "string type" "diffuse" "float displacement" [0.1]
+MakeNamedMaterial "mix-plain" "string type" "mix" "string materials" ["plain" "checked3d"] "float amount" [0.3]
+MakeNamedMaterial "mix-checked" "string type" "mix" "string materials" ["plain" "checked"]
+MakeNamedMaterial "mix-amount" "string type" "mix" "string materials" ["plain" "plain"] "texture amount" "amount"
+)");
+  auto reads = [&](const std::string& name) {
+    for (size_t i = 0; i < scene.materials.size(); ++i)
+      if (scene.materials[i].name == name) return material_reads_footprint(scene, int(i));
+    ADD_FAILURE() << "no material " << name;
+    return false;
+  };
+  EXPECT_FALSE(material_reads_footprint(scene, -1));
+  EXPECT_FALSE(reads("plain"));
+  EXPECT_TRUE(reads("checked"));
+  EXPECT_FALSE(reads("checked3d"));
+  EXPECT_TRUE(reads("scaled"));
+  EXPECT_TRUE(reads("bumpy"));
+  EXPECT_FALSE(reads("mix-plain"));
+  EXPECT_TRUE(reads("mix-checked"));
+  EXPECT_TRUE(reads("mix-amount"));
+}
+
 }  // namespace
 }  // namespace theia

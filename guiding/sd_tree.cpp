@@ -324,7 +324,36 @@ void SDTree::index_lookups() {
         st.child[i] = node.child[i];
       }
     }
+    index_pdf_grid(leaf);
   });
+}
+
+// pdf()'s loop over the first kPdfGridBits levels, per cell (see PdfCell).
+void SDTree::index_pdf_grid(SpatialLeaf& leaf) {
+  constexpr uint32_t kCells = 1u << kPdfGridBits;
+  if (!leaf.has_energy) {  // pdf() reads no grid of a leaf without energy
+    leaf.pdf_grid.clear();
+    return;
+  }
+  leaf.pdf_grid.assign(size_t(kCells) * kCells, PdfCell{});
+  const SamplingStep* nodes = leaf.steps.data();
+  for (uint32_t y = 0; y < kCells; ++y)
+    for (uint32_t x = 0; x < kCells; ++x) {
+      double density = 1.0;
+      uint32_t n = 0;
+      bool going_on = true;
+      for (int level = kPdfGridBits - 1; level >= 0 && going_on; --level) {
+        if (nodes[n].empty) {
+          going_on = false;
+          break;
+        }
+        const int i = int((x >> level) & 1u) | int((y >> level) & 1u) << 1;
+        density *= nodes[n].factor[i];
+        if (nodes[n].child[i] == 0 || density == 0.0) going_on = false;
+        else n = nodes[n].child[i];
+      }
+      leaf.pdf_grid[size_t(y) * kCells + x] = PdfCell{density, going_on ? n : 0u};
+    }
 }
 
 Bounds3 SDTree::leaf_bounds(const vec3& p) const {
@@ -634,11 +663,19 @@ float SDTree::radiance_integral(uint32_t region) const {
 // a uniform leaf, in sample() too.
 float SDTree::pdf(uint32_t region, const vec3& wi) const {
   if (region >= leaves_.size() || !leaves_[region].has_energy) return 0.0f;
-  const SamplingStep* nodes = leaves_[region].steps.data();
-  vec2 c = sd_direction_to_square(wi);
-  double density = 1.0;
-  uint32_t n = 0;
-  for (;;) {
+  const SpatialLeaf& leaf = leaves_[region];
+  const SamplingStep* nodes = leaf.steps.data();
+  // The grid's cell holds the first levels' product; c scaled by the grid
+  // and less its cell is what as many descend() calls leave (exact).
+  constexpr float kCells = float(1 << kPdfGridBits);
+  // A NaN coordinate takes cell 0 and stays NaN: quadrant 0 at every level, as descend() takes it.
+  vec2 c = sd_direction_to_square(wi) * kCells;
+  const uint32_t cx = c.x > 0.0f ? uint32_t(c.x) : 0u, cy = c.y > 0.0f ? uint32_t(c.y) : 0u;
+  c -= vec2(float(cx), float(cy));
+  const PdfCell& start = leaf.pdf_grid[(cy << kPdfGridBits) | cx];
+  double density = start.density;
+  uint32_t n = start.node;
+  while (n != 0) {
     if (nodes[n].empty) break;
     int i = descend(c);
     density *= nodes[n].factor[i];
@@ -717,6 +754,7 @@ size_t SDTree::memory_bytes() const {
   size_t bytes = sizeof(*this) + nodes_.capacity() * sizeof(SpatialNode) + leaves_.capacity() * sizeof(SpatialLeaf);
   for (const SpatialLeaf& leaf : leaves_)
     bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.steps.capacity() * sizeof(SamplingStep) +
+             leaf.pdf_grid.capacity() * sizeof(PdfCell) +
              leaf.building.capacity() * sizeof(BuildingQuadNode);
   bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3) +
            leaf_box_.capacity() * sizeof(LeafBox);

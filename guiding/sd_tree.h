@@ -137,9 +137,23 @@ struct SamplingStep {
   bool empty = true;      // no flux (underflowed): a uniform leaf
 };
 
+// pdf()'s descent through the first kPdfGridBits levels of a sampling
+// quadtree, done once per update() for each cell of a 2^bits x 2^bits grid
+// over the square: the density those levels multiply (in pdf()'s order, so
+// the same double) and the node the descent goes on from (0: it ended).  The
+// cell of c decides those levels exactly (descend() takes one bit of c.x and
+// of c.y per level), so pdf() starts at the cell's node with one load
+// instead of a dependent chain of them.
+struct PdfCell {
+  double density = 1.0;
+  uint32_t node = 0;
+};
+inline constexpr int kPdfGridBits = 4;
+
 struct SpatialLeaf {
   std::vector<SamplingQuadNode> sampling;
   std::vector<SamplingStep> steps;  // sampling's, for lookups (index_lookups)
+  std::vector<PdfCell> pdf_grid;    // steps' first levels per cell, for pdf() (index_lookups)
   std::vector<BuildingQuadNode> building;
   double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux
@@ -239,6 +253,7 @@ class SDTree final : public DirectionalGuide {
   uint32_t leaf_at(const vec3& p) const;
   // Rebuilds region_nodes_, leaf_size_ and every leaf's steps: after update() and deserialize().
   void index_lookups();
+  static void index_pdf_grid(SpatialLeaf& leaf);
   // The leaf a valid sample deposits into (after the spatial jitter); kInvalidLeaf for one add_sample drops.
   static constexpr uint32_t kInvalidLeaf = 0xffffffffu;
   uint32_t target_leaf(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) const;

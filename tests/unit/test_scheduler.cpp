@@ -151,16 +151,26 @@ void synthetic_iteration(Film& f, uint32_t spp_begin, uint32_t n, float sigma, s
     }
 }
 
-// Folds iterations of the given sizes and per-sample standard deviations.
+// Folds iterations of the given sizes and per-sample standard deviations;
+// from the iteration that begins at `settled` on, fold is told so.
 void accumulate(ImageAccumulator& acc, const std::vector<uint32_t>& sizes, const std::vector<float>& sigmas,
-                std::mt19937* rng) {
+                std::mt19937* rng, uint32_t settled = std::numeric_limits<uint32_t>::max()) {
   Film it(kW, kH);
   uint32_t begin = 0;
   for (size_t k = 0; k < sizes.size(); ++k) {
     synthetic_iteration(it, begin, sizes[k], sigmas[k], rng);
-    acc.fold(it, begin, begin + sizes[k]);
+    acc.fold(it, begin, begin + sizes[k], begin >= settled ? settled : std::numeric_limits<uint32_t>::max());
     begin += sizes[k];
   }
+}
+
+// Two accumulators folding the very same samples (a trial's seed).
+void accumulate_both(ImageAccumulator& a, ImageAccumulator& b, const std::vector<uint32_t>& sizes,
+                     const std::vector<float>& sigmas, uint32_t seed,
+                     uint32_t b_settled = std::numeric_limits<uint32_t>::max()) {
+  std::mt19937 rng_a(seed), rng_b(seed);
+  accumulate(a, sizes, sigmas, &rng_a);
+  accumulate(b, sizes, sigmas, &rng_b, b_settled);
 }
 
 ImageBuffer equal_image(const ImageAccumulator& acc) { return resolve_film(acc.total); }
@@ -312,17 +322,9 @@ TEST(Combination, EverySampleSinceTheEstimatorSettledStaysInTheWindow) {
   const std::vector<float> sigmas = {2, 2, 2, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
   double settled_mse = 0.0, half_mse = 0.0;
   for (int trial = 0; trial < 8; ++trial) {
-    std::mt19937 rng_a(100 + trial), rng_b(100 + trial);  // the same samples for both
     ImageAccumulator half(kW, kH, Combination::InverseVariance, 128),
         settled(kW, kH, Combination::InverseVariance, 128);
-    accumulate(half, sizes, sigmas, &rng_a);
-    Film it(kW, kH);
-    uint32_t begin = 0;
-    for (size_t k = 0; k < sizes.size(); ++k) {
-      synthetic_iteration(it, begin, sizes[k], sigmas[k], &rng_b);
-      settled.fold(it, begin, begin + sizes[k], begin >= 32 ? 32u : std::numeric_limits<uint32_t>::max());
-      begin += sizes[k];
-    }
+    accumulate_both(half, settled, sizes, sigmas, uint32_t(100 + trial), 32);
     ASSERT_EQ(half.choice().window_begin, 128u);
     const CombinationChoice c = settled.choice();
     ASSERT_EQ(c.used, Combination::InverseVariance) << c.why;
@@ -345,11 +347,9 @@ TEST(Combination, TheDefaultWeighsTheLearningIterationsToo) {
   const std::vector<float> sigmas = {1.0f, 1.0f, 0.7f, 0.7f, 0.5f, 0.5f, 0.5f};
   double every_mse = 0.0, equal_mse = 0.0;
   for (int trial = 0; trial < 8; ++trial) {
-    std::mt19937 rng_a(200 + trial), rng_b(200 + trial);  // the same samples for both
     ImageAccumulator every(kW, kH, Combination::InverseVariance, 0),
         half(kW, kH, Combination::InverseVariance, 128);
-    accumulate(every, sizes, sigmas, &rng_a);
-    accumulate(half, sizes, sigmas, &rng_b);
+    accumulate_both(every, half, sizes, sigmas, uint32_t(200 + trial));
     const CombinationChoice c = every.choice(), h = half.choice();
     ASSERT_EQ(c.used, Combination::InverseVariance) << c.why;
     EXPECT_EQ(c.window_begin, 0u);

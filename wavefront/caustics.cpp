@@ -7,6 +7,7 @@
 #include "scene/emission_side.h"
 #include "scene/shape_bounds.h"
 #include "scene/shapes.h"
+#include "wavefront/caustic_first_ray.h"
 #include "wavefront/sample_dims.h"
 
 #include <tbb/parallel_for.h>
@@ -81,9 +82,17 @@ std::vector<Bounds3> find_caster_boxes(const Scene& scene) {
   return boxes;
 }
 
-// Whether the ray may meet box b at t >= 0: a slab test that only a sure
-// miss fails (a NaN from a ray in a slab's plane keeps the box; the far
-// distance is widened by pbrt-v4's gamma(3) bound).
+// A finished path's connection to the camera, waiting for its shadow ray.
+struct Connection {
+  vec2 raster{0.0f};
+  RGB value{0.0f};  // per unit raster area, before the filter
+  bool alive = false;
+};
+
+}  // namespace
+
+namespace caustic_first_ray {
+
 bool may_meet(const Ray& ray, const Bounds3& b) {
   float t0 = 0.0f, t1 = kInfinity;
   for (int a = 0; a < 3; ++a) {
@@ -98,30 +107,9 @@ bool may_meet(const Ray& ray, const Bounds3& b) {
   return true;
 }
 
-// A sphere light's emitted rays, estimated in float before sample_le computes
-// them exactly (in double, with the point's error bounds, its pdf and its
-// radiance): a light path whose first ray surely meets no caster box is
-// dropped from the estimate alone.  The estimate repeats sample_le's steps
-// (ShapeSampling::sample_area's uniform (z, phi) point, its normal through the
-// normal matrix, the side of a two-sided light, the cosine-weighted direction
-// in Frame::from_z) from the same numbers, so it lies within float rounding of
-// the exact ray: within kOriginSlack (relative to the point's size) of its
-// origin, the offset included, and kDirectionSlack of its unit direction.
-// A box grown by the origin's slack plus the direction's slack times the
-// farthest the box can be is then met by the estimate wherever the exact ray
-// meets the box, so the exact test (may_meet, itself widened by a few ulps
-// only) drops every path the estimate drops: the image stays bit for bit.
-// The slacks are ~100 times the float rounding they cover.  Where the frame's
-// branch (the sign of n.z) could differ between the two, nothing is dropped.
-struct SphereEmitter {
-  bool valid = false;
-  double zmin = 0.0, zmax = 0.0, radius = 1.0, phimax = 0.0;
-  mat4 render_from_object{1.0f};
-  mat3 normal_matrix{1.0f};
-  bool flip = false, two_sided = false;
-  float size = 0.0f;  // the transformed radius bound, for the origin's slack
-};
-constexpr float kOriginSlack = 1e-4f, kDirectionSlack = 1e-3f, kMinFrameZ = 1e-3f;
+Ray emitted_ray(const LightLeSample& le) {
+  return Ray{offset_ray_origin(le.p, le.p_error, le.n, le.w), 0.0f, le.w, kInfinity};
+}
 
 SphereEmitter sphere_emitter(const Scene& scene, int light) {
   SphereEmitter e;
@@ -141,8 +129,6 @@ SphereEmitter sphere_emitter(const Scene& scene, int light) {
   return e;
 }
 
-// Whether the ray sample_le would make from (u_pos, u_dir) may meet one of
-// the boxes (see SphereEmitter); true wherever the estimate is unsure.
 bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir, const std::vector<Bounds3>& boxes) {
   const double z = e.zmin + double(u_pos.x) * (e.zmax - e.zmin);
   const double ct = std::clamp(z / e.radius, -1.0, 1.0);
@@ -166,14 +152,9 @@ bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir, const s
   return false;
 }
 
-// A finished path's connection to the camera, waiting for its shadow ray.
-struct Connection {
-  vec2 raster{0.0f};
-  RGB value{0.0f};  // per unit raster area, before the filter
-  bool alive = false;
-};
+}  // namespace caustic_first_ray
 
-}  // namespace
+using caustic_first_ray::SphereEmitter;
 
 CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const LightSet& lights, const Camera& camera,
                              const Filter& filter, const CausticOptions& options)
@@ -245,14 +226,14 @@ struct CausticTracer::Pass {
 
   static std::vector<SphereEmitter> find_sphere_emitters(const CausticTracer& t) {
     std::vector<SphereEmitter> e;
-    for (int light : t.light_of_entry_) e.push_back(sphere_emitter(t.scene_, light));
+    for (int light : t.light_of_entry_) e.push_back(caustic_first_ray::sphere_emitter(t.scene_, light));
     return e;
   }
   // Whether a light path's first ray may meet a caster (caster_boxes).
   bool may_reach_caster(const Ray& ray) const {
     if (caster_boxes.empty()) return true;
     for (const Bounds3& b : caster_boxes)
-      if (may_meet(ray, b)) return true;
+      if (caustic_first_ray::may_meet(ray, b)) return true;
     return false;
   }
   SamplerKey key(size_t i) const {
@@ -321,12 +302,12 @@ void CausticTracer::Pass::leave_light() {
     const vec2 u_pos = sample_2d(k, kDimPosition), u_dir = sample_2d(k, kDimDirection);
     // A sphere light's ray that surely misses every caster box is not made at all.
     const SphereEmitter& se = sphere_emitters[size_t(entry)];
-    if (se.valid && !caster_boxes.empty() && !sphere_ray_may_meet(se, u_pos, u_dir, caster_boxes)) return;
+    if (se.valid && !caster_boxes.empty() && !caustic_first_ray::sphere_ray_may_meet(se, u_pos, u_dir, caster_boxes)) return;
     auto le = sample_le(tracer.lights_, light, u_pos, sample_1d(k, kDimPrim), u_dir);
     if (!le || !(pmf > 0.0f)) return;
     RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
     if (!keep(beta)) return;
-    const Ray ray{offset_ray_origin(le->p, le->p_error, le->n, le->w), 0.0f, le->w, kInfinity};
+    const Ray ray = caustic_first_ray::emitted_ray(*le);
     // The path would end at its first hit in the_caster: not traced at all.
     if (!may_reach_caster(ray)) return;
     paths[i] = {beta, true};

@@ -4,11 +4,37 @@
 // observer, the next ray queued.
 #include "wavefront/engine_impl.h"
 
+#include "scene/surface_crossing.h"
+
 namespace theia {
+
+namespace {
+
+// Whether make_bsdf surely gives a hit on s no lobes (bsdf_is_passthrough)
+// and nothing before the pass-through step in shade_surface acts on it.
+bool passes_straight(const Shape& s, const Scene& scene) {
+  return !s.holdout && s.area_light < 0 && s.material >= 0 &&
+         scene.materials[size_t(s.material)].kind == MaterialKind::Interface;
+}
+
+}  // namespace
 
 template <bool kObserve>
 void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
   PathState& ps = pool[slot];
+  // An "interface" surface (by its own material, not a mix's choice), neither
+  // a light nor a holdout: the ray goes on as it was, and the crossing's
+  // point, error bound and normal are all the step below reads (the same
+  // ones compute_interaction gives, without uv, derivatives, tangents and the
+  // BSDF).  Interfaces matter only in scenes with media.
+  if (!pool.medium.empty() && !ps.alpha_only) {
+    const int shape = accel.shape_index(hit);
+    if (shape >= 0 && passes_straight(scene.shapes[size_t(shape)], scene)) {
+      ++out.vertices;
+      const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
+      return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
+    }
+  }
   const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
   // A holdout matte blocks the ray and adds neither colour nor alpha.
   if (si.shape >= 0 && scene.shapes[size_t(si.shape)].holdout) return finish_path<kObserve>(slot, out);

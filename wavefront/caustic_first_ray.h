@@ -36,6 +36,11 @@ Ray emitted_ray(const LightLeSample& le);
 // only) drops every path the estimate drops: the image stays bit for bit.
 // The slacks are ~100 times the float rounding they cover.  Where the frame's
 // branch (the sign of n.z) could differ between the two, nothing is dropped.
+// The boxes are grown once per light, by the most any point of the sphere
+// needs (its distance to the box and its size bounded over the sphere: at
+// most a sphere's size more than a point on it needs, and the sphere is
+// small beside the distances where a box's slack matters), and a ray that
+// misses their union misses them all.
 struct SphereEmitter {
   bool valid = false;
   double zmin = 0.0, zmax = 0.0, radius = 1.0, phimax = 0.0;
@@ -43,14 +48,17 @@ struct SphereEmitter {
   mat3 normal_matrix{1.0f};
   bool flip = false, two_sided = false;
   float size = 0.0f;  // the transformed radius bound, for the origin's slack
+  std::vector<Bounds3> grown;  // the caster boxes, grown by the slacks
+  Bounds3 grown_union;
 };
 constexpr float kOriginSlack = 1e-4f, kDirectionSlack = 1e-3f, kMinFrameZ = 1e-3f;
 
-// Light `light`'s estimate; not valid unless it is an area light on a sphere.
-SphereEmitter sphere_emitter(const Scene& scene, int light);
+// Light `light`'s estimate against `boxes`; not valid unless it is an area
+// light on a sphere.
+SphereEmitter sphere_emitter(const Scene& scene, int light, const std::vector<Bounds3>& boxes);
 
 // Whether the ray sample_le would make from (u_pos, u_dir) may meet one of
 // the boxes (see SphereEmitter); true wherever the estimate is unsure.
-bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir, const std::vector<Bounds3>& boxes);
+bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir);
 
 }  // namespace theia::caustic_first_ray

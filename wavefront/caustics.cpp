@@ -93,11 +93,13 @@ struct Connection {
 
 namespace caustic_first_ray {
 
-bool may_meet(const Ray& ray, const Bounds3& b) {
+namespace {
+
+// may_meet with the ray's reciprocal direction given, for a ray tested against many boxes.
+bool may_meet_inv(const vec3& o, const vec3& inv, const Bounds3& b) {
   float t0 = 0.0f, t1 = kInfinity;
   for (int a = 0; a < 3; ++a) {
-    const float inv = 1.0f / ray.d[a];
-    float near = (b.min[a] - ray.o[a]) * inv, far = (b.max[a] - ray.o[a]) * inv;
+    float near = (b.min[a] - o[a]) * inv[a], far = (b.max[a] - o[a]) * inv[a];
     if (near > far) std::swap(near, far);
     far += 2.0f * gamma_bound(3) * std::abs(far);
     if (near > t0) t0 = near;
@@ -107,11 +109,15 @@ bool may_meet(const Ray& ray, const Bounds3& b) {
   return true;
 }
 
+}  // namespace
+
+bool may_meet(const Ray& ray, const Bounds3& b) { return may_meet_inv(ray.o, 1.0f / ray.d, b); }
+
 Ray emitted_ray(const LightLeSample& le) {
   return Ray{offset_ray_origin(le.p, le.p_error, le.n, le.w), 0.0f, le.w, kInfinity};
 }
 
-SphereEmitter sphere_emitter(const Scene& scene, int light) {
+SphereEmitter sphere_emitter(const Scene& scene, int light, const std::vector<Bounds3>& boxes) {
   SphereEmitter e;
   const Light& l = scene.lights[size_t(light)];
   if (l.kind != LightKind::Area || l.shape < 0) return e;
@@ -126,10 +132,25 @@ SphereEmitter sphere_emitter(const Scene& scene, int light) {
   const mat3 lin(s.render_from_object.m);
   e.size = float(sp.radius) * (glm::length(lin[0]) + glm::length(lin[1]) + glm::length(lin[2]));
   e.valid = sp.radius > 0.0 && std::isfinite(e.size);
+  // Every point p of the sphere lies within `size` of its centre c (|M x| <=
+  // sum |columns| for |x| <= 1), so |p|_1 <= |c|_1 + sqrt(3) size bounds the
+  // origin's slack and |c - centre| + size + the half diagonal + that slack
+  // the farthest the box is.  1% more covers these bounds' own rounding.
+  const vec3 c = vec3(s.render_from_object.m * vec4(0.0f, 0.0f, 0.0f, 1.0f));
+  const float origin_slack = kOriginSlack * (std::abs(c.x) + std::abs(c.y) + std::abs(c.z) + 2.75f * e.size);
+  for (const Bounds3& b : boxes) {
+    const vec3 centre = 0.5f * (b.min + b.max);
+    const float farthest = glm::length(c - centre) + e.size + 0.5f * glm::length(b.max - b.min) + origin_slack;
+    const float slack = 1.01f * (origin_slack + kDirectionSlack * farthest);
+    e.grown.emplace_back(b.min - vec3(slack), b.max + vec3(slack));
+    e.grown_union = union_bounds(e.grown_union, e.grown.back());
+  }
+  e.valid = e.valid && std::isfinite(e.grown_union.min.x + e.grown_union.min.y + e.grown_union.min.z) &&
+            std::isfinite(e.grown_union.max.x + e.grown_union.max.y + e.grown_union.max.z);
   return e;
 }
 
-bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir, const std::vector<Bounds3>& boxes) {
+bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir) {
   const double z = e.zmin + double(u_pos.x) * (e.zmax - e.zmin);
   const double ct = std::clamp(z / e.radius, -1.0, 1.0);
   const float st = float(std::sqrt(std::max(0.0, 1.0 - ct * ct)));
@@ -141,14 +162,10 @@ bool sphere_ray_may_meet(const SphereEmitter& e, vec2 u_pos, vec2 u_dir, const s
   if (e.two_sided && emission_back_side(u_dir)) n = -n;
   if (!(std::abs(n.z) >= kMinFrameZ)) return true;
   const vec3 w = glm::normalize(Frame::from_z(n).from_local(sample_cosine_hemisphere(u_dir)));
-  const float origin_slack = kOriginSlack * (std::abs(p.x) + std::abs(p.y) + std::abs(p.z) + e.size);
-  const Ray ray{p, 0.0f, w, kInfinity};
-  for (const Bounds3& b : boxes) {
-    const vec3 centre = 0.5f * (b.min + b.max);
-    const float farthest = glm::length(p - centre) + 0.5f * glm::length(b.max - b.min) + origin_slack;
-    const float slack = origin_slack + kDirectionSlack * farthest;
-    if (may_meet(ray, Bounds3(b.min - vec3(slack), b.max + vec3(slack)))) return true;
-  }
+  const vec3 inv = 1.0f / w;
+  if (e.grown.size() > 1 && !may_meet_inv(p, inv, e.grown_union)) return false;
+  for (const Bounds3& b : e.grown)
+    if (may_meet_inv(p, inv, b)) return true;
   return false;
 }
 
@@ -221,12 +238,12 @@ struct CausticTracer::Pass {
       : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
         pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
         height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
-        caster_boxes(find_caster_boxes(t.scene_)), sphere_emitters(find_sphere_emitters(t)), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
+        caster_boxes(find_caster_boxes(t.scene_)), sphere_emitters(find_sphere_emitters(t, caster_boxes)), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
         dense_hits(kChunk), blocked(kChunk), dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
 
-  static std::vector<SphereEmitter> find_sphere_emitters(const CausticTracer& t) {
+  static std::vector<SphereEmitter> find_sphere_emitters(const CausticTracer& t, const std::vector<Bounds3>& boxes) {
     std::vector<SphereEmitter> e;
-    for (int light : t.light_of_entry_) e.push_back(caustic_first_ray::sphere_emitter(t.scene_, light));
+    for (int light : t.light_of_entry_) e.push_back(caustic_first_ray::sphere_emitter(t.scene_, light, boxes));
     return e;
   }
   // Whether a light path's first ray may meet a caster (caster_boxes).
@@ -302,7 +319,7 @@ void CausticTracer::Pass::leave_light() {
     const vec2 u_pos = sample_2d(k, kDimPosition), u_dir = sample_2d(k, kDimDirection);
     // A sphere light's ray that surely misses every caster box is not made at all.
     const SphereEmitter& se = sphere_emitters[size_t(entry)];
-    if (se.valid && !caster_boxes.empty() && !caustic_first_ray::sphere_ray_may_meet(se, u_pos, u_dir, caster_boxes)) return;
+    if (se.valid && !caster_boxes.empty() && !caustic_first_ray::sphere_ray_may_meet(se, u_pos, u_dir)) return;
     auto le = sample_le(tracer.lights_, light, u_pos, sample_1d(k, kDimPrim), u_dir);
     if (!le || !(pmf > 0.0f)) return;
     RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));

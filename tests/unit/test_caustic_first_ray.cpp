@@ -101,10 +101,15 @@ TEST(CausticFirstRay, EveryDroppedSphereSampleMissesEveryBoxExactly) {
     Accel accel(scene);
     LightSet lights(scene, accel);
     ASSERT_EQ(scene.lights.size(), 1u) << c.name;
-    const SphereEmitter e = sphere_emitter(scene, 0);
-    ASSERT_TRUE(e.valid) << c.name;
-    const vec3 centre = vec3(e.render_from_object * vec4(0.0f, 0.0f, 0.0f, 1.0f));
-    const std::vector<Bounds3> boxes = boxes_around(rng, centre, e.size);
+    const SphereEmitter probe = sphere_emitter(scene, 0, {Bounds3(vec3(0.0f))});
+    ASSERT_TRUE(probe.valid) << c.name;
+    const vec3 centre = vec3(probe.render_from_object * vec4(0.0f, 0.0f, 0.0f, 1.0f));
+    const std::vector<Bounds3> boxes = boxes_around(rng, centre, probe.size);
+    // The estimate against each box alone, and against all of them (as the pass asks).
+    std::vector<SphereEmitter> alone;
+    for (const Bounds3& b : boxes) alone.push_back(sphere_emitter(scene, 0, {b}));
+    const SphereEmitter all = sphere_emitter(scene, 0, boxes);
+    const float size = probe.size;
 
     size_t dropped = 0, sampled = 0, grazing_met = 0, grazing_missed = 0;
     for (int i = 0; i < 40000; ++i) {
@@ -113,24 +118,23 @@ TEST(CausticFirstRay, EveryDroppedSphereSampleMissesEveryBoxExactly) {
       if (!le) continue;
       ++sampled;
       const Ray exact = emitted_ray(*le);
-      // Each box alone, then all of them, as the pass asks.
-      for (const Bounds3& b : boxes)
-        if (!sphere_ray_may_meet(e, u_pos, u_dir, {b})) {
+      for (size_t b = 0; b < boxes.size(); ++b)
+        if (!sphere_ray_may_meet(alone[b], u_pos, u_dir)) {
           ++dropped;
-          ASSERT_FALSE(may_meet(exact, b)) << c.name << " u_pos " << u_pos.x << ' ' << u_pos.y << " u_dir " << u_dir.x
-                                           << ' ' << u_dir.y;
+          ASSERT_FALSE(may_meet(exact, boxes[b])) << c.name << " u_pos " << u_pos.x << ' ' << u_pos.y << " u_dir "
+                                                  << u_dir.x << ' ' << u_dir.y;
         }
-      if (!sphere_ray_may_meet(e, u_pos, u_dir, boxes)) {
+      if (!sphere_ray_may_meet(all, u_pos, u_dir)) {
         for (const Bounds3& b : boxes) ASSERT_FALSE(may_meet(exact, b)) << c.name;
       }
       // Boxes that the exact ray only just meets or misses, near and far.
       std::uniform_real_distribution<float> u01(0.0f, 1.0f);
-      const float t = e.size * std::pow(10.0f, 4.0f * u01(rng) - 1.0f);
+      const float t = size * std::pow(10.0f, 4.0f * u01(rng) - 1.0f);
       const float off = (rng() % 2 ? 1.0f : -1.0f) * std::pow(10.0f, -7.0f + 5.0f * u01(rng));
-      const Bounds3 g = grazing_box(exact, t, rng() % 3 == 0 ? 0.0f : off, e.size * std::pow(10.0f, 3.0f * u01(rng) - 2.0f), rng);
+      const Bounds3 g = grazing_box(exact, t, rng() % 3 == 0 ? 0.0f : off, size * std::pow(10.0f, 3.0f * u01(rng) - 2.0f), rng);
       if (may_meet(exact, g)) {
         ++grazing_met;
-        ASSERT_TRUE(sphere_ray_may_meet(e, u_pos, u_dir, {g})) << c.name << " grazing box at t " << t;
+        ASSERT_TRUE(sphere_ray_may_meet(sphere_emitter(scene, 0, {g}), u_pos, u_dir)) << c.name << " grazing box at t " << t;
       } else {
         ++grazing_missed;
       }

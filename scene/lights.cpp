@@ -233,8 +233,9 @@ vec3 environment_direction(const EnvironmentMap& env, vec2 uv) {
 
 namespace {
 
-// equal_area_sphere_to_square with the angle from pbrt-v4's polynomial
-// (Clarberg's minimax fit of atan(b) 2 / pi on [0, 1], within 4.1e-6 of it,
+// equal_area_sphere_to_square with the angle from a polynomial (Clarberg,
+// "Fast Equal-Area Mapping of the (Hemi)Sphere using SIMD", JGT 2008: a
+// minimax fit of atan(b) 2 / pi on [0, 1], within 4.1e-6 of it,
 // so uv moves by at most 2.1e-6) in place of atan2f, which cost ~130 of the
 // ~345 instructions of a lookup; every escaped ray and every MIS weight of a
 // BSDF sample against the map makes one.  pbrt-v4's environment lookups use

@@ -273,7 +273,9 @@ struct WavefrontEngine::Impl {
   float sample1(const PathState& ps, uint32_t dim) const {
     return sample_1d(SamplerKey{opt.seed, ps.pixel, ps.sample}, dim);
   }
-  vec2 sample2(const PathState& ps, uint32_t dim) const {
+  // Always inlined, as sample_2d is (core/sampler.h): GCC outlined it once
+  // sample_direct_light drew the light_choice pair with it.
+  [[gnu::always_inline]] vec2 sample2(const PathState& ps, uint32_t dim) const {
     return sample_2d(SamplerKey{opt.seed, ps.pixel, ps.sample}, dim);
   }
   size_t memory_bytes() const;

@@ -200,9 +200,11 @@ float WavefrontEngine::Impl::phase_mis_pdf(const MediumVertex& v, const vec3& wi
 void WavefrontEngine::Impl::sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out) {
   const PathState& ps = v.ps;
   const LightSampleContext ctx{v.si.p, vec3(0.0f), vec3(0.0f), vec3(0.0f)};
-  auto sl = light_sampler.sample(ctx, sample1(ps, v.dims.light_choice));
+  // One draw of the light_choice/light_prim pair, as sample_direct_light does.
+  const vec2 u_light = sample2(ps, v.dims.light_choice);
+  auto sl = light_sampler.sample(ctx, u_light.x);
   if (!sl) return;
-  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), sample1(ps, v.dims.light_prim));
+  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), u_light.y);
   const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
   if (!ls || !(light_pdf > 0.0f) || !std::isfinite(light_pdf)) return;
   const float phase = henyey_greenstein(glm::dot(v.si.wo, ls->wi), v.g);

@@ -177,10 +177,14 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   const PathState& ps = v.ps;
   if (bsdf_is_specular(v.bsdf) || int(ps.depth) < opt.throughput_reset_bounce) return;
   const LightSampleContext ctx{v.si.p, v.si.p_error, v.si.ng, v.ns};
-  auto sl = light_sampler.sample(ctx, sample1(ps, v.dims.light_choice));
+  // light_choice and light_prim are one pair of slots (sample_dims.h): one
+  // draw of the pair gives both numbers, bit for bit the two 1D draws, for
+  // one hash and index shuffle instead of two.
+  static_assert(bounce_dims(0).light_prim == bounce_dims(0).light_choice + 1 && bounce_dims(0).light_choice % 2 == 0);
+  const vec2 u_light = sample2(ps, v.dims.light_choice);
+  auto sl = light_sampler.sample(ctx, u_light.x);
   if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light)) return;
-  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), sample1(ps, v.dims.light_prim), true,
-                      sl->primitive);
+  auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), u_light.y, true, sl->primitive);
   // pdf guard: the product of selection and sampling pdfs can underflow to 0
   // (a light of 1e-3 beside one of 1e9); such a sample is dropped, never divided by.
   const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;

@@ -380,6 +380,7 @@ TEST(Guiding, SelectionCapIsUnbiasedDeterministicAndApplies) {
   scene.film.width = scene.film.height = 24;
   RenderConfig a = guided_config(24);
   a.guiding.spatial_threshold = 1000.0;
+  a.guiding.selection_max = 1.0f;
   a.threads = 1;
   RenderConfig b = a;
   b.guiding.selection_max = 0.3f;

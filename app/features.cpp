@@ -152,6 +152,8 @@ void check(const GuidingOptions& o) {
     throw_error("--guiding-field {}: expected sdtree or vmm", o.field);
   if (o.sampling == "mis-learned" && !(o.selection_probability > 0.0f))
     throw_error("--guiding-sampling mis-learned starts from --guiding-selection-probability, which must then be above 0");
+  if (!(o.selection_max > 0.0f && o.selection_max <= 1.0f))
+    throw_error("--guiding-selection-max must be in (0, 1] (1: no cap), got {}", o.selection_max);
   if (!(o.defensive >= 0.0f && o.defensive <= 1.0f))
     throw_error("--guiding-defensive must be in [0, 1], got {}", o.defensive);
   if (!(o.split_decay > 0.0 && o.split_decay <= 0.5))
@@ -342,6 +344,7 @@ void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const 
   engine.guiding.mixing = options_.sampling == "ris" ? GuideMixing::Resampled : GuideMixing::OneSampleMIS;
   engine.guiding.min_roughness = options_.min_roughness;
   engine.guiding.defensive = options_.defensive;
+  engine.guiding.selection_max = options_.selection_max;
   engine.guiding.roulette_correction = options_.roulette_correction;
   engine.guiding.adjoint_roulette = options_.adjoint_roulette;
 }
@@ -568,17 +571,23 @@ nlohmann::json vmm_log(const VMMField& vmm) {
           {"bytes", vmm.memory_bytes()}};
 }
 
-// The learned share of guided directions over the leaves that guide.
-nlohmann::json selection_log(const SDTree& tree) {
+// The learned share of guided directions over the leaves that guide (as
+// learned: the engine takes at most `cap` of it), and how many leaves the cap cuts.
+nlohmann::json selection_log(const SDTree& tree, float cap) {
   double lo = 1.0, hi = 0.0, sum = 0.0;
-  size_t n = 0;
+  size_t n = 0, capped = 0;
   for (size_t l = 0; l < tree.leaf_count(); ++l) {
     const SpatialLeaf& leaf = tree.leaf(uint32_t(l));
     if (!leaf.has_energy) continue;
     lo = std::min(lo, double(leaf.selection)), hi = std::max(hi, double(leaf.selection));
     sum += leaf.selection, ++n;
+    capped += leaf.selection > cap;
   }
-  return {{"mean", n ? sum / double(n) : 0.0}, {"min", n ? lo : 0.0}, {"max", n ? hi : 0.0}};
+  return {{"mean", n ? sum / double(n) : 0.0},
+          {"min", n ? lo : 0.0},
+          {"max", n ? hi : 0.0},
+          {"cap", cap},
+          {"capped_leaves", capped}};
 }
 
 }  // namespace
@@ -637,7 +646,7 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
                     {"training_iterations", training_times_}};
   log["guiding"]["field"] = options_.field;
   if (vmm_) log["guiding"]["vmm"] = vmm_log(*vmm_);
-  if (tree_->options().learn_selection) log["guiding"]["selection"] = selection_log(*tree_);
+  if (tree_->options().learn_selection) log["guiding"]["selection"] = selection_log(*tree_, options_.selection_max);
   if (options_.auto_off) log["guiding"]["auto"] = auto_log();
   log["memory"]["guiding"] = tree_->memory_bytes() + (vmm_ ? vmm_->memory_bytes() : 0);
 }

@@ -34,6 +34,11 @@ struct GuidedSampling {
   GuideMixing mixing = GuideMixing::Resampled;
   float min_roughness = 0.05f;  // guide only where a lobe is rougher (bsdf_is_guidable)
   float defensive = 0.5f;       // RIS: the uniform share a of the target's radiance estimate
+  // One-sample MIS: the guide's share of directions at most this.  Where the
+  // guide takes a share s, a direction it missed is weighted by at most
+  // f / ((1 - s) p_bsdf): a learned share of 0.92 makes such a path 12x a
+  // BSDF sample's weight, a firefly on a diffuse wall.  1: no cap.
+  float selection_max = 1.0f;
   // Russian roulette on the throughput as BSDF sampling would have made it
   // (section 4.1.1): guiding's high pdfs towards light do not cut paths short.
   bool roulette_correction = true;

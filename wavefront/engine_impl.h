@@ -210,6 +210,10 @@ struct WavefrontEngine::Impl {
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
   void report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
+  // One-sample MIS: the guide's share of directions in a region, capped.
+  float guide_share(uint32_t region) const {
+    return std::min(hooks.guide->selection_probability(region), opt.guiding.selection_max);
+  }
   uint8_t caustic_flags(const PathState& ps, const BSDF& bsdf) const;
 
   // ---- shared by the stages

@@ -135,7 +135,7 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ff.beta;
   if (hooks.guide) {
     v.guide_region = hooks.guide->region(v.si.p);
-    if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
+    if (v.guided()) v.guide_fraction = guide_share(v.guide_region);
   }
   // In a sealed medium every shadow ray would be blocked: none is sampled,
   // unless an observer or a learning light sampler is told of each one.

@@ -79,7 +79,7 @@ void WavefrontEngine::Impl::prepare_vertex(ShadingPoint& v) const {
   v.guidable = (kObserve || hooks.guide) && bsdf_is_guidable(v.bsdf, opt.guiding.min_roughness);
   if (hooks.guide && v.guidable) {
     v.guide_region = hooks.guide->region(v.si.p);
-    if (v.guided()) v.guide_fraction = hooks.guide->selection_probability(v.guide_region);
+    if (v.guided()) v.guide_fraction = guide_share(v.guide_region);
   }
 }
 

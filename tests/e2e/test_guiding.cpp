@@ -363,6 +363,33 @@ TEST(Guiding, LearnedSelectionIsUnbiasedDeterministicAndLearns) {
   EXPECT_GT(learned.log["guiding"]["draw_failures"].get<uint64_t>(), 0u);
 }
 
+// --guiding-selection-max: the engine takes at most the cap of a leaf's
+// learned share; still unbiased and deterministic, and the log counts the
+// leaves it cuts.  A cap below where learning starts changes every guided vertex.
+TEST(Guiding, SelectionCapIsUnbiasedDeterministicAndApplies) {
+  RenderConfig c = guided_config(128);
+  c.guiding.sampling = "mis-learned";
+  c.guiding.selection_max = 0.3f;
+  RenderResult capped = render_unbiased_and_deterministic(c);
+  const nlohmann::json& sel = capped.log["guiding"]["selection"];
+  EXPECT_FLOAT_EQ(sel["cap"].get<float>(), 0.3f);
+  EXPECT_GT(sel["capped_leaves"].get<uint64_t>(), 0u);
+  EXPECT_EQ(capped.log["options"]["guiding_selection_max"].get<float>(), 0.3f);
+
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 24;
+  RenderConfig a = guided_config(24);
+  a.guiding.spatial_threshold = 1000.0;
+  a.guiding.selection_max = 1.0f;
+  a.threads = 1;
+  RenderConfig b = a;
+  b.guiding.selection_max = 0.3f;
+  EXPECT_GT(max_relative_difference(render_scene(scene, a).image, render_scene(scene, b).image), 1e-3);
+  // An uncapped render says so.
+  RenderResult plain = render_scene(scene, a);
+  EXPECT_EQ(plain.log["guiding"]["selection"]["capped_leaves"].get<uint64_t>(), 0u);
+}
+
 // --guiding-field vmm: the mixture field guides without bias, trains the same
 // whatever the thread count (its checkpoint: test_resume.cpp; its saved field:
 // test_field_e2e.cpp).

@@ -490,6 +490,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-sampling", {"mis"}},
     {"--guiding-field", {"vmm"}},
     {"--guiding-defensive", {"0.3"}},
+    {"--guiding-selection-max", {"0.8"}},
     {"--guiding-roulette-correction", {"off"}},
     {"--guiding-split-decay", {"0.5"}},
     {"--guiding-pdf-floor", {"0"}},

@@ -154,6 +154,11 @@ void check(const GuidingOptions& o) {
     throw_error("--guiding-sampling mis-learned starts from --guiding-selection-probability, which must then be above 0");
   if (!(o.selection_max > 0.0f && o.selection_max <= 1.0f))
     throw_error("--guiding-selection-max must be in (0, 1] (1: no cap), got {}", o.selection_max);
+  // The cap applies to a fixed share too: refuse a fixed one above it rather than change it silently.
+  if (o.sampling == "mis" && o.selection_probability > o.selection_max)
+    throw_error("--guiding-sampling mis takes --guiding-selection-probability {} as the guide's share, above "
+                "--guiding-selection-max {}: raise the cap (1: none)",
+                o.selection_probability, o.selection_max);
   if (!(o.defensive >= 0.0f && o.defensive <= 1.0f))
     throw_error("--guiding-defensive must be in [0, 1], got {}", o.defensive);
   if (!(o.split_decay > 0.0 && o.split_decay <= 0.5))

@@ -77,7 +77,8 @@ TEST(CommandLine, MissingSceneAndBadOptionsFail) {
   // Combinations that would give a wrong image are refused with the reason.
   const std::string out = " -o " + (d / "o.exr").string();
   for (const char* bad : {" --guiding-selection-probability 1", " --caustics-caster-roughness -1", " --guiding-spatial-threshold 0",
-                          " --guiding-selection-max 0", " --guiding-selection-max 1.5"}) {
+                          " --guiding-selection-max 0", " --guiding-selection-max 1.5",
+                          " --guiding --guiding-sampling mis --guiding-selection-probability 0.9"}) {
     RunResult r = run("render " + (d / "s.pbrt").string() + out + bad);
     EXPECT_NE(r.exit_code, 0) << bad;
     EXPECT_NE(r.output.find("--"), std::string::npos) << bad << ": " << r.output;

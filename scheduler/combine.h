@@ -23,7 +23,7 @@
 // iteration, half the samples of a doubling schedule), and never fewer than
 // every sample since the estimator settled (fold's `settled_from`).  The
 // samples before the window, and those of iterations without a variance
-// estimate (1 spp), are in the equal image only, and resolve() uses the
+// estimate (1 spp) or under kMinWeightedSpp, are in the equal image only, and resolve() uses the
 // inverse-variance image only where it is
 // estimated to be less noisy than the equal one (mean over the image of both
 // variance estimates, from the same half buffers), so it is never worse than
@@ -98,6 +98,7 @@ struct CombinationChoice {
 
 struct ImageAccumulator {
   static constexpr size_t kMaxBlocks = 4;
+  static constexpr uint32_t kMinWeightedSpp = 8;  // smaller iterations are in the equal image only
 
   Film total;                      // every iteration summed
   Combination combination;

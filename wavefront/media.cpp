@@ -237,27 +237,6 @@ void WavefrontEngine::Impl::attenuate_shadow_rays_in_media() {
   });
 }
 
-namespace {
-
-// What a shape does to a shadow ray, where the shape alone decides it: a
-// holdout or a surface with a BSDF blocks, an interface or a virtual light
-// passes; a mix material is resolved at the hit (its choice hashes the point).
-enum class ShadowCrossing { Blocks, Passes, AtHit };
-
-ShadowCrossing shadow_crossing(const Scene& scene, int shape) {
-  const Shape& s = scene.shapes[size_t(shape)];
-  if (s.holdout) return ShadowCrossing::Blocks;
-  if (s.area_light >= 0 && scene.lights[size_t(s.area_light)].is_virtual) return ShadowCrossing::Passes;
-  if (s.material < 0) return ShadowCrossing::Blocks;  // the default diffuse
-  switch (scene.materials[size_t(s.material)].kind) {
-    case MaterialKind::Interface: return ShadowCrossing::Passes;
-    case MaterialKind::Mix: return ShadowCrossing::AtHit;
-    default: return ShadowCrossing::Blocks;
-  }
-}
-
-}  // namespace
-
 // Transmittance from the ray's origin to its end: traced hit by hit, each
 // segment attenuated by ratio tracking in its medium; an "interface"
 // surface (or a virtual light) passes the ray on into the medium beyond it,
@@ -282,17 +261,17 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
       return T;
     }
     const int shape = accel.shape_index(hit);
-    const ShadowCrossing what = shape >= 0 ? shadow_crossing(scene, shape) : ShadowCrossing::Passes;
-    if (what == ShadowCrossing::Blocks) return RGB(0.0f);
+    const ShapeCrossing what = shape >= 0 ? shape_crossing(scene, shape) : ShapeCrossing::Passes;
+    if (what == ShapeCrossing::Blocks) return RGB(0.0f);
     // Instanced spheres and cylinders were met without their (u, v): the same
     // hit again, with them (top-level ones find theirs in compute_interaction).
     const ShapeKind kind = shape >= 0 ? scene.shapes[size_t(shape)].kind : ShapeKind::TriangleMesh;
     if ((kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) && hit.inst != kInvalidId)
       hit = accel.intersect1(ray, skip);
     // A mix material's choice reads the whole interaction; passing on needs only the crossing.
-    const SurfaceInteraction si = what == ShadowCrossing::AtHit ? compute_interaction(scene, accel, ray, hit)
+    const SurfaceInteraction si = what == ShapeCrossing::AtHit ? compute_interaction(scene, accel, ray, hit)
                                                                 : crossing_interaction(scene, accel, ray, hit);
-    if (what == ShadowCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
+    if (what == ShapeCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
     if (!track(hit.t)) return T;
     medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
     ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));

@@ -8,17 +8,6 @@
 
 namespace theia {
 
-namespace {
-
-// Whether make_bsdf surely gives a hit on s no lobes (bsdf_is_passthrough)
-// and nothing before the pass-through step in shade_surface acts on it.
-bool passes_straight(const Shape& s, const Scene& scene) {
-  return !s.holdout && s.area_light < 0 && s.material >= 0 &&
-         scene.materials[size_t(s.material)].kind == MaterialKind::Interface;
-}
-
-}  // namespace
-
 template <bool kObserve>
 void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
   PathState& ps = pool[slot];
@@ -29,7 +18,8 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   // BSDF).  Interfaces matter only in scenes with media.
   if (!pool.medium.empty() && !ps.alpha_only) {
     const int shape = accel.shape_index(hit);
-    if (shape >= 0 && passes_straight(scene.shapes[size_t(shape)], scene)) {
+    if (shape >= 0 && scene.shapes[size_t(shape)].area_light < 0 &&
+        shape_crossing(scene, shape) == ShapeCrossing::Passes) {
       ++out.vertices;
       const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
       return queue_ray(slot, si, spawn_ray(si, -si.wo), out);

@@ -231,43 +231,8 @@ vec3 environment_direction(const EnvironmentMap& env, vec2 uv) {
   return env.equal_area ? equal_area_square_to_sphere(uv) : equirect_to_sphere(uv);
 }
 
-namespace {
-
-// equal_area_sphere_to_square with the angle from a polynomial (Clarberg,
-// "Fast Equal-Area Mapping of the (Hemi)Sphere using SIMD", JGT 2008: a
-// minimax fit of atan(b) 2 / pi on [0, 1], within 4.1e-6 of it,
-// so uv moves by at most 2.1e-6) in place of atan2f, which cost ~130 of the
-// ~345 instructions of a lookup; every escaped ray and every MIS weight of a
-// BSDF sample against the map makes one.  pbrt-v4's environment lookups use
-// the same polynomial.  The exact map stays in core/sampling.h for the rest.
-vec2 equal_area_sphere_to_square_poly(const vec3& d) {
-  const float x = std::abs(d.x), y = std::abs(d.y), z = std::abs(d.z);
-  const float r = safe_sqrt(1.0f - z);
-  const float a = std::max(x, y);
-  const float b = a == 0.0f ? 0.0f : std::min(x, y) / a;
-  float phi = 0.406758566246788489601959989e-5f +
-              b * (0.636226545274016134946890922156f +
-                   b * (0.61572017898280213493197203466e-2f +
-                        b * (-0.247333733281268944196501420480f +
-                             b * (0.881770664775316294736387951347e-1f +
-                                  b * (0.419038818029165735901852432784e-1f +
-                                       b * -0.251390972343483509333252996350e-1f)))));
-  if (x < y) phi = 1.0f - phi;
-  float v = phi * r, u = r - v;
-  if (d.z < 0.0f) {
-    const float t = u;
-    u = 1.0f - v;
-    v = 1.0f - t;
-  }
-  u = std::copysign(u, d.x);
-  v = std::copysign(v, d.y);
-  return {std::clamp(0.5f * (u + 1.0f), 0.0f, 1.0f), std::clamp(0.5f * (v + 1.0f), 0.0f, 1.0f)};
-}
-
-}  // namespace
-
 vec2 environment_uv(const EnvironmentMap& env, const vec3& w_light) {
-  return env.equal_area ? equal_area_sphere_to_square_poly(w_light) : sphere_to_equirect(w_light);
+  return env.equal_area ? equal_area_sphere_to_square_fast(w_light) : sphere_to_equirect(w_light);
 }
 
 float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compensated) {

@@ -269,6 +269,39 @@ TriangleMesh read_ply(const std::string& path) {
   bool has_n = false, has_uv = false;
   int skipped_faces = 0;
   std::vector<double> list_values;
+  // One vertex property's value, checked and stored.
+  auto set_vertex = [&](size_t i, const Property& p, double v) {
+    if (p.slot != Slot::None && !std::isfinite(float(v)))
+      throw_error("{}: error: vertex {} has a non-finite or out-of-range {} ({}), expected finite values", path, i,
+                  p.name, v);
+    switch (p.slot) {
+      case Slot::X: mesh.p[i].x = float(v); break;
+      case Slot::Y: mesh.p[i].y = float(v); break;
+      case Slot::Z: mesh.p[i].z = float(v); break;
+      case Slot::NX: if (has_n) mesh.n[i].x = float(v); break;
+      case Slot::NY: if (has_n) mesh.n[i].y = float(v); break;
+      case Slot::NZ: if (has_n) mesh.n[i].z = float(v); break;
+      case Slot::U: if (has_uv) mesh.uv[i].x = float(v); break;
+      case Slot::V: if (has_uv) mesh.uv[i].y = float(v); break;
+      default: break;
+    }
+  };
+  // Face i's n vertex indices (v[0..n) read where n <= 4): a triangle, a quad
+  // as two, anything else skipped.
+  auto add_face = [&](size_t i, const double* v, size_t n) {
+    if (n != 3 && n != 4) {
+      ++skipped_faces;
+      return;
+    }
+    uint32_t idx[4];
+    for (size_t k = 0; k < n; ++k) {
+      if (v[k] < 0 || v[k] >= double(vertex_count) || v[k] != std::floor(v[k]))
+        throw_error("{}: error: face {} has vertex index {}, expected an integer in [0, {})", path, i, v[k], vertex_count);
+      idx[k] = uint32_t(v[k]);
+    }
+    mesh.indices.insert(mesh.indices.end(), {idx[0], idx[1], idx[2]});
+    if (n == 4) mesh.indices.insert(mesh.indices.end(), {idx[0], idx[2], idx[3]});
+  };
   size_t claimed = 0;  // the body's smallest size the header implies
   for (const Element& e : elements) {
     size_t per_item = 0;
@@ -305,25 +338,8 @@ TriangleMesh read_ply(const std::string& path) {
       const size_t stride = 4 * e.props.size();
       for (size_t i = 0; i < e.count; ++i) {
         const char* rec = in.take(stride, e.name.c_str());
-        for (size_t k = 0; k < e.props.size(); ++k) {
-          const Property& p = e.props[k];
-          if (p.slot == Slot::None) continue;
-          const float v = load<float>(rec + 4 * k, in.swap());
-          if (!std::isfinite(v))
-            throw_error("{}: error: vertex {} has a non-finite or out-of-range {} ({}), expected finite values", path, i,
-                        p.name, double(v));
-          switch (p.slot) {
-            case Slot::X: mesh.p[i].x = v; break;
-            case Slot::Y: mesh.p[i].y = v; break;
-            case Slot::Z: mesh.p[i].z = v; break;
-            case Slot::NX: if (has_n) mesh.n[i].x = v; break;
-            case Slot::NY: if (has_n) mesh.n[i].y = v; break;
-            case Slot::NZ: if (has_n) mesh.n[i].z = v; break;
-            case Slot::U: if (has_uv) mesh.uv[i].x = v; break;
-            case Slot::V: if (has_uv) mesh.uv[i].y = v; break;
-            default: break;
-          }
-        }
+        for (size_t k = 0; k < e.props.size(); ++k)
+          set_vertex(i, e.props[k], double(load<float>(rec + 4 * k, in.swap())));
       }
       continue;
     }
@@ -340,20 +356,11 @@ TriangleMesh read_ply(const std::string& path) {
           throw_error("{}: error: unexpected end of file in the {} data: a list of {} values, {} bytes left, expected "
                       "more values", path, e.name, double(count), in.remaining());
         const char* q = in.take(4 * count, e.name.c_str());
-        if (count != 3 && count != 4) {
-          ++skipped_faces;
-          continue;
-        }
-        uint32_t idx[4];
-        for (size_t k = 0; k < count; ++k) {
-          const double v = fp->type == Scalar::Int32 ? double(load<int32_t>(q + 4 * k, in.swap()))
-                                                     : double(load<uint32_t>(q + 4 * k, in.swap()));
-          if (v < 0 || v >= double(vertex_count))
-            throw_error("{}: error: face {} has vertex index {}, expected an integer in [0, {})", path, i, v, vertex_count);
-          idx[k] = uint32_t(v);
-        }
-        mesh.indices.insert(mesh.indices.end(), {idx[0], idx[1], idx[2]});
-        if (count == 4) mesh.indices.insert(mesh.indices.end(), {idx[0], idx[2], idx[3]});
+        double v[4] = {};
+        for (size_t k = 0; k < std::min<size_t>(count, 4); ++k)
+          v[k] = fp->type == Scalar::Int32 ? double(load<int32_t>(q + 4 * k, in.swap()))
+                                           : double(load<uint32_t>(q + 4 * k, in.swap()));
+        add_face(i, v, count);
       }
       continue;
     }
@@ -361,21 +368,7 @@ TriangleMesh read_ply(const std::string& path) {
       for (const Property& p : e.props) {
         if (!p.is_list) {
           double v = in.read(p.type, e.name.c_str());
-          if (!is_vertex) continue;
-          if (p.slot != Slot::None && !std::isfinite(float(v)))
-            throw_error("{}: error: vertex {} has a non-finite or out-of-range {} ({}), expected finite values", path, i,
-                        p.name, v);
-          switch (p.slot) {
-            case Slot::X: mesh.p[i].x = float(v); break;
-            case Slot::Y: mesh.p[i].y = float(v); break;
-            case Slot::Z: mesh.p[i].z = float(v); break;
-            case Slot::NX: if (has_n) mesh.n[i].x = float(v); break;
-            case Slot::NY: if (has_n) mesh.n[i].y = float(v); break;
-            case Slot::NZ: if (has_n) mesh.n[i].z = float(v); break;
-            case Slot::U: if (has_uv) mesh.uv[i].x = float(v); break;
-            case Slot::V: if (has_uv) mesh.uv[i].y = float(v); break;
-            default: break;
-          }
+          if (is_vertex) set_vertex(i, p, v);
           continue;
         }
         double count = in.read(p.count_type, e.name.c_str());
@@ -385,20 +378,7 @@ TriangleMesh read_ply(const std::string& path) {
                       "more values", path, e.name, count, in.remaining());
         list_values.resize(size_t(count));
         for (double& v : list_values) v = in.read(p.type, e.name.c_str());
-        if (!is_face || !p.is_face_indices) continue;
-        if (list_values.size() != 3 && list_values.size() != 4) {
-          ++skipped_faces;
-          continue;
-        }
-        uint32_t idx[4];
-        for (size_t k = 0; k < list_values.size(); ++k) {
-          double v = list_values[k];
-          if (v < 0 || v >= double(vertex_count) || v != std::floor(v))
-            throw_error("{}: error: face {} has vertex index {}, expected an integer in [0, {})", path, i, v, vertex_count);
-          idx[k] = uint32_t(v);
-        }
-        mesh.indices.insert(mesh.indices.end(), {idx[0], idx[1], idx[2]});
-        if (list_values.size() == 4) mesh.indices.insert(mesh.indices.end(), {idx[0], idx[2], idx[3]});
+        if (is_face && p.is_face_indices) add_face(i, list_values.data(), list_values.size());
       }
     }
   }

@@ -63,7 +63,8 @@ nlohmann::json CombinationChoice::log() const {
   return {{"used", combination_name(used)},
           {"why", why},
           {"estimated_variance", {{"equal", equal_variance}, {"inverse_variance", weighted_variance}}},
-          {"window_spp", {window_begin, window_end}}};
+          {"window_spp", {window_begin, window_end}},
+          {"pooled_spp", {pooled_begin, pooled_end}}};
 }
 
 // The per-sample variance of the iteration, averaged over the pixels that
@@ -93,6 +94,39 @@ void merge(WeightedRun& into, const WeightedRun& later) {
   }
 }
 
+// Adds iteration `it` [spp_begin, spp_end) to `run` with weight lambda per
+// sample; s2 is the iteration's per-sample variance, for the pixels without
+// a half-buffer estimate (their v = s2 / W).
+void add_weighted(WeightedRun& run, const Film& it, const std::vector<float>& var, double s2, float lambda,
+                  uint32_t spp_begin, uint32_t spp_end) {
+  const size_t n = it.pixel_count();
+  if (run.empty()) run = {spp_begin, spp_begin, std::vector<float>(3 * n), std::vector<float>(n), std::vector<float>(n)};
+  run.spp_end = spp_end;
+  for (size_t i = 0; i < n; ++i) {
+    const float wi = it.weight[i];
+    run.sum[3 * i] += lambda * it.r[i];
+    run.sum[3 * i + 1] += lambda * it.g[i];
+    run.sum[3 * i + 2] += lambda * it.b[i];
+    run.weight[i] += lambda * wi;
+    run.variance[i] += var[i] >= 0.0f ? lambda * lambda * wi * wi * var[i] : float(double(lambda) * lambda * wi * s2);
+  }
+}
+
+// The one weight of the settled run, 1 / its per-sample variance pooled over
+// every pixel it reached: each pixel's Var[estimate] * W = variance / W.
+// 0 when it has none (empty, or noiseless).
+double pooled_lambda(const WeightedRun& run) {
+  double sum = 0.0;
+  size_t reached = 0;
+  for (size_t i = 0; i < run.weight.size(); ++i)
+    if (run.weight[i] > 0.0f) {
+      sum += double(run.variance[i]) / double(run.weight[i]);
+      ++reached;
+    }
+  const double s2 = reached > 0 ? sum / double(reached) : 0.0;
+  return s2 > 0.0 && std::isfinite(s2) ? 1.0 / s2 : 0.0;
+}
+
 }  // namespace
 
 void ImageAccumulator::fold(const Film& it, uint32_t spp_begin, uint32_t spp_end, uint32_t settled_from) {
@@ -105,33 +139,29 @@ void ImageAccumulator::fold(const Film& it, uint32_t spp_begin, uint32_t spp_end
   const uint32_t boundary = window > 0 ? std::min(spp_end > window ? spp_end - window : 0, settled_from) : 0;
   std::erase_if(runs, [&](const WeightedRun& r) { return r.spp_end <= boundary; });
 
-  // An iteration of a few spp (a time limit's last, a schedule's first) has
-  // too noisy a variance estimate to weigh it by: one that happened to miss
-  // the bright, rare paths gets a large weight and pulls the image down
-  // (material-testball with --guiding-auto at 30 s: mean -1.1%, MAPE 4x).
-  // Leaving it out by its size alone keeps the weighting unbiased.
-  if (spp_end - spp_begin < kMinWeightedSpp) {
+  // An unsettled iteration of a few spp (a schedule's first) has too noisy a
+  // variance estimate to weigh it by: one that happened to miss the bright,
+  // rare paths gets a large weight and pulls the image down (material-testball
+  // with --guiding-auto at 30 s: mean -1.1%, MAPE 4x).  Leaving it out by its
+  // size alone keeps the weighting unbiased.  A settled one (a time limit's
+  // last) joins the pooled run, whose weight it barely moves.
+  const bool settled_now = spp_begin >= settled_from;
+  if (!settled_now && spp_end - spp_begin < kMinWeightedSpp) {
     ++skipped;
     return;
   }
   const std::vector<float> var = half_buffer_variance(it);
   const double s2 = per_sample_variance(it, var);
+  if (settled_now && s2 >= 0.0 && std::isfinite(s2)) {
+    add_weighted(settled, it, var, s2, 1.0f, spp_begin, spp_end);
+    return;
+  }
   if (!(s2 > 0.0) || !std::isfinite(s2)) {  // unknown, or noiseless: nothing to weight by
     ++skipped;
     return;
   }
-  const float lambda = float(1.0 / s2);
-  const size_t n = it.pixel_count();
-  WeightedRun run{spp_begin, spp_end, std::vector<float>(3 * n), std::vector<float>(n), std::vector<float>(n)};
-  for (size_t i = 0; i < n; ++i) {
-    const float wi = it.weight[i];
-    run.sum[3 * i] = lambda * it.r[i];
-    run.sum[3 * i + 1] = lambda * it.g[i];
-    run.sum[3 * i + 2] = lambda * it.b[i];
-    run.weight[i] = lambda * wi;
-    // Where the pixel has no half-buffer estimate, the image's: v = s^2 / W.
-    run.variance[i] = var[i] >= 0.0f ? lambda * lambda * wi * wi * var[i] : lambda * wi;
-  }
+  WeightedRun run;
+  add_weighted(run, it, var, s2, float(1.0 / s2), spp_begin, spp_end);
   runs.push_back(std::move(run));
   if (runs.size() > kMaxBlocks) {
     // Merge the adjacent pair with the fewest samples (the oldest of equals).
@@ -159,12 +189,17 @@ ImageBuffer ImageAccumulator::resolve(CombinationChoice* choice) const {
     c.why = "asked for (--combine equal)";
     return out;
   }
-  if (runs.empty()) {
+  const double settled_lambda = pooled_lambda(settled);
+  if (runs.empty() && settled_lambda == 0.0) {
     c.why = "no iteration in the window has a variance estimate";
     return out;
   }
-  c.window_begin = runs.front().spp_begin;
-  c.window_end = runs.back().spp_end;
+  c.window_begin = runs.empty() ? settled.spp_begin : runs.front().spp_begin;
+  c.window_end = settled_lambda > 0.0 ? settled.spp_end : runs.back().spp_end;
+  if (settled_lambda > 0.0) {
+    c.pooled_begin = settled.spp_begin;
+    c.pooled_end = settled.spp_end;
+  }
 
   // Both images and their estimated variances, pixel by pixel.
   const size_t n = total.pixel_count(), nc = out.channels.size();
@@ -178,6 +213,11 @@ ImageBuffer ImageAccumulator::resolve(CombinationChoice* choice) const {
       for (int ch = 0; ch < 3; ++ch) s[ch] += r.sum[3 * i + size_t(ch)];
       w += r.weight[i];
       v += r.variance[i];
+    }
+    if (settled_lambda > 0.0) {
+      for (int ch = 0; ch < 3; ++ch) s[ch] += settled_lambda * settled.sum[3 * i + size_t(ch)];
+      w += settled_lambda * settled.weight[i];
+      v += settled_lambda * settled_lambda * settled.variance[i];
     }
     if (w == 0.0) {  // not reached by the window: the equal image's pixel
       for (int ch = 0; ch < 3; ++ch) rgb[3 * i + size_t(ch)] = out.data[i * nc + size_t(ch)];

@@ -16,24 +16,33 @@
 // without bias (a pixel an iteration did not reach gets nothing from it), and
 // equal lambdas are exactly equal weighting.
 //
+// The iterations from the one where the estimator settled on (fold's
+// `settled_from`: a frozen guiding field) sample one and the same estimator,
+// so they share one weight: they are pooled into one unweighted run whose
+// variance, estimated from all of their samples, sets that weight when the
+// image is resolved.  Weighing each by its own noisy estimate would correlate
+// the weights with the images (an iteration that missed the rare bright paths
+// is estimated both darker and less noisy, and gets more weight): a bias the
+// pooled estimate, from hundreds of spp, all but removes.
+//
 // By default every iteration with a variance estimate takes part (seeds/001
 // 10.3 combines them all: a learning iteration's noise lowers its weight
 // rather than removing its samples).  A `window` in spp keeps only the
 // iterations in the last that many spp (Mueller 2017 keeps only the last
 // iteration, half the samples of a doubling schedule), and never fewer than
-// every sample since the estimator settled (fold's `settled_from`).  The
-// samples before the window, and those of iterations without a variance
-// estimate (1 spp) or under kMinWeightedSpp, are in the equal image only, and resolve() uses the
-// inverse-variance image only where it is
-// estimated to be less noisy than the equal one (mean over the image of both
-// variance estimates, from the same half buffers), so it is never worse than
-// equal weights by that estimate; choice() says which it used and why.
+// every sample since the estimator settled.  The samples before the window,
+// those of iterations without a variance estimate (1 spp) and those of
+// unsettled iterations under kMinWeightedSpp are in the equal image only, and
+// resolve() uses the inverse-variance image only where it is estimated to be
+// less noisy than the equal one (mean over the image of both variance
+// estimates, from the same half buffers), so it is never worse than equal
+// weights by that estimate; choice() says which it used and why.
 //
 // Memory: nothing beyond the total with equal weighting; with inverse-
-// variance weighting at most kMaxBlocks runs of iterations of 5 floats per
-// pixel, whatever the number of iterations (older runs are merged, which for
-// the weighted sums is exact; a merged run leaves the window when its last
-// sample does, so the window is at least `window` spp).
+// variance weighting at most kMaxBlocks runs of iterations and the settled
+// run, 5 floats per pixel each, whatever the number of iterations (older runs
+// are merged, which for the weighted sums is exact; a merged run leaves the
+// window when its last sample does, so the window is at least `window` spp).
 #pragma once
 
 #include "core/image.h"
@@ -84,6 +93,7 @@ struct WeightedRun {
   std::vector<float> sum;       // sum_k lambda_k S_k, working-space RGB interleaved
   std::vector<float> weight;    // sum_k lambda_k W_k
   std::vector<float> variance;  // sum_k lambda_k^2 W_k^2 v_k (v_k: the pixel estimate's variance)
+  bool empty() const { return spp_end == spp_begin; }
 };
 
 // What resolve() uses and why.
@@ -93,6 +103,7 @@ struct CombinationChoice {
   double equal_variance = -1.0;     // mean over pixels of the estimated variance; < 0: not estimated
   double weighted_variance = -1.0;
   uint32_t window_begin = 0, window_end = 0;  // spp of the iterations weighted
+  uint32_t pooled_begin = 0, pooled_end = 0;  // spp of the settled iterations weighted as one
   nlohmann::json log() const;
 };
 
@@ -104,6 +115,10 @@ struct ImageAccumulator {
   Combination combination;
   uint32_t window;                 // spp; 0: every iteration
   std::vector<WeightedRun> runs;   // inverse-variance only: the runs in the window, oldest first
+  // Inverse-variance only: the iterations since the estimator settled, summed
+  // with lambda = 1; resolve() weighs the run by one lambda from its pooled
+  // variance.  After every run in `runs`; empty until an iteration settles.
+  WeightedRun settled;
   uint32_t skipped = 0;            // iterations left out of the weighting (no variance estimate)
 
   // `aov_events`: the iterations' films have the event planes (Film::aov_events).

@@ -16,8 +16,9 @@ namespace theia {
 namespace {
 
 constexpr const char* kSchedulerSection = "scheduler";
-constexpr uint32_t kSchedulerSectionVersion = 3;
-// A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance).
+constexpr uint32_t kSchedulerSectionVersion = 4;
+// A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance);
+// the settled run's are settled.R ... settled.V.
 constexpr const char* kRunChannels[5] = {"R", "G", "B", "W", "V"};
 
 // Where the render is: restored from and saved into a checkpoint.
@@ -129,14 +130,15 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   }
   put_planes(img, "total.", acc.total, src, src_stride);
   if (pos.camera_done > 0 && !pos.finished) put_planes(img, "partial.", partial, src, src_stride);
-  for (size_t k = 0; k < acc.runs.size(); ++k) {
-    const WeightedRun& r = acc.runs[k];
+  auto put_run = [&](const WeightedRun& r, const std::string& prefix) {
     for (int ch = 0; ch < 5; ++ch) {
-      img.channels.push_back(fmt::format("run{}.{}", k, kRunChannels[ch]));
+      img.channels.push_back(fmt::format("{}.{}", prefix, kRunChannels[ch]));
       src.push_back(ch < 3 ? r.sum.data() + ch : ch == 3 ? r.weight.data() : r.variance.data());
       src_stride.push_back(ch < 3 ? 3 : 1);
     }
-  }
+  };
+  for (size_t k = 0; k < acc.runs.size(); ++k) put_run(acc.runs[k], fmt::format("run{}", k));
+  if (!acc.settled.empty()) put_run(acc.settled, "settled");
   const size_t nc = img.channels.size(), n = img.pixel_count();
   img.data.resize(n * nc);
   for (size_t c2 = 0; c2 < nc; ++c2)
@@ -154,6 +156,8 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   std::vector<uint32_t> run_spp;
   for (const WeightedRun& r : acc.runs) run_spp.insert(run_spp.end(), {r.spp_begin, r.spp_end});
   w.put_vector(run_spp);
+  w.put<uint32_t>(acc.settled.spp_begin);
+  w.put<uint32_t>(acc.settled.spp_end);
   w.put<uint32_t>(acc.skipped);
   w.put<int32_t>(pos.switched_at);
   c.sections.push_back({kSchedulerSection, kSchedulerSectionVersion, std::move(w.bytes)});
@@ -197,11 +201,12 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, std::vector<int>& 
   if (r.get<uint32_t>() != cfg.seed) throw_error("{}: written with a different seed", what);
   uint64_t dropped_total = r.get<uint64_t>(), dropped_partial = r.get<uint64_t>();
   std::vector<uint32_t> run_spp = r.get_vector<uint32_t>();
+  const uint32_t settled_begin = r.get<uint32_t>(), settled_end = r.get<uint32_t>();
   const uint32_t skipped = r.get<uint32_t>();
   pos.switched_at = r.get<int32_t>();
   if (!follows_plan(sizes, saved_sizes, pos.switched_at)) throw_error("{}: written for a different schedule", what);
   sizes = saved_sizes;
-  if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks)
+  if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks || settled_end < settled_begin)
     throw_error("{}: bad inverse-variance runs", what);
   if (pos.iteration < 0 || pos.iteration > int(sizes.size())) throw_error("{}: iteration out of range", what);
   if (c.image.width != acc.total.width || c.image.height != acc.total.height)
@@ -216,17 +221,20 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, std::vector<int>& 
   }
   acc.runs.clear();
   acc.skipped = skipped;
-  for (size_t k = 0; k < run_spp.size() / 2; ++k) {
-    WeightedRun run{run_spp[2 * k], run_spp[2 * k + 1], {}, {}, {}};
+  auto get_run = [&](uint32_t spp_begin, uint32_t spp_end, const std::string& prefix) {
+    WeightedRun run{spp_begin, spp_end, {}, {}, {}};
     run.sum.resize(c.image.pixel_count() * 3);
     for (int ch = 0; ch < 3; ++ch) {
-      std::vector<float> v = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[ch]), what);
+      std::vector<float> v = channel(c.image, fmt::format("{}.{}", prefix, kRunChannels[ch]), what);
       for (size_t i = 0; i < v.size(); ++i) run.sum[3 * i + size_t(ch)] = v[i];
     }
-    run.weight = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[3]), what);
-    run.variance = channel(c.image, fmt::format("run{}.{}", k, kRunChannels[4]), what);
-    acc.runs.push_back(std::move(run));
-  }
+    run.weight = channel(c.image, fmt::format("{}.{}", prefix, kRunChannels[3]), what);
+    run.variance = channel(c.image, fmt::format("{}.{}", prefix, kRunChannels[4]), what);
+    return run;
+  };
+  for (size_t k = 0; k < run_spp.size() / 2; ++k)
+    acc.runs.push_back(get_run(run_spp[2 * k], run_spp[2 * k + 1], fmt::format("run{}", k)));
+  acc.settled = settled_end > settled_begin ? get_run(settled_begin, settled_end, "settled") : WeightedRun{};
   for (const auto& p : cfg.participants) {
     const CheckpointSection* ps = c.find(p.name);
     if (!ps) throw_error("{}: no section '{}' for a subsystem this render uses", what, p.name);

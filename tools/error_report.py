@@ -436,10 +436,21 @@ def equal_time_reference(theia, name, scene, ref, spp, out_dir):
     return path
 
 
-def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, reference_spp, out_dir):
+def run_side_by_side(cmds):
+    """Runs the commands at once and waits for all of them (each must succeed)."""
+    procs = [subprocess.Popen(cmd) for cmd in cmds]
+    codes = [p.wait() for p in procs]
+    for cmd, code in zip(cmds, codes):
+        if code != 0:
+            raise subprocess.CalledProcessError(code, cmd)
+
+
+def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, reference_spp, out_dir,
+               side_by_side=False):
     scenes = {sc[0]: sc for sc in EQUAL_TIME_SCENES}
     os.makedirs(out_dir, exist_ok=True)
     rows = []
+    threads = max(1, (os.cpu_count() or 1) // len(configurations))
     for name in scene_names:
         if name not in scenes:
             sys.exit(f"--scenes: unknown scene {name}; known: {', '.join(scenes)}")
@@ -448,16 +459,27 @@ def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, re
         reference = read_rgb(equal_time_reference(theia, name, scene, ref, reference_spp, out_dir))
         # Configurations interleaved within each seed: the machine's load drifts,
         # and each configuration's renders should see the same share of it.
+        # Side by side, they run at the same time on an equal share of the
+        # cores, so that they see the very same load.
         for budget in budgets:
             images = {label: [] for label, _ in configurations}
             groups = {label: [] for label, _ in configurations}
             for seed in range(n_seeds):
+                outs, cmds = [], []
                 for label, args in configurations:
                     out = os.path.join(out_dir, f"{name}-{label}-{budget:g}s-seed{seed}.exr")
                     cmd = [theia, "render", scene, "-o", out, "--spp", str(spp_cap), "--time-limit", f"{budget:g}",
                            "--seed", str(seed), "-q"] + args
+                    if side_by_side:
+                        cmd += ["--threads", str(threads)]
                     print(" ".join(shlex.quote(a) for a in cmd), flush=True)
-                    subprocess.run(cmd, check=True)
+                    outs.append(out)
+                    cmds.append(cmd)
+                    if not side_by_side:
+                        subprocess.run(cmd, check=True)
+                if side_by_side:
+                    run_side_by_side(cmds)
+                for (label, _), out in zip(configurations, outs):
                     with open(os.path.splitext(out)[0] + ".json") as f:
                         log = json.load(f)
                     image = read_rgb(out)
@@ -470,10 +492,12 @@ def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, re
                     r["seed_variance"] = v
                 rows += groups[label]
     groups = aggregate(rows)
+    how = (f" The configurations of a seed ran side by side, each with `--threads {threads}`."
+           if side_by_side else "")
     lines = [f"# Equal time: median of {n_seeds} seeds", "",
              "Each render: `theia render SCENE --spp " + str(spp_cap) + " --time-limit BUDGET --seed S` plus the "
              "configuration's arguments; relMSE and MAPE against the reference (tests/data, or rendered unguided at "
-             f"{reference_spp} spp), time per spp = render time / mean spp, path length in vertices.", "",
+             f"{reference_spp} spp), time per spp = render time / mean spp, path length in vertices." + how, "",
              "Configurations: " + ", ".join(f"{label} = `{' '.join(args) or '(none)'}`"
                                             for label, args in configurations), ""]
     lines += equal_time_table(groups, configurations[0][0]) + [""]
@@ -520,6 +544,9 @@ def main():
     ep.add_argument("--spp", type=int, default=65536, help="upper bound on spp (the time limit ends the renders)")
     ep.add_argument("--reference-spp", type=int, default=4096)
     ep.add_argument("--out", default="out/equal-time")
+    ep.add_argument("--side-by-side", action="store_true",
+                    help="run a seed's configurations at the same time, each on cores / configurations threads, "
+                    "so that they share the machine's load (a budget then buys that many cores' time)")
     # Everything after "--" goes to `theia render` (argparse's subparsers would take it as theirs).
     argv = sys.argv[1:]
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
@@ -528,7 +555,7 @@ def main():
     if a.command == "equal-time":
         configs = [parse_configuration(c) for c in a.config] if a.config else EQUAL_TIME_CONFIGURATIONS
         equal_time(a.theia, a.scenes.split(","), [float(b) for b in a.budgets.split(",")], a.seeds, configs,
-                   a.spp, a.reference_spp, a.out)
+                   a.spp, a.reference_spp, a.out, a.side_by_side)
         return
     if a.command == "seeds":
         seeds(a.theia, a.scene, a.spp, a.seeds, a.out, extra)

@@ -60,6 +60,7 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
   for (size_t m = 0; m < scene.materials.size(); ++m) material_footprint[m] = material_reads_footprint(scene, int(m));
   check_media_hooks();
   if (rs.scene.has_media()) sealed_media = theia::sealed_media(scene);
+  film.use_thread_sums(int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
   light_sampler_learns = light_sampler.wants_feedback();
   light_sampler_primitives = light_sampler.chooses_primitives();
   footprint_scale = footprint_spp_scale(opt.footprint_spp);
@@ -77,6 +78,7 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
   // The iteration's camera samples are all in: the caustic pass adds its
   // estimate for the same samples (an interrupted iteration runs it when resumed).
   if (next_camera == camera_end && !abandoned) trace_caustics();
+  film.flush();
   report_progress();
   progress = nullptr;
   stats.render_seconds += seconds_since(t0);
@@ -406,6 +408,7 @@ bool WavefrontEngine::abandoned() const { return impl_->abandoned; }
 void WavefrontEngine::finish_stopped_iteration() {
   auto t0 = std::chrono::steady_clock::now();
   impl_->trace_caustics();
+  impl_->film.flush();
   impl_->stats.render_seconds += seconds_since(t0);
 }
 

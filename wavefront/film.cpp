@@ -3,6 +3,12 @@
 #include "core/color.h"
 #include "core/log.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+
 namespace theia {
 
 const char* const Film::kPlaneNames[Film::kPlaneCount] = {
@@ -40,7 +46,54 @@ Film::Film(int w, int h, bool aov_events) : width(w), height(h) {
 
 void Film::clear() {
   for (size_t i = 0; i < plane_count(); ++i) plane(i)->assign(pixel_count(), 0.0f);
+  std::fill(thread_sums_.begin(), thread_sums_.end(), 0.0f);
   dropped = 0;
+}
+
+namespace {
+
+// A small number per OS thread, given on its first splat: the per-thread sums
+// it adds into.  Stable for the thread's life, which a TBB slot index is not
+// (a worker may leave the arena and come back in another slot).
+std::atomic<size_t> g_next_thread_number{0};
+
+size_t thread_number() {
+  thread_local const size_t n = g_next_thread_number.fetch_add(1, std::memory_order_relaxed);
+  return n;
+}
+
+}  // namespace
+
+void Film::use_thread_sums(int threads) {
+  flush();
+  // The threads a render has numbered before (a process's earlier renders,
+  // other subsystems' threads) take numbers too: room for a few more.
+  const size_t count = size_t(std::max(threads, 1)) + 2;
+  const size_t bytes = count * pixel_count() * kPlaneCount * sizeof(float);
+  thread_sum_count_ = bytes <= kMaxThreadSumBytes ? count : 0;
+  thread_sums_.assign(thread_sum_count_ * pixel_count() * kPlaneCount, 0.0f);
+}
+
+float* Film::thread_sum(uint32_t pixel) {
+  const size_t t = thread_number();
+  return t < thread_sum_count_ ? &thread_sums_[(t * pixel_count() + pixel) * kPlaneCount] : nullptr;
+}
+
+void Film::flush() {
+  if (thread_sums_.empty()) return;
+  float* planes[kPlaneCount];
+  for (size_t i = 0; i < kPlaneCount; ++i) planes[i] = plane(i)->data();
+  const size_t n = pixel_count();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t t = 0; t < thread_sum_count_; ++t)
+      for (size_t px = range.begin(); px < range.end(); ++px) {
+        float* s = &thread_sums_[(t * n + px) * kPlaneCount];
+        for (size_t i = 0; i < kPlaneCount; ++i) {
+          planes[i][px] += s[i];
+          s[i] = 0.0f;
+        }
+      }
+  });
 }
 
 void Film::add(const Film& o) {
@@ -53,25 +106,56 @@ void Film::add(const Film& o) {
   dropped += o.dropped.load();
 }
 
+namespace {
+
+// The planes' order in a pixel's per-thread sums (Film::plane).
+enum : size_t { kR, kG, kB, kWeight, kAlpha, kAlbedo, kNormal = kAlbedo + 3, kDepth = kNormal + 3, kOddR, kOddG, kOddB,
+                kOddWeight, kAlphaWeight };
+static_assert(kAlphaWeight + 1 == Film::kPlaneCount);
+
+}  // namespace
+
 void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
+  if (float* s = thread_sum(pixel)) {
+    s[kWeight] += w;
+    if (sample & 1) s[kOddWeight] += w;
+    return;
+  }
   atomic_add(weight[pixel], w);
   if (sample & 1) atomic_add(weight_odd[pixel], w);
 }
 
-void Film::add_alpha_weight(uint32_t pixel, float w) { atomic_add(alpha_weight[pixel], w); }
+void Film::add_alpha_weight(uint32_t pixel, float w) {
+  if (float* s = thread_sum(pixel)) {
+    s[kAlphaWeight] += w;
+    return;
+  }
+  atomic_add(alpha_weight[pixel], w);
+}
 
 void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L, uint8_t event) {
   if (!is_storable(L)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
     return;
   }
-  atomic_add(r[pixel], L.x);
-  atomic_add(g[pixel], L.y);
-  atomic_add(b[pixel], L.z);
   if (aov_events()) {
     std::vector<float>(&e)[3] = events[event < kEventCount ? event : uint8_t(kEventEmission)];
     for (int c = 0; c < 3; ++c) atomic_add(e[c][pixel], L[c]);
   }
+  if (float* s = thread_sum(pixel)) {
+    s[kR] += L.x;
+    s[kG] += L.y;
+    s[kB] += L.z;
+    if (sample & 1) {
+      s[kOddR] += L.x;
+      s[kOddG] += L.y;
+      s[kOddB] += L.z;
+    }
+    return;
+  }
+  atomic_add(r[pixel], L.x);
+  atomic_add(g[pixel], L.y);
+  atomic_add(b[pixel], L.z);
   if (sample & 1) {
     atomic_add(r_odd[pixel], L.x);
     atomic_add(g_odd[pixel], L.y);
@@ -83,6 +167,15 @@ void Film::splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& a, cons
   if (!hit) return;
   if (!is_finite(a) || !is_finite(n) || !std::isfinite(d)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  if (float* s = thread_sum(pixel)) {
+    s[kAlpha] += w;
+    for (size_t c = 0; c < 3; ++c) {
+      s[kAlbedo + c] += w * a[int(c)];
+      s[kNormal + c] += w * n[int(c)];
+    }
+    s[kDepth] += w * d;
     return;
   }
   atomic_add(alpha[pixel], w);

@@ -69,7 +69,7 @@ struct Film {
 
   Film(int w, int h, bool aov_events = false);
   size_t pixel_count() const { return size_t(width) * size_t(height); }
-  size_t memory_bytes() const { return pixel_count() * plane_count() * sizeof(float); }
+  size_t memory_bytes() const { return (pixel_count() * plane_count() + thread_sums_.size()) * sizeof(float); }
   bool aov_events() const { return !events[0][0].empty(); }
 
   // Every per-pixel plane, named, in a fixed order: for clearing, summing
@@ -91,6 +91,21 @@ struct Film {
   // `event`: the path's PathEvent, kept only with aov_events().
   void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L, uint8_t event);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);
+
+  // Per-thread sums: up to `threads` threads each add into their own copy of
+  // the fixed planes, without atomics (an uncontended atomic float add is a
+  // compare-exchange loop, and a splat made up to six); flush() adds the
+  // copies into the planes and must run before the planes are read.  Off
+  // (atomics on the planes) when the copies would exceed kMaxThreadSumBytes,
+  // and for threads beyond `threads`.
+  static constexpr size_t kMaxThreadSumBytes = size_t(32) << 20;
+  void use_thread_sums(int threads);
+  void flush();
+
+ private:
+  std::vector<float> thread_sums_;  // [thread][pixel][plane]: kPlaneCount floats a pixel
+  size_t thread_sum_count_ = 0;
+  float* thread_sum(uint32_t pixel);
 };
 
 // sum / weight, or 0 where that is not a finite number: a pixel whose

@@ -8,6 +8,8 @@
 #include "wavefront/sample_dims.h"
 
 #include <gtest/gtest.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <random>
@@ -180,6 +182,49 @@ TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {
   // Grey (2, 2, 2) in the working space is grey in the output's sRGB.
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(img.at(0, 0, c), 2.0f, 1e-5f);
   EXPECT_EQ(img.at(1, 0, 0), 0.0f);  // no weight: black, not NaN
+}
+
+// Splats from many threads into per-thread sums: after flush() every plane
+// holds what atomic adds give (up to summation order), a second flush adds
+// nothing, clear() empties the sums too, and a film too large for them keeps
+// the atomics.
+TEST(Film, PerThreadSumsEqualAtomicAddsAfterFlush) {
+  constexpr int kW = 40, kH = 30;
+  Film atomic(kW, kH), sharded(kW, kH);
+  sharded.use_thread_sums(4);
+  EXPECT_GT(sharded.memory_bytes(), atomic.memory_bytes());
+  auto splat_all = [](Film& f) {
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, 20000, 64), [&](const tbb::blocked_range<uint32_t>& r) {
+      for (uint32_t k = r.begin(); k < r.end(); ++k) {
+        const uint32_t px = (k * 7919u) % uint32_t(kW * kH), sample = k / 97u;
+        const float v = 0.25f + float(k % 13);
+        f.add_weight(px, sample, 0.5f);
+        f.add_alpha_weight(px, 0.5f);
+        f.splat(px, sample, RGB(v, 2.0f * v, 3.0f * v), kEventDiffuse);
+        f.splat_first_hit(px, 0.5f, true, RGB(0.1f, 0.2f, 0.3f), vec3(0, 0, 1), v);
+      }
+    });
+  };
+  splat_all(atomic);
+  splat_all(sharded);
+  sharded.flush();
+  for (size_t i = 0; i < Film::kPlaneCount; ++i)
+    for (size_t px = 0; px < atomic.pixel_count(); ++px)
+      ASSERT_NEAR((*sharded.plane(i))[px], (*atomic.plane(i))[px], 1e-4f * std::abs((*atomic.plane(i))[px]) + 1e-6f)
+          << Film::plane_name(i) << " pixel " << px;
+  const std::vector<float> r = sharded.r;
+  sharded.flush();
+  EXPECT_EQ(sharded.r, r);
+  sharded.splat(0, 0, RGB(1.0f), kEventEmission);
+  sharded.clear();
+  sharded.flush();
+  EXPECT_EQ(sharded.r[0], 0.0f);
+
+  Film large(4096, 2048);
+  large.use_thread_sums(2);
+  EXPECT_EQ(large.memory_bytes(), large.pixel_count() * Film::kPlaneCount * sizeof(float));
+  large.splat(5, 0, RGB(1.0f), kEventEmission);
+  EXPECT_EQ(large.r[5], 1.0f);  // atomics: in the plane at once
 }
 
 }  // namespace

@@ -205,6 +205,28 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
 
 // One pass: the light paths of an iteration's samples, traced a chunk at a
 // time and splatted into the film as parts of their camera samples.
+struct CausticTracer::Scratch {
+  std::vector<Bounds3> caster_boxes;
+  // Per traced light entry (light_of_entry_): its sphere's estimate, when it is one.
+  std::vector<SphereEmitter> sphere_emitters;
+  std::vector<Ray> rays, shadow, dense;
+  std::vector<Hit> hits, dense_hits;
+  std::vector<uint8_t> blocked, dense_blocked;
+  std::vector<uint32_t> live;
+  std::vector<LightPath> paths;
+  std::vector<Connection> connections;
+
+  // Buffers for chunks of up to n light paths.
+  void reserve(size_t n) {
+    if (rays.size() >= n) return;
+    for (auto* v : {&rays, &shadow, &dense}) v->resize(n);
+    for (auto* v : {&hits, &dense_hits}) v->resize(n);
+    for (auto* v : {&blocked, &dense_blocked}) v->resize(n);
+    paths.resize(n);
+    connections.resize(n);
+  }
+};
+
 struct CausticTracer::Pass {
   const CausticTracer& tracer;
   Film& film;
@@ -216,30 +238,30 @@ struct CausticTracer::Pass {
   const int width, height;
   const vec2 radius;
   const float inv_integral;  // the filter's
-  // Found per pass (a pass traces a light path per camera sample, far more
-  // than the casters' vertices), so that the tracer's header stays as it was.
-  const std::vector<Bounds3> caster_boxes;
-  // Per traced light entry (light_of_entry_): its sphere's estimate, when it is one.
-  const std::vector<SphereEmitter> sphere_emitters;
+  const std::vector<Bounds3>& caster_boxes;
+  const std::vector<SphereEmitter>& sphere_emitters;
 
   // The chunk in flight.
   uint64_t first = 0;
   size_t n = 0;
-  std::vector<Ray> rays, shadow, dense;
-  std::vector<Hit> hits, dense_hits;
-  std::vector<uint8_t> blocked, dense_blocked;
-  std::vector<uint32_t> live;
-  std::vector<LightPath> paths;
-  std::vector<Connection> connections;
+  std::vector<Ray>&rays, &shadow, &dense;
+  std::vector<Hit>&hits, &dense_hits;
+  std::vector<uint8_t>&blocked, &dense_blocked;
+  std::vector<uint32_t>& live;
+  std::vector<LightPath>& paths;
+  std::vector<Connection>& connections;
   std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
 
-  Pass(const CausticTracer& t, Film& f, const CausticSamples& s,
+  Pass(const CausticTracer& t, Scratch& sc, Film& f, const CausticSamples& s,
        const std::function<UVFootprint(const SurfaceInteraction&)>& fp)
       : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
         pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
         height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
-        caster_boxes(find_caster_boxes(t.scene_)), sphere_emitters(find_sphere_emitters(t, caster_boxes)), rays(kChunk), shadow(kChunk), dense(kChunk), hits(kChunk),
-        dense_hits(kChunk), blocked(kChunk), dense_blocked(kChunk), paths(kChunk), connections(kChunk) {}
+        caster_boxes(sc.caster_boxes), sphere_emitters(sc.sphere_emitters), rays(sc.rays), shadow(sc.shadow),
+        dense(sc.dense), hits(sc.hits), dense_hits(sc.dense_hits), blocked(sc.blocked),
+        dense_blocked(sc.dense_blocked), live(sc.live), paths(sc.paths), connections(sc.connections) {
+    sc.reserve(size_t(std::min<uint64_t>(kChunk, total)));
+  }
 
   static std::vector<SphereEmitter> find_sphere_emitters(const CausticTracer& t, const std::vector<Bounds3>& boxes) {
     std::vector<SphereEmitter> e;
@@ -401,12 +423,19 @@ void CausticTracer::Pass::splat() {
   });
 }
 
+CausticTracer::~CausticTracer() = default;
+
 void CausticTracer::trace(Film& film, const CausticSamples& samples,
                           const std::function<UVFootprint(const SurfaceInteraction&)>& footprint) {
   // A time limit may stop an iteration before its first camera sample: nothing to splat into.
   if (!active_ || samples.sample_end <= samples.sample_begin || samples.rendered == 0) return;
   auto t0 = std::chrono::steady_clock::now();
-  Pass pass(*this, film, samples, footprint);
+  if (!scratch_) {
+    scratch_ = std::make_unique<Scratch>();
+    scratch_->caster_boxes = find_caster_boxes(scene_);
+    scratch_->sphere_emitters = Pass::find_sphere_emitters(*this, scratch_->caster_boxes);
+  }
+  Pass pass(*this, *scratch_, film, samples, footprint);
   for (pass.first = 0; pass.first < pass.total; pass.first += kChunk) {
     pass.n = size_t(std::min<uint64_t>(kChunk, pass.total - pass.first));
     pass.leave_light();

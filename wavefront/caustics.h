@@ -25,6 +25,7 @@
 #include <string>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace theia {
@@ -73,6 +74,7 @@ class CausticTracer {
  public:
   CausticTracer(const Scene& scene, const Accel& accel, const LightSet& lights, const Camera& camera,
                 const Filter& filter, const CausticOptions& options);
+  ~CausticTracer();
 
   // Whether there is anything to trace: a pinhole perspective camera, an
   // area light the pass can emit from, a material that can be a caster, and
@@ -112,6 +114,11 @@ class CausticTracer {
 
  private:
   struct Pass;  // one call of trace(): its light paths, chunk by chunk
+  // What passes share: the chunk's buffers and the scene's caster boxes and
+  // sphere estimates, made by the first pass and kept (made per pass, their
+  // fresh pages cost veach-mis 5.7% of its CPU at 32 spp).
+  struct Scratch;
+  std::unique_ptr<Scratch> scratch_;
   const Scene& scene_;
   const Accel& accel_;
   const LightSet& lights_;

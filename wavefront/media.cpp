@@ -243,6 +243,11 @@ void WavefrontEngine::Impl::attenuate_shadow_rays_in_media() {
 // any other surface blocks it.  A segment that ends on a blocker is not
 // tracked (its numbers are its own, keyed by the segment's ray), and the
 // surface is set up only where the ray goes on through it.
+// Each trace looks past the passing surfaces (intersect_passing): a blocker
+// anywhere on the ray ends it before the segments in front of it are
+// tracked only to be multiplied by 0, and past the one passing surface of
+// a trace that met nothing else, the ray goes on without another trace
+// (which could only find nothing: the segment beyond is the traced one's).
 RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const {
   RGB T(1.0f);
   const vec3 end = ray.o + ray.d * ray.tmax;
@@ -254,15 +259,19 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     return !is_black(T);
   };
   // Interfaces are thin: a ray crosses few of them.  The bound only guards a degenerate loop.
+  auto crossing_of = [&](int shape) { return shape >= 0 ? shape_crossing(scene, shape) : ShapeCrossing::Passes; };
   for (int crossing = 0; crossing < 256; ++crossing) {
-    Hit hit = accel.intersect1(ray, skip, false);
+    const Accel::PassingTrace traced = accel.intersect_passing(ray, skip, false);
+    if (traced.stop.hit() && crossing_of(accel.shape_index(traced.stop)) == ShapeCrossing::Blocks) return RGB(0.0f);
+    Hit hit = traced.closest();
     if (hit.geom == kInvalidId) {
       track(ray.tmax);
       return T;
     }
     const int shape = accel.shape_index(hit);
-    const ShapeCrossing what = shape >= 0 ? shape_crossing(scene, shape) : ShapeCrossing::Passes;
+    const ShapeCrossing what = crossing_of(shape);
     if (what == ShapeCrossing::Blocks) return RGB(0.0f);
+    const bool last = !traced.stop.hit() && traced.passes == 1;
     // Instanced spheres and cylinders were met without their (u, v): the same
     // hit again, with them (top-level ones find theirs in compute_interaction).
     const ShapeKind kind = shape >= 0 ? scene.shapes[size_t(shape)].kind : ShapeKind::TriangleMesh;
@@ -276,6 +285,10 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
     ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));
     skip = si.skip;
+    if (last) {
+      track(ray.tmax);
+      return T;
+    }
   }
   return RGB(0.0f);
 }

@@ -56,7 +56,7 @@ void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
     for (size_t i = r.begin(); i < r.end(); ++i)
-      blocked[i] = interact_in_medium(b.rays[i], hits[i], b.paths[i], out);
+      blocked[i] = track_through_interfaces(b.rays[i], hits[i], b.paths[i], out);
   });
   // The passing rays keep their order; surface shading and escaped rays see only them.
   size_t kept = 0;
@@ -70,6 +70,31 @@ void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   b.rays.resize(kept);
   b.paths.resize(kept);
   hits.resize(kept);
+}
+
+// Free flight to the hit, and on through every interface the path's ray
+// passes (shade_surface's pass-through, done here): the ray is re-traced
+// from the crossing at once instead of going round the wavefront again
+// (queued, sorted, traced in a later batch, its hit sorted and shaded only
+// to be queued again), which was most of what a crossing cost besides its
+// trace.  The rays, hits and tracking numbers are those the round trip
+// made; paths only reach their later splats sooner, so the film sums them
+// in another order.  `ray` and `hit` become the ones the path goes on with.
+// True when the path left the batch here (scattered or absorbed).
+bool WavefrontEngine::Impl::track_through_interfaces(Ray& ray, Hit& hit, uint32_t slot, ShadeOutput& out) {
+  // A ray caught crossing back and forth is left to shading past this many.
+  constexpr int kMaxCrossings = 64;
+  for (int crossing = 0; crossing < kMaxCrossings; ++crossing) {
+    if (interact_in_medium(ray, hit, slot, out)) return true;
+    if (!hit.hit() || !passes_through(hit, pool[slot])) return false;
+    ++out.vertices;
+    const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
+    ray = spawn_ray(si, -si.wo);
+    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
+    pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
+    hit = accel.intersect1(ray, pool.curve_skip.empty() ? PrimRef{} : pool.curve_skip[slot]);
+  }
+  return false;
 }
 
 // True when the path left the batch here (scattered or absorbed).

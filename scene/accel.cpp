@@ -4,6 +4,7 @@
 #include "core/log.h"
 #include "scene/shape_bounds.h"
 #include "scene/shapes.h"
+#include "scene/surface_crossing.h"
 #include "scene/texture.h"
 
 #include <embree3/rtcore.h>
@@ -40,11 +41,44 @@ struct QuadricGeom {
 // The context every query passes: rays carry their index in the span
 // (RTCRay::id) so filters can find what travels beside them, whatever packets
 // Embree regroups them into.
+// What intersect_passing's context filter keeps: the passing hits it
+// rejects (shape_passes, by shape index), the nearest of them and their count.
+struct PassingLog {
+  const Accel* accel;
+  const std::vector<uint8_t>* shape_passes;
+  Hit first;
+  uint32_t count = 0;
+};
+
 struct TraceContext {
   RTCIntersectContext rtc;
   const PrimRef* skips = nullptr;  // the curve segment each ray left, or none at all
   bool surface = true;             // false: hits need only t (quadrics may leave u, v at 0)
+  PassingLog* passing = nullptr;   // intersect_passing's log, with rtc.filter = record_passing
 };
+
+// intersect_passing's context filter (run after a geometry's own, so only
+// on hits an alpha cut-out or a curve's skip kept): a hit on a passing shape
+// is logged and rejected, so that the trace goes on to what lies beyond.
+void record_passing(const RTCFilterFunctionNArguments* args) {
+  PassingLog& log = *reinterpret_cast<const TraceContext*>(args->context)->passing;
+  const unsigned n = args->N;
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] == 0) continue;
+    Hit h;
+    h.geom = RTCHitN_geomID(args->hit, n, i);
+    h.inst = RTCHitN_instID(args->hit, n, i, 0);
+    const int shape = log.accel->shape_index(h);
+    if (shape < 0 || !(*log.shape_passes)[size_t(shape)]) continue;
+    h.t = RTCRayN_tfar(args->ray, n, i);
+    h.u = RTCHitN_u(args->hit, n, i);
+    h.v = RTCHitN_v(args->hit, n, i);
+    h.prim = RTCHitN_primID(args->hit, n, i);
+    if (h.t < log.first.t) log.first = h;
+    ++log.count;
+    args->valid[i] = 0;
+  }
+}
 
 // Virtual lights and interfaces do not block: shadow rays ignore every hit on
 // them.  (Closest-hit rays do stop there; the engine splats a virtual light's
@@ -249,6 +283,7 @@ struct Accel::Impl {
   std::vector<const QuadricGeom*> top_quadric;  // top-level geometry id -> its quadric, or nullptr
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
   std::vector<int> instance_prototype;        // Scene instance -> prototype
+  std::vector<uint8_t> shape_passes;          // Scene shape -> shape_crossing says Passes (intersect_passing)
   std::vector<glm::dmat4> render_from_instance, instance_from_render;  // per Scene instance
   std::atomic<int64_t> embree_bytes{0};
   std::atomic<int64_t> embree_peak{0};
@@ -272,7 +307,9 @@ struct Accel::Impl {
     // inside a closed tetrahedron aimed at its vertices and edges leaked 15% of
     // the time without it and never with it, while incoherent tracing of a
     // 432k-triangle scene slowed by only ~3% (1.75 -> 1.69 Mrays/s per core).
-    rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST);
+    // The context filter flag: intersect_passing's trace sets one (others
+    // leave it null and pay a pointer test per hit).
+    rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     rtcSetSceneBuildQuality(s, RTC_BUILD_QUALITY_HIGH);
     return s;
   }
@@ -434,6 +471,14 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
       },
       &I);
 
+  I.shape_passes.assign(scene.shapes.size(), 0);
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& s = scene.shapes[i];
+    const bool known = (s.material < 0 || size_t(s.material) < scene.materials.size()) &&
+                       (s.area_light < 0 || size_t(s.area_light) < scene.lights.size());
+    I.shape_passes[i] = known && shape_crossing(scene, int(i)) == ShapeCrossing::Passes ? 1 : 0;
+  }
+
   // Prototypes first: instances need their committed scenes.
   I.prototypes.assign(scene.prototypes.size(), nullptr);
   I.proto_shape.resize(scene.prototypes.size());
@@ -507,6 +552,18 @@ static void fill_ray(const Ray& r, uint32_t index, RTCRay& out) {
   out.flags = 0;
 }
 
+static Hit to_hit(const RTCRayHit& rh) {
+  Hit h;
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return h;
+  h.t = rh.ray.tfar;
+  h.u = rh.hit.u;
+  h.v = rh.hit.v;
+  h.geom = rh.hit.geomID;
+  h.prim = rh.hit.primID;
+  h.inst = rh.hit.instID[0];
+  return h;
+}
+
 void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coherent,
                       std::span<const PrimRef> skips, bool surface) const {
   TraceContext ctx;
@@ -521,17 +578,7 @@ void Accel::intersect(std::span<const Ray> rays, std::span<Hit> hits, bool coher
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->top, &ctx.rtc, &rh);
-    Hit& h = hits[i];
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-      h = Hit{};
-      continue;
-    }
-    h.t = rh.ray.tfar;
-    h.u = rh.hit.u;
-    h.v = rh.hit.v;
-    h.geom = rh.hit.geomID;
-    h.prim = rh.hit.primID;
-    h.inst = rh.hit.instID[0];
+    hits[i] = to_hit(rh);
   }
 }
 
@@ -548,6 +595,27 @@ void Accel::occluded(std::span<const Ray> rays, std::span<uint8_t> blocked, std:
     rtcOccluded1M(impl_->top, &ctx.rtc, buf, unsigned(m), sizeof(RTCRay));
     for (size_t j = 0; j < m; ++j) blocked[start + j] = buf[j].tfar < 0.0f ? 1 : 0;
   }
+}
+
+Accel::PassingTrace Accel::intersect_passing(const Ray& ray, const PrimRef& skip, bool surface) const {
+  PassingLog log{this, &impl_->shape_passes, Hit{}, 0};
+  TraceContext ctx;
+  rtcInitIntersectContext(&ctx.rtc);
+  ctx.surface = surface;
+  ctx.rtc.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  ctx.rtc.filter = record_passing;
+  ctx.skips = &skip;
+  ctx.passing = &log;
+  RTCRayHit rh;
+  fill_ray(ray, 0, rh.ray);
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->top, &ctx.rtc, &rh);
+  PassingTrace out;
+  out.stop = to_hit(rh);
+  out.first_pass = log.first;
+  out.passes = log.count;
+  return out;
 }
 
 Hit Accel::intersect1(const Ray& ray, const PrimRef& skip, bool surface) const {

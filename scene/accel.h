@@ -84,6 +84,20 @@ class Accel {
   // Convenience for tests and one-off queries.
   Hit intersect1(const Ray& ray, const PrimRef& skip = {}, bool surface = true) const;
   bool occluded1(const Ray& ray, const PrimRef& skip = {}) const;
+  // A shadow ray's trace through media (Accel::intersect_passing): `stop` is
+  // the closest hit on anything but a passing surface (a triangle mesh or
+  // curve that shape_crossing says passes: an interface or a virtual light,
+  // no holdout; quadrics are always stops, they run no filters), a miss if
+  // none; `first_pass` the nearest passing hit met, `passes` how many were
+  // met.  The closest of the two is intersect1's hit.  Passing hits beyond
+  // `stop` may be in the count; when `stop` misses, every passing hit in
+  // [tmin, tmax] is.
+  struct PassingTrace {
+    Hit stop, first_pass;
+    uint32_t passes = 0;
+    const Hit& closest() const { return first_pass.t < stop.t ? first_pass : stop; }
+  };
+  PassingTrace intersect_passing(const Ray& ray, const PrimRef& skip = {}, bool surface = true) const;
 
   // A top-level sphere's or cylinder's hit carries u = kQuadricUVPending:
   // its (u, v), found again from the ray that hit (compute_interaction asks).

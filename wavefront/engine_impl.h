@@ -184,6 +184,11 @@ struct WavefrontEngine::Impl {
   void handle_medium_interactions(Batch& b);  // free flight; scattered and absorbed paths leave the batch
   void end_path(uint32_t slot, ShadeOutput& out);  // finish_path, observed if there is an observer
   bool interact_in_medium(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
+  bool track_through_interfaces(Ray& ray, Hit& hit, uint32_t slot, ShadeOutput& out);
+  // Whether a path's ray goes on through the surface it hit as it was: an
+  // "interface" by its own material (not a mix's choice), neither a light nor
+  // a holdout, in a scene with media, for a path that is not alpha-only.
+  bool passes_through(const Hit& hit, const PathState& ps) const;
   void scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium, ShadeOutput& out);
   void sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out);
   std::optional<PhaseContinuation> sample_phase_continuation(const MediumVertex& v) const;

@@ -56,7 +56,7 @@ void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
     for (size_t i = r.begin(); i < r.end(); ++i)
-      blocked[i] = interact_in_medium(b.rays[i], hits[i], b.paths[i], out);
+      blocked[i] = track_through_interfaces(b.rays[i], hits[i], b.paths[i], out);
   });
   // The passing rays keep their order; surface shading and escaped rays see only them.
   size_t kept = 0;
@@ -70,6 +70,31 @@ void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   b.rays.resize(kept);
   b.paths.resize(kept);
   hits.resize(kept);
+}
+
+// Free flight to the hit, and on through every interface the path's ray
+// passes (shade_surface's pass-through, done here): the ray is re-traced
+// from the crossing at once instead of going round the wavefront again
+// (queued, sorted, traced in a later batch, its hit sorted and shaded only
+// to be queued again), which was most of what a crossing cost besides its
+// trace.  The rays, hits and tracking numbers are those the round trip
+// made; paths only reach their later splats sooner, so the film sums them
+// in another order.  `ray` and `hit` become the ones the path goes on with.
+// True when the path left the batch here (scattered or absorbed).
+bool WavefrontEngine::Impl::track_through_interfaces(Ray& ray, Hit& hit, uint32_t slot, ShadeOutput& out) {
+  // A ray caught crossing back and forth is left to shading past this many.
+  constexpr int kMaxCrossings = 64;
+  for (int crossing = 0; crossing < kMaxCrossings; ++crossing) {
+    if (interact_in_medium(ray, hit, slot, out)) return true;
+    if (!hit.hit() || !passes_through(hit, pool[slot])) return false;
+    ++out.vertices;
+    const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
+    ray = spawn_ray(si, -si.wo);
+    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
+    pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
+    hit = accel.intersect1(ray, pool.curve_skip.empty() ? PrimRef{} : pool.curve_skip[slot]);
+  }
+  return false;
 }
 
 // True when the path left the batch here (scattered or absorbed).
@@ -243,6 +268,11 @@ void WavefrontEngine::Impl::attenuate_shadow_rays_in_media() {
 // any other surface blocks it.  A segment that ends on a blocker is not
 // tracked (its numbers are its own, keyed by the segment's ray), and the
 // surface is set up only where the ray goes on through it.
+// Each trace looks past the passing surfaces (intersect_passing): a blocker
+// anywhere on the ray ends it before the segments in front of it are
+// tracked only to be multiplied by 0, and past the one passing surface of
+// a trace that met nothing else, the ray goes on without another trace
+// (which could only find nothing: the segment beyond is the traced one's).
 RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef skip, uint64_t key) const {
   RGB T(1.0f);
   const vec3 end = ray.o + ray.d * ray.tmax;
@@ -254,15 +284,19 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     return !is_black(T);
   };
   // Interfaces are thin: a ray crosses few of them.  The bound only guards a degenerate loop.
+  auto crossing_of = [&](int shape) { return shape >= 0 ? shape_crossing(scene, shape) : ShapeCrossing::Passes; };
   for (int crossing = 0; crossing < 256; ++crossing) {
-    Hit hit = accel.intersect1(ray, skip, false);
+    const Accel::PassingTrace traced = accel.intersect_passing(ray, skip, false);
+    if (traced.stop.hit() && crossing_of(accel.shape_index(traced.stop)) == ShapeCrossing::Blocks) return RGB(0.0f);
+    Hit hit = traced.closest();
     if (hit.geom == kInvalidId) {
       track(ray.tmax);
       return T;
     }
     const int shape = accel.shape_index(hit);
-    const ShapeCrossing what = shape >= 0 ? shape_crossing(scene, shape) : ShapeCrossing::Passes;
+    const ShapeCrossing what = crossing_of(shape);
     if (what == ShapeCrossing::Blocks) return RGB(0.0f);
+    const bool last = !traced.stop.hit() && traced.passes == 1;
     // Instanced spheres and cylinders were met without their (u, v): the same
     // hit again, with them (top-level ones find theirs in compute_interaction).
     const ShapeKind kind = shape >= 0 ? scene.shapes[size_t(shape)].kind : ShapeKind::TriangleMesh;
@@ -276,6 +310,10 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
     ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));
     skip = si.skip;
+    if (last) {
+      track(ray.tmax);
+      return T;
+    }
   }
   return RGB(0.0f);
 }

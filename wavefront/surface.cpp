@@ -16,14 +16,12 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   // point, error bound and normal are all the step below reads (the same
   // ones compute_interaction gives, without uv, derivatives, tangents and the
   // BSDF).  Interfaces matter only in scenes with media.
-  if (!pool.medium.empty() && !ps.alpha_only) {
-    const int shape = accel.shape_index(hit);
-    if (shape >= 0 && scene.shapes[size_t(shape)].area_light < 0 &&
-        shape_crossing(scene, shape) == ShapeCrossing::Passes) {
-      ++out.vertices;
-      const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
-      return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
-    }
+  // The medium stage crosses them itself (track_through_interfaces); this
+  // serves a path past its bound of crossings.
+  if (passes_through(hit, ps)) {
+    ++out.vertices;
+    const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
+    return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
   }
   const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
   // A holdout matte blocks the ray and adds neither colour nor alpha.
@@ -50,6 +48,13 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   std::optional<Continuation> c = sample_continuation(v);
   if (!c || !(c->bs.pdf > 0.0f)) return finish_path<kObserve>(slot, out);
   continue_path<kObserve>(v, *c, out);
+}
+
+bool WavefrontEngine::Impl::passes_through(const Hit& hit, const PathState& ps) const {
+  if (pool.medium.empty() || ps.alpha_only) return false;
+  const int shape = accel.shape_index(hit);
+  return shape >= 0 && scene.shapes[size_t(shape)].area_light < 0 &&
+         shape_crossing(scene, shape) == ShapeCrossing::Passes;
 }
 
 // The vertex's sample dimensions, throughput, caustic flags, roughening and

@@ -595,6 +595,38 @@ TEST(AccelInterface, ShadowRaysPassInterfaceSurfaces) {
   }
 }
 
+// A shadow ray's trace through media looks past the passing surfaces: the
+// nearest of them is intersect1's hit bit for bit, the blocker behind them
+// is `stop`, and with none within tmax every passing hit is counted.
+TEST(AccelInterface, IntersectPassingFindsTheFirstCrossingAndTheBlockerBehind) {
+  const std::string tri = "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 0 1 0] \"integer indices\" [0 1 2]\n";
+  std::string text = "WorldBegin\n";
+  for (const char* z : {"0", "1"})
+    text += std::string("AttributeBegin\nMaterial \"interface\"\nTranslate 0 0 ") + z + "\n" + tri + "AttributeEnd\n";
+  text += "AttributeBegin\nMaterial \"diffuse\"\nTranslate 0 0 2\n" + tri + "AttributeEnd\n";
+  Scene sc = parse_scene_string(text, "passing.pbrt", ".");
+  Accel a(sc);
+  Ray r = make_ray(vec3(0.1f, -0.2f, -5.0f), glm::normalize(vec3(0.01f, 0.02f, 1.0f)));
+  const Hit plain = a.intersect1(r);
+  const Accel::PassingTrace traced = a.intersect_passing(r);
+  const Hit& first = traced.closest();
+  EXPECT_EQ(first.t, plain.t);
+  EXPECT_EQ(first.u, plain.u);
+  EXPECT_EQ(first.v, plain.v);
+  EXPECT_EQ(first.geom, plain.geom);
+  EXPECT_EQ(first.prim, plain.prim);
+  EXPECT_EQ(sc.materials[size_t(sc.shapes[size_t(a.shape_index(first))].material)].kind, MaterialKind::Interface);
+  ASSERT_TRUE(traced.stop.hit());
+  EXPECT_EQ(sc.materials[size_t(sc.shapes[size_t(a.shape_index(traced.stop))].material)].kind, MaterialKind::Diffuse);
+  EXPECT_NEAR(traced.stop.t, 7.0f, 0.01f);
+  // Short of the blocker: no stop, both crossings counted.
+  r.tmax = 6.5f;
+  const Accel::PassingTrace shorter = a.intersect_passing(r);
+  EXPECT_FALSE(shorter.stop.hit());
+  EXPECT_EQ(shorter.passes, 2u);
+  EXPECT_EQ(shorter.first_pass.t, plain.t);
+}
+
 TEST(AccelAlpha, CutOutSphereShowsItsFarSideAndWhatLiesBehind) {
   for (bool is_virtual : {false, true}) {
     Scene sc;

@@ -72,6 +72,7 @@ uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_
                                        const std::function<void(double)>& on_progress) {
   auto t0 = std::chrono::steady_clock::now();
   progress = &on_progress;
+  film.continue_in_thread_sums();
   begin_iteration(s_begin, s_end, first_camera);
   while (advance()) {
   }
@@ -407,6 +408,7 @@ bool WavefrontEngine::abandoned() const { return impl_->abandoned; }
 
 void WavefrontEngine::finish_stopped_iteration() {
   auto t0 = std::chrono::steady_clock::now();
+  impl_->film.continue_in_thread_sums();
   impl_->trace_caustics();
   impl_->film.flush();
   impl_->stats.render_seconds += seconds_since(t0);

@@ -79,6 +79,18 @@ float* Film::thread_sum(uint32_t pixel) {
   return t < thread_sum_count_ ? &thread_sums_[(t * pixel_count() + pixel) * kPlaneCount] : nullptr;
 }
 
+void Film::continue_in_thread_sums() {
+  float* mine = thread_sums_.empty() ? nullptr : thread_sum(0);
+  if (!mine) return;
+  for (size_t i = 0; i < kPlaneCount; ++i) {
+    float* p = plane(i)->data();
+    for (size_t px = 0; px < pixel_count(); ++px) {
+      mine[px * kPlaneCount + i] += p[px];
+      p[px] = 0.0f;
+    }
+  }
+}
+
 void Film::flush() {
   if (thread_sums_.empty()) return;
   float* planes[kPlaneCount];

@@ -101,6 +101,10 @@ struct Film {
   static constexpr size_t kMaxThreadSumBytes = size_t(32) << 20;
   void use_thread_sums(int threads);
   void flush();
+  // Moves the planes' sums into the calling thread's own, so that its adds
+  // continue one running sum: a resumed iteration's restored film then ends
+  // in the same bits as an uninterrupted one on one thread.
+  void continue_in_thread_sums();
 
  private:
   std::vector<float> thread_sums_;  // [thread][pixel][plane]: kPlaneCount floats a pixel

@@ -215,6 +215,15 @@ TEST(Film, PerThreadSumsEqualAtomicAddsAfterFlush) {
   const std::vector<float> r = sharded.r;
   sharded.flush();
   EXPECT_EQ(sharded.r, r);
+  // A restored film's sums continue in this thread's own: one running sum.
+  Film restored(kW, kH);
+  restored.use_thread_sums(1);
+  restored.r[3] = 1.0f;
+  restored.continue_in_thread_sums();
+  EXPECT_EQ(restored.r[3], 0.0f);
+  restored.splat(3, 0, RGB(1e-8f), kEventEmission);
+  restored.flush();
+  EXPECT_EQ(restored.r[3], 1.0f + 1e-8f);  // 1 + 1e-8 rounds to 1, as an atomic add onto 1 would
   sharded.splat(0, 0, RGB(1.0f), kEventEmission);
   sharded.clear();
   sharded.flush();

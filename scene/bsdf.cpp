@@ -34,11 +34,18 @@ const Material* resolve_mix(const Scene& scene, const Material* m, const Surface
   return m;
 }
 
+// A material's constant parameters (a coat's roughness, thickness, g and
+// albedo, most reflectances) are read here, as eval_texture would return them,
+// without its call and dispatch: a coated hit reads six of them.
 float tex_float(const Scene& scene, int t, const TextureEvalContext& tc, float def) {
-  return t >= 0 ? eval_float_texture(scene, t, tc) : def;
+  if (t < 0) return def;
+  const Texture& tex = scene.textures[size_t(t)];
+  return tex.kind == TextureKind::Constant ? tex.value.x : eval_float_texture(scene, t, tc);
 }
 RGB tex_rgb(const Scene& scene, int t, const TextureEvalContext& tc, RGB def) {
-  return t >= 0 ? eval_texture(scene, t, tc) : def;
+  if (t < 0) return def;
+  const Texture& tex = scene.textures[size_t(t)];
+  return tex.kind == TextureKind::Constant ? tex.value : eval_texture(scene, t, tc);
 }
 
 TrowbridgeReitz distribution(const Scene& scene, int u_tex, int v_tex, bool remap, const TextureEvalContext& tc) {

@@ -329,7 +329,9 @@ void triangle_normal_derivatives(const TriangleMesh& m, size_t tri, const vec2 u
   si.p_error = gamma_bound(7) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
 }
 
-SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, size_t tri, float b1, float b2) {
+// `normal_derivatives`: whether dndu and dndv are wanted (only a bump map reads them).
+SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, size_t tri, float b1, float b2,
+                                        bool normal_derivatives) {
   float b0 = 1.0f - b1 - b2;
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
   const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
@@ -350,7 +352,7 @@ SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, s
   si.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, tri, b0, b1, b2, &si.ns);
   if (degenerate || glm::dot(glm::cross(si.dpdu, si.dpdv), glm::cross(si.dpdu, si.dpdv)) == 0.0f)
     coordinate_system(si.ng, &si.dpdu, &si.dpdv);
-  if (!m.n.empty()) triangle_normal_derivatives(m, tri, uv, &si.dndu, &si.dndv);
+  if (normal_derivatives && !m.n.empty()) triangle_normal_derivatives(m, tri, uv, &si.dndu, &si.dndv);
   return si;
 }
 
@@ -443,7 +445,12 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   const Shape& s = scene.shapes[size_t(shape)];
   SurfaceInteraction si;
   if (s.kind == ShapeKind::TriangleMesh) {
-    si = triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v);
+    // A bump map (bsdf.cpp's shading_frame) is the only reader of dndu and
+    // dndv: a shape whose material has none, and cannot pick one by a mix,
+    // leaves them 0.
+    const Material* mat = s.material >= 0 ? &scene.materials[size_t(s.material)] : nullptr;
+    const bool bump = !mat || mat->displacement >= 0 || mat->kind == MaterialKind::Mix;
+    si = triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v, bump);
     si.prim = int(hit.prim);
   } else if (s.kind == ShapeKind::Sphere || s.kind == ShapeKind::Cylinder) {
     const vec2 uv = std::isnan(hit.u) ? accel.quadric_uv(ray, hit) : vec2(hit.u, hit.v);

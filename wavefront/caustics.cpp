@@ -44,15 +44,40 @@ bool caster_kind(MaterialKind k) {
   return k == MaterialKind::Conductor || k == MaterialKind::Dielectric || k == MaterialKind::ThinDielectric;
 }
 
-// Whether a hit on `shape` can be a caster: only a caster's material, or a mix
-// that may resolve to one, is worth setting up; most first hits are on other
-// surfaces.  An unknown shape goes on to compute_interaction, which reports it.
-bool may_cast(const Scene& scene, int shape) {
+// The alpha make_bsdf gives a roughness slot that is a constant (or absent:
+// 0), as its distribution() computes it; nullopt for any other texture.
+std::optional<float> constant_alpha(const Scene& scene, int texture, bool remap) {
+  float r = 0.0f;
+  if (texture >= 0) {
+    const Texture& t = scene.textures[size_t(texture)];
+    if (t.kind != TextureKind::Constant) return std::nullopt;
+    r = t.value.x;
+  }
+  if (remap) r = TrowbridgeReitz::roughness_to_alpha(r);
+  return std::max(r, 0.0f);
+}
+
+// Whether material m can make a caster's BSDF: a caster kind, or a mix that
+// may resolve to one, and not a conductor or dielectric whose constant
+// roughness already makes every lobe too rough for bsdf_is_caustic_caster
+// (veach-mis's "SuperRough" plate: its hits were set up only to be refused).
+bool material_may_cast(const Scene& scene, int m, float max_roughness) {
+  if (m < 0) return false;  // the default diffuse
+  const Material& mat = scene.materials[size_t(m)];
+  if (mat.kind == MaterialKind::Mix || mat.kind == MaterialKind::ThinDielectric) return true;
+  if (mat.kind != MaterialKind::Conductor && mat.kind != MaterialKind::Dielectric) return false;
+  const std::optional<float> u = constant_alpha(scene, mat.uroughness, mat.remap_roughness),
+                             v = constant_alpha(scene, mat.vroughness, mat.remap_roughness);
+  return !u || !v || std::max(*u, *v) <= max_roughness;
+}
+
+// Whether a hit on `shape` can be a caster (casting: per material,
+// material_may_cast): most first hits are on other surfaces, not worth
+// setting up.  An unknown shape goes on to compute_interaction, which reports it.
+bool may_cast(const Scene& scene, const std::vector<uint8_t>& casting, int shape) {
   if (shape < 0) return true;
   const int m = scene.shapes[size_t(shape)].material;
-  if (m < 0) return false;  // the default diffuse
-  const MaterialKind k = scene.materials[size_t(m)].kind;
-  return k == MaterialKind::Mix || caster_kind(k);
+  return m >= 0 && casting[size_t(m)];
 }
 
 // Boxes around the shapes may_cast accepts, for the light paths' first rays:
@@ -63,13 +88,13 @@ bool may_cast(const Scene& scene, int shape) {
 // curve (the pass then traces every ray, as without boxes).
 constexpr size_t kMaxCasterBoxes = 8;
 
-std::vector<Bounds3> find_caster_boxes(const Scene& scene) {
+std::vector<Bounds3> find_caster_boxes(const Scene& scene, const std::vector<uint8_t>& casting) {
   std::vector<uint8_t> top_level(scene.shapes.size(), 0);
   for (int i : scene.top_level_shapes) top_level[size_t(i)] = 1;
   std::vector<Bounds3> boxes;
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& s = scene.shapes[i];
-    if (!may_cast(scene, int(i))) continue;
+    if (!may_cast(scene, casting, int(i))) continue;
     const std::optional<Bounds3> b = top_level[i] ? top_level_shape_bounds(scene, s) : std::nullopt;
     if (!b) return {};
     if (!b->empty()) boxes.push_back(*b);
@@ -189,13 +214,15 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
     power.push_back(p);
   }
   bool has_caster = false, has_interface = false;
-  for (const Material& m : scene.materials) {
-    has_caster |= caster_kind(m.kind);
-    has_interface |= m.kind == MaterialKind::Interface;
+  casting_.assign(scene.materials.size(), 0);
+  for (size_t m = 0; m < scene.materials.size(); ++m) {
+    casting_[m] = material_may_cast(scene, int(m), options.caster_roughness);
+    has_caster |= caster_kind(scene.materials[m].kind) && casting_[m];
+    has_interface |= scene.materials[m].kind == MaterialKind::Interface;
   }
   if (!camera_supports_wi(camera)) inactive_reason_ = "the camera is not a pinhole perspective camera";
   else if (light_of_entry_.empty()) inactive_reason_ = "no area light without alpha";
-  else if (!has_caster) inactive_reason_ = "no conductor or dielectric material";
+  else if (!has_caster) inactive_reason_ = "no conductor or dielectric material smooth enough to cast";
   else if (has_interface) inactive_reason_ = "interface materials";
   else if (!scene.curves.empty()) inactive_reason_ = "curves";
   active_ = inactive_reason_.empty();
@@ -359,7 +386,7 @@ void CausticTracer::Pass::the_caster() {
   parallel([&](size_t i) {
     if (!paths[i].alive) return;
     paths[i].alive = false;
-    if (!hits[i].hit() || !may_cast(tracer.scene_, tracer.accel_.shape_index(hits[i]))) return;
+    if (!hits[i].hit() || !may_cast(tracer.scene_, tracer.casting_, tracer.accel_.shape_index(hits[i]))) return;
     auto hit = surface(i);
     if (!hit || !bsdf_is_caustic_caster(hit->second, tracer.options_.caster_roughness)) return;
     const auto& [si, bsdf] = *hit;
@@ -432,7 +459,7 @@ void CausticTracer::trace(Film& film, const CausticSamples& samples,
   auto t0 = std::chrono::steady_clock::now();
   if (!scratch_) {
     scratch_ = std::make_unique<Scratch>();
-    scratch_->caster_boxes = find_caster_boxes(scene_);
+    scratch_->caster_boxes = find_caster_boxes(scene_, casting_);
     scratch_->sphere_emitters = Pass::find_sphere_emitters(*this, scratch_->caster_boxes);
   }
   Pass pass(*this, *scratch_, film, samples, footprint);

@@ -128,6 +128,7 @@ class CausticTracer {
   bool active_ = false;
   std::string inactive_reason_;
   std::vector<uint8_t> traced_;  // per scene light
+  std::vector<uint8_t> casting_;  // per material: may make a caster (material_may_cast in caustics.cpp)
   std::vector<int> light_of_entry_;
   Distribution1D light_distribution_;  // over the traced lights, by power
   CausticStats stats_;

@@ -10,6 +10,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <bit>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -208,6 +209,18 @@ SDTree::Lookup SDTree::find_leaf(const vec3& p) const {
 }
 
 namespace {
+// A two-way split's share of its first side, a / (a + b), as GuideNode keeps
+// it: the smaller side's share in float, negated when it is the second
+// side's, so that 1 - share is never taken of a rounded float (a quad of
+// 1e-7 of its node would keep no correct digit).  Both sides 0: 1/2.
+float stored_share(double a, double b) {
+  const double total = a + b;
+  if (!(total > 0.0)) return 0.5f;
+  return a <= b ? float(a / total) : -float(b / total);
+}
+inline double first_share(float s) { return std::signbit(s) ? 1.0 - double(-s) : double(s); }
+inline double second_share(float s) { return std::signbit(s) ? double(-s) : 1.0 - double(s); }
+
 // Every index_lookups() takes a new generation, so that a thread's last leaf
 // is never read against another tree or another update's boxes.
 std::atomic<uint64_t> next_lookup_generation{1};
@@ -305,55 +318,59 @@ void SDTree::index_lookups() {
         for (uint32_t x = it.lo[0]; x < it.lo[0] + it.size[0]; ++x)
           lookup_grid_[(size_t(z) * kCells + y) * kCells + x] = it.node;
   }
+  // The guide's nodes: each leaf with energy gets its sampling quadtree's
+  // nodes, breadth-first, after the previous leaf's (a leaf without energy
+  // is never descended).  Breadth-first puts a node's children side by side
+  // and the upper levels, which every descent reads, in a few lines.
+  guide_leaves_.assign(leaves_.size(), GuideLeaf{});
+  uint32_t total_nodes = 0;
+  for (size_t l = 0; l < leaves_.size(); ++l) {
+    const SpatialLeaf& leaf = leaves_[l];
+    GuideLeaf& g = guide_leaves_[l];
+    g.first_node = total_nodes;
+    g.has_energy = leaf.has_energy ? 1u : 0u;
+    g.selection = leaf.selection;
+    g.radiance_integral = leaf.radiance_integral;
+    if (!leaf.has_energy) continue;
+    // The link word holds a child's index in 27 bits; refinement at rho
+    // makes at most ~depth / rho nodes, far below that.
+    if (leaf.sampling.size() >= (size_t(1) << 27) || leaf.sampling.size() >= size_t(kMaxNodes) - total_nodes)
+      throw_error("SD-tree: leaf {}'s quadtree has {} nodes, more than lookups can index", l, leaf.sampling.size());
+    total_nodes += uint32_t(leaf.sampling.size());
+  }
+  guide_nodes_.assign(total_nodes, GuideNode{});
   tbb::parallel_for(size_t(0), leaves_.size(), [&](size_t l) {
-    SpatialLeaf& leaf = leaves_[l];
-    leaf.steps.resize(leaf.sampling.size());
-    for (size_t k = 0; k < leaf.sampling.size(); ++k) {
-      const SamplingQuadNode& node = leaf.sampling[k];
-      SamplingStep& st = leaf.steps[k];
-      // sample()'s column-first split and pdf()'s total, as they computed them.
+    const SpatialLeaf& leaf = leaves_[l];
+    if (!leaf.has_energy) return;
+    GuideNode* out = guide_nodes_.data() + guide_leaves_[l].first_node;
+    // Breadth-first: order[k] is the sampling node laid out at k.  A
+    // quadtree is a tree (the reader checks it), so each node comes once.
+    std::vector<uint32_t> order{0};
+    order.reserve(leaf.sampling.size());
+    for (size_t k = 0; k < order.size(); ++k) {
+      const SamplingQuadNode& node = leaf.sampling[order[k]];
+      GuideNode& g = out[k];
       const double left = double(node.flux[0]) + double(node.flux[2]);
       const double right = double(node.flux[1]) + double(node.flux[3]);
       const double total = left + right;
-      st.empty = !(total > 0.0);
-      st.column = left / total;
-      st.row[0] = double(node.flux[0]) / left;
-      st.row[1] = double(node.flux[1]) / right;
-      for (int i = 0; i < 4; ++i) {
-        st.factor[i] = 4.0 * double(node.flux[i]) / total;
-        st.child[i] = node.child[i];
+      const bool empty = !(total > 0.0);
+      if (!empty) {
+        // A column or quadrant without flux gets probability 0, so that
+        // neither the draw nor the density ever reaches it.
+        g.column = stored_share(left, right);
+        g.row[0] = stored_share(double(node.flux[0]), double(node.flux[2]));
+        g.row[1] = stored_share(double(node.flux[1]), double(node.flux[3]));
       }
-    }
-    index_pdf_grid(leaf);
-  });
-}
-
-// pdf()'s loop over the first kPdfGridBits levels, per cell (see PdfCell).
-void SDTree::index_pdf_grid(SpatialLeaf& leaf) {
-  constexpr uint32_t kCells = 1u << kPdfGridBits;
-  if (!leaf.has_energy) {  // pdf() reads no grid of a leaf without energy
-    leaf.pdf_grid.clear();
-    return;
-  }
-  leaf.pdf_grid.assign(size_t(kCells) * kCells, PdfCell{});
-  const SamplingStep* nodes = leaf.steps.data();
-  for (uint32_t y = 0; y < kCells; ++y)
-    for (uint32_t x = 0; x < kCells; ++x) {
-      double density = 1.0;
-      uint32_t n = 0;
-      bool going_on = true;
-      for (int level = kPdfGridBits - 1; level >= 0 && going_on; --level) {
-        if (nodes[n].empty) {
-          going_on = false;
-          break;
+      uint32_t mask = 0;
+      const uint32_t first_child = uint32_t(order.size());
+      for (int i = 0; i < 4; ++i)
+        if (node.child[i] != 0) {
+          mask |= 1u << i;
+          order.push_back(node.child[i]);
         }
-        const int i = int((x >> level) & 1u) | int((y >> level) & 1u) << 1;
-        density *= nodes[n].factor[i];
-        if (nodes[n].child[i] == 0 || density == 0.0) going_on = false;
-        else n = nodes[n].child[i];
-      }
-      leaf.pdf_grid[size_t(y) * kCells + x] = PdfCell{density, going_on ? n : 0u};
+      g.link = first_child << 5 | (empty ? 16u : 0u) | mask;
     }
+  });
 }
 
 Bounds3 SDTree::leaf_bounds(const vec3& p) const {
@@ -641,11 +658,11 @@ void SDTree::refine_spatial() {
 uint32_t SDTree::region(const vec3& p) const {
   if (updates_ == 0 || !finite3(p)) return kNoGuideRegion;
   uint32_t leaf = leaf_at(p);
-  return leaves_[leaf].has_energy ? leaf : kNoGuideRegion;
+  return guide_leaves_[leaf].has_energy ? leaf : kNoGuideRegion;
 }
 
 float SDTree::selection_probability(uint32_t region) const {
-  return region < leaves_.size() ? leaves_[region].selection : options_.selection_probability;
+  return region < guide_leaves_.size() ? guide_leaves_[region].selection : options_.selection_probability;
 }
 
 void SDTree::count_failed_draw(uint32_t region) const {
@@ -655,32 +672,48 @@ void SDTree::count_failed_draw(uint32_t region) const {
 }
 
 float SDTree::radiance_integral(uint32_t region) const {
-  return region < leaves_.size() ? leaves_[region].radiance_integral : 0.0f;
+  return region < guide_leaves_.size() ? guide_leaves_[region].radiance_integral : 0.0f;
 }
 
-// Algorithm 2 of seeds/001: each level scales the density by
-// 4 * flux(quad) / flux(node).  A node whose flux underflowed to 0 counts as
-// a uniform leaf, in sample() too.
+namespace {
+
+// The probabilities a node's draw took to reach quadrant i (column, then
+// row within it) and so the density's factor, 4 x their product: one
+// expression for sample() and pdf(), which then agree bit for bit.
+inline double quadrant_factor(const GuideNode& node, int i) {
+  const double px = (i & 1) ? second_share(node.column) : first_share(node.column);
+  const double py = (i & 2) ? second_share(node.row[i & 1]) : first_share(node.row[i & 1]);
+  return 4.0 * px * py;
+}
+
+// Quadrant i's child among the leaf's nodes, or 0 (a leaf quadrant: no
+// node's child is the root).
+inline uint32_t quadrant_child(const GuideNode& node, int i) {
+  const uint32_t mask = node.link & 15u;
+  if (!(mask >> i & 1u)) return 0;
+  return (node.link >> 5) + uint32_t(std::popcount(mask & ((1u << i) - 1u)));
+}
+
+constexpr uint32_t kGuideNodeEmpty = 16u;
+
+}  // namespace
+
+// Algorithm 2 of seeds/001: each level scales the density by the quadrant's
+// factor (4 x its share of the node).  A node whose flux underflowed to 0
+// counts as a uniform leaf, in sample() too.
 float SDTree::pdf(uint32_t region, const vec3& wi) const {
-  if (region >= leaves_.size() || !leaves_[region].has_energy) return 0.0f;
-  const SpatialLeaf& leaf = leaves_[region];
-  const SamplingStep* nodes = leaf.steps.data();
-  // The grid's cell holds the first levels' product; c scaled by the grid
-  // and less its cell is what as many descend() calls leave (exact).
-  constexpr float kCells = float(1 << kPdfGridBits);
-  // A NaN coordinate takes cell 0 and stays NaN: quadrant 0 at every level, as descend() takes it.
-  vec2 c = sd_direction_to_square(wi) * kCells;
-  const uint32_t cx = c.x > 0.0f ? uint32_t(c.x) : 0u, cy = c.y > 0.0f ? uint32_t(c.y) : 0u;
-  c -= vec2(float(cx), float(cy));
-  const PdfCell& start = leaf.pdf_grid[(cy << kPdfGridBits) | cx];
-  double density = start.density;
-  uint32_t n = start.node;
-  while (n != 0) {
-    if (nodes[n].empty) break;
-    int i = descend(c);
-    density *= nodes[n].factor[i];
-    if (nodes[n].child[i] == 0 || density == 0.0) break;
-    n = nodes[n].child[i];
+  if (region >= guide_leaves_.size() || !guide_leaves_[region].has_energy) return 0.0f;
+  const GuideNode* nodes = guide_nodes_.data() + guide_leaves_[region].first_node;
+  vec2 c = sd_direction_to_square(wi);
+  double density = 1.0;
+  uint32_t n = 0;
+  for (;;) {
+    const GuideNode& node = nodes[n];
+    if (node.link & kGuideNodeEmpty) break;
+    const int i = descend(c);
+    density *= quadrant_factor(node, i);
+    n = quadrant_child(node, i);
+    if (n == 0 || density == 0.0) break;
   }
   return float(density * (1.0 / (4.0 * 3.14159265358979323846)));
 }
@@ -691,8 +724,8 @@ float SDTree::pdf(uint32_t region, const vec3& wi) const {
 // an ulp of a neighbouring quad, where pdf(wi) would read that quad instead: a
 // set of measure zero in the continuous domain, so both are the density.
 GuideSample SDTree::sample(uint32_t region, vec2 u) const {
-  if (region >= leaves_.size() || !leaves_[region].has_energy) return {};
-  const SamplingStep* nodes = leaves_[region].steps.data();
+  if (region >= guide_leaves_.size() || !guide_leaves_[region].has_energy) return {};
+  const GuideNode* nodes = guide_nodes_.data() + guide_leaves_[region].first_node;
   // u is rescaled at every level (hierarchical warping, McCool and Harwood
   // 1997), in double so that a depth-20 descent keeps bits for the leaf.
   constexpr double kBelowOne = 0x1.fffffffffffffp-1;
@@ -700,33 +733,33 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
   double ox = 0.0, oy = 0.0, size = 1.0, density = 1.0;
   uint32_t n = 0;
   for (;;) {
-    const SamplingStep& node = nodes[n];
-    // Column first (x: quadrants 0,2 vs 1,3), then the row within it.  The
-    // total is summed as in pdf(), so an empty column gets b = 0 or 1 exactly.
-    if (node.empty) break;
-    double b = node.column;
+    const GuideNode& node = nodes[n];
+    if (node.link & kGuideNodeEmpty) break;
+    // Column first (x: quadrants 0,2 vs 1,3), then the row within it; a
+    // share of 0 or 1 is never crossed (u < 1).
+    double b = first_share(node.column);
     int i = 0;
     if (ux < b) {
       ux /= b;
     } else {
-      ux = (ux - b) / (1.0 - b);
+      ux = (ux - b) / second_share(node.column);
       i |= 1;
     }
-    b = node.row[i];
+    b = first_share(node.row[i]);
     if (uy < b) {
       uy /= b;
     } else {
-      uy = (uy - b) / (1.0 - b);
+      uy = (uy - b) / second_share(node.row[i]);
       i |= 2;
     }
     ux = std::min(ux, kBelowOne);
     uy = std::min(uy, kBelowOne);
-    density *= node.factor[i];
+    density *= quadrant_factor(node, i);
     size *= 0.5;
     if (i & 1) ox += size;
     if (i & 2) oy += size;
-    if (node.child[i] == 0 || density == 0.0) break;
-    n = node.child[i];
+    n = quadrant_child(node, i);
+    if (n == 0 || density == 0.0) break;
   }
   vec2 c(float(ox + ux * size), float(oy + uy * size));
   c = glm::min(c, vec2(kOneMinusEpsilon));
@@ -753,9 +786,8 @@ SDTreeStats SDTree::stats() const {
 size_t SDTree::memory_bytes() const {
   size_t bytes = sizeof(*this) + nodes_.capacity() * sizeof(SpatialNode) + leaves_.capacity() * sizeof(SpatialLeaf);
   for (const SpatialLeaf& leaf : leaves_)
-    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.steps.capacity() * sizeof(SamplingStep) +
-             leaf.pdf_grid.capacity() * sizeof(PdfCell) +
-             leaf.building.capacity() * sizeof(BuildingQuadNode);
+    bytes += leaf.sampling.capacity() * sizeof(SamplingQuadNode) + leaf.building.capacity() * sizeof(BuildingQuadNode);
+  bytes += guide_nodes_.capacity() * sizeof(GuideNode) + guide_leaves_.capacity() * sizeof(GuideLeaf);
   bytes += region_nodes_.capacity() * sizeof(RegionNode) + leaf_size_.capacity() * sizeof(vec3) +
            leaf_box_.capacity() * sizeof(LeafBox);
   bytes += (leaf_of_.capacity() + order_.capacity() + first_.capacity() + busiest_.capacity() +

@@ -126,34 +126,28 @@ struct SelectionLearner {
   double product_sum = 0.0;  // of the samples' product weights: their mean scales the gradient
 };
 
-// A sampling node as sample() and pdf() read it: the divisions of its
-// flux done once per update() instead of at every level of every lookup
-// (the same double expressions, so lookups give the numbers they gave).
-struct SamplingStep {
-  double column = 0.0;    // the left column's (quadrants 0, 2) share of the node's flux
-  double row[2] = {0, 0}; // quadrant 0's share of the left column, quadrant 1's of the right
-  double factor[4] = {0, 0, 0, 0};  // 4 flux / total: the density's factor for each quadrant
-  uint32_t child[4] = {0, 0, 0, 0};
-  bool empty = true;      // no flux (underflowed): a uniform leaf
+// A sampling node as sample() and pdf() read it (index_lookups): 16 bytes,
+// each leaf's nodes breadth-first in one array of all leaves, so that a
+// descent's dependent loads land on few, mostly cached lines.  The guide
+// draws the left column (quadrants 0, 2) by `column`, then quadrant 0
+// within it by row[0] (quadrant 1 within the right column by row[1]); each
+// share is the smaller side's probability in float, negated when it is the
+// second side's (sd_tree.cpp, stored_share).  The density's factor for a
+// quadrant is 4 times the product of the two probabilities that chose it, in
+// double, so sample() and pdf() agree with each other and with the warp,
+// though the shares are rounded to float.
+struct GuideNode {
+  float column = 0.5f;
+  float row[2] = {0.5f, 0.5f};
+  // Bits 0-3: quadrant i has a child; bit 4: the node has no flux (a uniform
+  // leaf); bits 5-31: the first child's index among the leaf's nodes (the
+  // others follow it in quadrant order).
+  uint32_t link = 0;
 };
-
-// pdf()'s descent through the first kPdfGridBits levels of a sampling
-// quadtree, done once per update() for each cell of a 2^bits x 2^bits grid
-// over the square: the density those levels multiply (in pdf()'s order, so
-// the same double) and the node the descent goes on from (0: it ended).  The
-// cell of c decides those levels exactly (descend() takes one bit of c.x and
-// of c.y per level), so pdf() starts at the cell's node with one load
-// instead of a dependent chain of them.
-struct PdfCell {
-  double density = 1.0;
-  uint32_t node = 0;
-};
-inline constexpr int kPdfGridBits = 4;
+static_assert(sizeof(GuideNode) == 16);
 
 struct SpatialLeaf {
   std::vector<SamplingQuadNode> sampling;
-  std::vector<SamplingStep> steps;  // sampling's, for lookups (index_lookups)
-  std::vector<PdfCell> pdf_grid;    // steps' first levels per cell, for pdf() (index_lookups)
   std::vector<BuildingQuadNode> building;
   double sample_count = 0;    // samples accumulated into building (zero-valued ones too), decayed on splits
   bool has_energy = false;    // sampling holds positive flux
@@ -251,9 +245,9 @@ class SDTree final : public DirectionalGuide {
   // node's split plane in the root box's unit coordinates.  find_leaf's
   // halvings are exact, so comparing with the dyadic plane takes its branch.
   uint32_t leaf_at(const vec3& p) const;
-  // Rebuilds region_nodes_, leaf_size_ and every leaf's steps: after update() and deserialize().
+  // Rebuilds region_nodes_, leaf_size_ and the guide's nodes and leaf
+  // records: after update() and deserialize().
   void index_lookups();
-  static void index_pdf_grid(SpatialLeaf& leaf);
   // The leaf a valid sample deposits into (after the spatial jitter); kInvalidLeaf for one add_sample drops.
   static constexpr uint32_t kInvalidLeaf = 0xffffffffu;
   uint32_t target_leaf(const vec3& p, const vec3& wi, float radiance, float pdf, uint64_t key) const;
@@ -289,6 +283,17 @@ class SDTree final : public DirectionalGuide {
   };
   std::vector<LeafBox> leaf_box_;
   uint64_t lookup_generation_ = 0;  // names this index_lookups(): a thread's last leaf is for it alone
+  // What region(), sample() and pdf() read of a leaf, 16 bytes apiece: its
+  // first node in guide_nodes_ (the sampling quadtree, breadth-first), and
+  // its share and radiance integral (copies of the SpatialLeaf's).
+  struct GuideLeaf {
+    uint32_t first_node = 0;
+    uint32_t has_energy = 0;
+    float selection = 0.5f;
+    float radiance_integral = 0.0f;
+  };
+  std::vector<GuideLeaf> guide_leaves_;
+  std::vector<GuideNode> guide_nodes_;
   std::vector<vec3> leaf_size_;           // each leaf's box size, as find_leaf gives it (the spatial filter's)
   uint64_t recorded_ = 0, dropped_ = 0;            // pending iteration
   uint64_t last_recorded_ = 0, last_dropped_ = 0;  // last finished iteration

@@ -82,6 +82,9 @@ std::vector<QuadNode<T>> get_quadtree(Reader& r, const char* which, size_t leaf)
   uint32_t count = r.get_count(which, 4 * (sizeof(T) + sizeof(uint32_t)));
   if (count == 0) throw_error("SD-tree data corrupt: leaf {} has an empty {} quadtree", leaf, which);
   std::vector<QuadNode<T>> nodes(count);
+  // Each node is one node's child (a tree, as update() makes it): the
+  // lookups lay a quadtree out breadth-first, one slot per node.
+  std::vector<uint8_t> parented(count, 0);
   for (uint32_t n = 0; n < count; ++n) {
     for (int i = 0; i < 4; ++i) {
       T f = r.get<T>(which);
@@ -91,9 +94,9 @@ std::vector<QuadNode<T>> get_quadtree(Reader& r, const char* which, size_t leaf)
     }
     for (int i = 0; i < 4; ++i) {
       uint32_t c = r.get<uint32_t>(which);
-      if (c != 0 && (c <= n || c >= count))
-        throw_error("SD-tree data corrupt: leaf {} {} node {} has child index {} (of {})", leaf, which, n, c,
-                    count);
+      if (c != 0 && (c <= n || c >= count || parented[c]++))
+        throw_error("SD-tree data corrupt: leaf {} {} node {} has child index {} (of {}, or another node's child)",
+                    leaf, which, n, c, count);
       nodes[n].child[i] = c;
     }
   }

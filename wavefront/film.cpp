@@ -70,7 +70,9 @@ void Film::use_thread_sums(int threads) {
   // other subsystems' threads) take numbers too: room for a few more.
   const size_t count = size_t(std::max(threads, 1)) + 2;
   const size_t bytes = count * pixel_count() * kPlaneCount * sizeof(float);
-  thread_sum_count_ = bytes <= kMaxThreadSumBytes ? count : 0;
+  // With --aov-events the layers must sum to the beauty to float precision:
+  // both keep the atomics, so that they are summed alike.
+  thread_sum_count_ = bytes <= kMaxThreadSumBytes && !aov_events() ? count : 0;
   thread_sums_.assign(thread_sum_count_ * pixel_count() * kPlaneCount, 0.0f);
 }
 

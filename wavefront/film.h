@@ -97,7 +97,8 @@ struct Film {
   // compare-exchange loop, and a splat made up to six); flush() adds the
   // copies into the planes and must run before the planes are read.  Off
   // (atomics on the planes) when the copies would exceed kMaxThreadSumBytes,
-  // and for threads beyond `threads`.
+  // with aov_events() (the event layers must sum to the beauty), and for
+  // threads beyond `threads`.
   static constexpr size_t kMaxThreadSumBytes = size_t(32) << 20;
   void use_thread_sums(int threads);
   void flush();

@@ -496,3 +496,27 @@ TEST(Combination, AShortSettledIterationJoinsThePool) {
   EXPECT_EQ(c.pooled_end, 66u);
   EXPECT_EQ(c.window_end, 66u);
 }
+
+// A settled run without noise (a frozen estimator that sees a constant, as a
+// guided render of a lit white wall nearly does) has a pooled variance of 0:
+// nothing to weigh it by.  It stays out of the weighted image, which then
+// holds only the noisy learning iterations and so cannot beat the equal image
+// of every sample: the choice falls to equal weights, never to an image that
+// dropped the settled samples.
+TEST(Combination, ANoiselessSettledRunLeavesTheEqualImage) {
+  ImageAccumulator acc(kW, kH, Combination::InverseVariance, 0);
+  std::mt19937 rng(5);
+  accumulate(acc, {16, 16, 32, 32}, {2.0f, 2.0f, 0.0f, 0.0f}, &rng, 32);
+  EXPECT_EQ(acc.runs.size(), 2u);
+  EXPECT_EQ(acc.settled.spp_end, 96u);
+  const CombinationChoice c = acc.choice();
+  EXPECT_EQ(c.used, Combination::Equal) << c.why;
+  EXPECT_EQ(c.pooled_end, 0u);  // the noiseless run was not pooled
+  EXPECT_EQ(max_abs_difference(acc.resolve(), equal_image(acc)), 0.0);
+
+  // Noiseless from the first sample: no iteration has a variance estimate.
+  ImageAccumulator flat(kW, kH, Combination::InverseVariance, 0);
+  accumulate(flat, {16, 16}, {0.0f, 0.0f}, &rng, 0);
+  EXPECT_EQ(flat.choice().used, Combination::Equal);
+  EXPECT_EQ(max_abs_difference(flat.resolve(), equal_image(flat)), 0.0);
+}

@@ -5,6 +5,7 @@ packages=(
   build-essential cmake pkg-config
   libembree-dev libtbb-dev libopenimageio-dev openimageio-tools libopenexr-dev libpng-dev libstb-dev libglm-dev
   libgtest-dev libcli11-dev libfmt-dev nlohmann-json3-dev libboost-dev libnanoflann-dev
+  libjemalloc-dev  # the theia executable's malloc: the heap on huge pages (app/main.cpp)
   libnanovdb-dev zlib1g-dev  # the "nanovdb" medium's reader (header-only NanoVDB, zip-compressed grids)
   python3-numpy python3-matplotlib python3-openimageio
   slurm-wlm munge

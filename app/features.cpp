@@ -261,8 +261,6 @@ int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp, in
   return -1;
 }
 
-// Training that never ends is judged as if its budget were the default's.
-static int judged_training_spp(int training_spp) { return training_spp > 0 ? training_spp : 256; }
 
 int guiding_probe_iteration(const std::vector<int>& schedule, int training_spp) {
   return guiding_holdout_iteration(schedule, std::clamp(judged_training_spp(training_spp) / 16, 8, 16),
@@ -321,7 +319,7 @@ GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& sce
                                const std::vector<int>& schedule, bool keep_recorder, uint32_t first_sample,
                                double time_limit)
     : options_(options), keep_recorder_(keep_recorder), first_sample_(first_sample), time_limit_(time_limit) {
-  if (!options.enabled) return;
+  if (!options.on()) return;
   SDTreeOptions tree = options;
   tree.learn_selection = options.sampling == "mis-learned";
   tree_ = std::make_unique<SDTree>(scene_bounds, tree);
@@ -332,7 +330,7 @@ GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& sce
     vmm_ = std::make_unique<VMMField>(*tree_, vo);
   }
   trainer_ = std::make_unique<SDTreeTrainer>(*tree_, vmm_.get(), training_);
-  if (options.auto_off) {
+  if (options.judged()) {
     schedule_ = schedule;
     verdict_.probe.length = kProbeLength;
     verdict_.final.length = kFinalLength;
@@ -433,7 +431,7 @@ std::optional<uint32_t> GuidingFeature::settled_from() const {
 
 std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInfo&) const {
   if (!tree_ || !options_.regular_after_training) return std::nullopt;
-  const bool done = options_.auto_off ? verdict_.state == GuidingVerdict::Off ||
+  const bool done = options_.judged() ? verdict_.state == GuidingVerdict::Off ||
                                             (verdict_.state == GuidingVerdict::On && trained_spp_ >= 0)
                                       : trained_spp_ >= 0;
   if (!done) return std::nullopt;
@@ -447,7 +445,7 @@ std::optional<ScheduleOptions> GuidingFeature::schedule_after(const IterationInf
 // will be: by the field without recording, unless training never ends.
 void GuidingFeature::add_tasks(IterationTasks& tasks) {
   if (!tree_) return;
-  const bool judging = options_.auto_off && verdict_.probe.unguided_iteration >= 0;
+  const bool judging = options_.judged() && verdict_.probe.unguided_iteration >= 0;
   if (judging) tasks.measure_variance();
   tasks.on_begin([this](const IterationInfo& it) {
     const bool train = trains(it);
@@ -652,7 +650,7 @@ void GuidingFeature::write_log(nlohmann::json& log) const {
   log["guiding"]["field"] = options_.field;
   if (vmm_) log["guiding"]["vmm"] = vmm_log(*vmm_);
   if (tree_->options().learn_selection) log["guiding"]["selection"] = selection_log(*tree_, options_.selection_max);
-  if (options_.auto_off) log["guiding"]["auto"] = auto_log();
+  if (options_.judged()) log["guiding"]["auto"] = auto_log();
   log["memory"]["guiding"] = tree_->memory_bytes() + (vmm_ ? vmm_->memory_bytes() : 0);
 }
 

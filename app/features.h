@@ -99,8 +99,12 @@ class RecorderFeature final : public Feature {
 // --- Path guiding (group "guiding") -----------------------------------------
 
 struct GuidingOptions : SDTreeOptions {
-  bool enabled = false;
-  bool auto_off = false;  // --guiding-auto (implies enabled)
+  // --guiding: on; --no-guiding: off (the default until --guiding-auto meets
+  // issue 12's bar); --guiding-auto: guiding measures whether it pays and
+  // turns itself off where it does not (GuidingVerdict below).
+  OnOffAuto enabled = OnOffAuto::Off;
+  bool on() const { return enabled != OnOffAuto::Off; }
+  bool judged() const { return enabled == OnOffAuto::Auto; }
   // ris | mis | mis-learned: EngineOptions::guiding.mixing, and for
   // mis-learned SDTreeOptions::learn_selection.
   // One-sample MIS with a learned share: per sample it ties RIS on
@@ -147,12 +151,11 @@ struct GuidingOptions : SDTreeOptions {
 template <class V>
 void declare_options(V& v, GuidingOptions& o) {
   v.image("enabled", o.enabled,
-          "Path guiding: an SD-tree learned every iteration from the radiance recorder, combined with BSDF sampling");
-  v.image("auto", o.auto_off,
-          "Guiding measures whether it pays (relative variance, robust and with fireflies, x CPU time per sample "
-          "of held-out unguided against guided iterations: early in training and again once it ends) and turns "
-          "itself off where it does not; once decided (and trained), the rest renders on the regular schedule; "
-          "implies --guiding");
+          "Path guiding: an SD-tree learned every iteration from the radiance recorder, combined with BSDF "
+          "sampling.  --guiding-auto: guiding measures whether it pays (relative variance, robust and with "
+          "fireflies, x CPU time per sample of held-out unguided against guided iterations: early in training and "
+          "again once it ends) and turns itself off where it does not; once decided (and trained), the rest "
+          "renders on the regular schedule");
   v.image("sampling", o.sampling,
           "Guided directions: ris (resampling one BSDF and one guide candidate), mis (one-sample MIS with a fixed "
           "share) or mis-learned (one-sample MIS, the share learned per region)");
@@ -261,6 +264,8 @@ bool guiding_pays(const GuidingVerdict::Round& round, const GuidingRule& rule);
 // the others of at least 2 (the variance needs two samples per pixel).  -1 if
 // none.
 int guiding_holdout_iteration(const std::vector<int>& schedule, int from_spp, int length = 1);
+// The training budget --guiding-auto judges by: never-ending training (0) as the default's.
+inline int judged_training_spp(int training_spp) { return training_spp > 0 ? training_spp : 256; }
 // The probe's held-out iteration (-1 where the schedule has none).
 int guiding_probe_iteration(const std::vector<int>& schedule, int training_spp);
 // The recheck's (-1 where the schedule has none or no probe).

@@ -48,6 +48,11 @@ inline std::string option_flag(const std::string& group, const std::string& fiel
   return flag;
 }
 
+// A feature that is on, off, or decides for itself (--guiding, --no-guiding,
+// --guiding-auto): three flags, none of which takes the next argument.
+enum class OnOffAuto { Off, On, Auto };
+inline const char* to_string(OnOffAuto v) { return v == OnOffAuto::Off ? "off" : v == OnOffAuto::On ? "on" : "auto"; }
+
 // Visitors set `group` before declaring a struct's options (declare_render_options, app/render.h).
 struct OptionVisitor {
   std::string group;
@@ -89,7 +94,13 @@ struct OptionBinder : OptionVisitor {
   template <class T>
   void bind(const char* name, T& field, const char* help, bool tuning) {
     const std::string flag = option_flag(group, name);
-    if constexpr (std::is_same_v<T, bool>) {
+    if constexpr (std::is_same_v<T, OnOffAuto>) {
+      auto set = [&field](OnOffAuto v) { return [&field, v] { field = v; }; };
+      const std::string was = std::string(" (default: ") + to_string(field) + ")";
+      app.add_flag_callback(flag, set(OnOffAuto::On), std::string(help) + was);
+      app.add_flag_callback("--no-" + flag.substr(2), set(OnOffAuto::Off), "Off" + was);
+      app.add_flag_callback(flag + "-auto", set(OnOffAuto::Auto), "Decides for itself" + was);
+    } else if constexpr (std::is_same_v<T, bool>) {
       if (field || tuning)
         app.add_flag(flag + ",!--no-" + flag.substr(2), field,
                      std::string(help) + (field ? " (default: on)" : " (default: off)"))
@@ -112,14 +123,21 @@ struct OptionLog : OptionVisitor {
   bool image_only = false;
 
   template <class T>
-  void image(const char* name, const T& field, const char*) { json[option_name(group, name)] = field; }
+  void image(const char* name, const T& field, const char*) { json[option_name(group, name)] = loggable(field); }
   template <class T>
   void order(const char* name, const T& field, const char*) {
-    if (!image_only) json[option_name(group, name)] = field;
+    if (!image_only) json[option_name(group, name)] = loggable(field);
   }
   template <class T>
   void output(const char* name, const T& field, const char*) {
-    if (!image_only) json[option_name(group, name)] = field;
+    if (!image_only) json[option_name(group, name)] = loggable(field);
+  }
+
+ private:
+  template <class T>
+  static auto loggable(const T& field) {
+    if constexpr (std::is_same_v<T, OnOffAuto>) return std::string(to_string(field));
+    else return field;
   }
 };
 
@@ -128,7 +146,10 @@ struct OptionFingerprintText : OptionVisitor {
   std::string text;
 
   template <class T>
-  void image(const char* name, const T& field, const char*) { text += fmt::format("{}={};", option_name(group, name), field); }
+  void image(const char* name, const T& field, const char*) {
+    if constexpr (std::is_same_v<T, OnOffAuto>) text += fmt::format("{}={};", option_name(group, name), to_string(field));
+    else text += fmt::format("{}={};", option_name(group, name), field);
+  }
   template <class T>
   void order(const char*, const T&, const char*) {}
   template <class T>

@@ -72,13 +72,11 @@ void check_config(const RenderConfig& c) {
   check(static_cast<const SchedulingOptions&>(c));
   check(c.recorder);
   check(c.guiding);
-  check(static_cast<const FieldOptions&>(c), c.guiding.enabled || c.guiding.auto_off);
+  check(static_cast<const FieldOptions&>(c), c.guiding.on());
   check(c.caustics);
   check(c.checkpoint);
   if (RecorderFeature::debug_layers(c.recorder) && !c.checkpoint.dir.empty())
     throw_error("--recorder-debug cannot be combined with --checkpoint-dir: the debug buffers are not checkpointed");
-  if (RecorderFeature::debug_layers(c.recorder) && c.guiding.auto_off)
-    throw_error("--recorder-debug cannot be combined with --guiding-auto: the recorder stops when guiding does");
   if (c.aov_events && c.combine == "inverse-variance")
     throw_error("--aov-events cannot be combined with --combine {}: the layers are equal-weight sums and would not "
                 "add up to a weighted beauty",
@@ -93,6 +91,20 @@ uint64_t options_fingerprint(const RenderConfig& c) {
   return hash_bytes(text.text.data(), text.text.size());
 }
 
+// Where --guiding-auto cannot pay, it is off from the first sample.  A
+// render shorter than guiding's training budget cannot earn back what
+// training costs (each training sample 1.4-2.5x an unguided one; on
+// cornell-box at 64 spp --guiding-auto took 1.7-1.9x the CPU time), and the
+// recorder's debug layers need the recorder on every sample, which auto stops
+// when it turns guiding off.
+static std::string guiding_auto_off_because(const RenderConfig& c) {
+  if (!c.guiding.judged()) return {};
+  if (RecorderFeature::debug_layers(c.recorder)) return "--recorder-debug";
+  const int training = judged_training_spp(c.guiding.training_spp);
+  if (c.spp < training) return fmt::format("the render's {} spp are fewer than training's {}", c.spp, training);
+  return {};
+}
+
 // The options with the scene's choices filled in (spp, maximum depth) and
 // the schedule named: what the render, its fingerprint and its log use.
 static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
@@ -100,9 +112,10 @@ static RenderConfig resolve(const RenderConfig& config, const Scene& scene) {
   if (c.spp < 0) c.spp = scene.settings.spp;
   if (c.max_depth < 0) c.max_depth = scene.settings.max_depth;
   if (c.spp <= 0) throw_error("{}: the scene asks for {} samples per pixel; use --spp", scene.path, c.spp);
-  if (c.guiding.auto_off) c.guiding.enabled = true;
-  c.schedule = schedule_name(c, c.guiding.enabled);
-  c.combine = combine_name(c, c.guiding.enabled,
+  c.guiding_off_because = guiding_auto_off_because(c);
+  if (!c.guiding_off_because.empty()) c.guiding.enabled = OnOffAuto::Off;
+  c.schedule = schedule_name(c, c.guiding.on());
+  c.combine = combine_name(c, c.guiding.on(),
                            !c.sample_range.empty() || c.aov_events || RecorderFeature::debug_layers(c.recorder));
   if (!c.sample_range.empty()) c.caustics.may_switch_off = false;
   return c;
@@ -152,7 +165,7 @@ struct Features {
         guiding(c.guiding, rs.accel.bounds(), schedule, RecorderFeature::debug_layers(c.recorder), first_sample,
                 c.time_limit),
         field(c, rs.scene, guiding),
-        recorder(c.recorder, c.guiding.enabled, c.seed, rs.scene.film.width, rs.scene.film.height, field.sink()),
+        recorder(c.recorder, c.guiding.on(), c.seed, rs.scene.film.width, rs.scene.film.height, field.sink()),
         caustics(c.caustics, caustics_conflict(c, rs.scene), c.seed, rs),
         adaptive(c.adaptive, rs.scene.film.width, rs.scene.film.height, schedule, c.spp) {}
   // Guiding before field: the field is saved after guiding's update.
@@ -180,7 +193,7 @@ static EngineOptions engine_options(const RenderConfig& c, const StopRequest* st
 // unbiased but is not the single-process image.
 static std::vector<std::string> part_learning(const RenderConfig& c, const RenderableScene& rs) {
   std::vector<std::string> learns;
-  if (c.guiding.enabled) learns.push_back("guiding");
+  if (c.guiding.on()) learns.push_back("guiding");
   if (rs.light_sampler->wants_feedback()) learns.push_back(rs.light_sampler->name());
   return learns;
 }
@@ -313,6 +326,7 @@ static RenderResult make_result(IterationResult iterations, Features& features, 
   log["resolution"] = {rs.scene.film.width, rs.scene.film.height};
   log["options"] = options_log(c);
   for (Feature* f : features.all()) f->write_log(log);
+  if (!c.guiding_off_because.empty()) log["guiding"]["auto"] = {{"verdict", "off"}, {"why", c.guiding_off_because}};
   if (!c.reference_path.empty()) log["reference"] = c.reference_path;
   log["dropped_samples"] = iterations.dropped_samples;
   if (c.aov_events) log["aov_event_layers"] = event_layer_names();

@@ -86,6 +86,9 @@ struct RenderConfig : RenderOptions, LightSamplerOptions, SchedulingOptions, Fie
   StopRequest* stop = nullptr;
   // Called with (iteration, fraction of its camera samples generated).
   std::function<void(int, double)> on_iteration_progress;
+  // Set by the render's resolution of the options: why --guiding-auto is off
+  // from the start (the log's guiding.auto.why; empty: it was not).
+  std::string guiding_off_because;
 
   // The features' options (app/features.h), each under its group's name.
   RecorderOptions recorder;

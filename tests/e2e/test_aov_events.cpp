@@ -195,7 +195,7 @@ TEST(AovEvents, GuidingKeepsEachLayersMean) {
     c.aov_events = true;
     c.seed = 7;
     if (sampling) {
-      c.guiding.enabled = true;
+      c.guiding.enabled = OnOffAuto::On;
       c.guiding.sampling = sampling;
     }
     RenderResult r = render_scene(scene, c);

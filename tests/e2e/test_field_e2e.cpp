@@ -27,7 +27,7 @@ Scene small_cornell() {
 
 RenderConfig guided(int spp) {
   RenderConfig c = quick_config(spp);
-  c.guiding.enabled = true;
+  c.guiding.enabled = OnOffAuto::On;
   c.threads = 2;
   return c;
 }
@@ -69,7 +69,7 @@ TEST(FieldSave, NeedsGuiding) {
   EXPECT_THROW(check_config(c), Error);
   c.save_field.clear();
   c.save_field_every_iteration = true;
-  c.guiding.enabled = true;
+  c.guiding.enabled = OnOffAuto::On;
   EXPECT_THROW(check_config(c), Error);
 }
 

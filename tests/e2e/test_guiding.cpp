@@ -15,7 +15,7 @@ const std::string kCornell = std::string(THEIA_SCENES) + "/cornell-box/scene.pbr
 
 RenderConfig guided_config(int spp, uint32_t seed = 0) {
   RenderConfig c = quick_config(spp);
-  c.guiding.enabled = true;
+  c.guiding.enabled = OnOffAuto::On;
   c.seed = seed;
   return c;
 }
@@ -187,12 +187,12 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
 
   Scene scene = load_test_scene_file(kCornell);
   RenderConfig c = quick_config(256);
-  c.guiding.auto_off = true;
+  c.guiding.enabled = OnOffAuto::Auto;
   c.guiding.training_spp = 32;  // probe from 8 spp; training ends before the recheck; final round then
   RenderResult r = render_scene(scene, c);
   const nlohmann::json& a = r.log["guiding"]["auto"];
   std::printf("guiding-auto on cornell-box: %s\n", a.dump().c_str());
-  EXPECT_EQ(r.log["options"]["guiding"].get<bool>(), true);  // auto implies guiding
+  EXPECT_EQ(r.log["options"]["guiding"].get<std::string>(), "auto");
   const std::vector<int> schedule = r.log["scheduler"]["schedule"].get<std::vector<int>>();
   EXPECT_EQ(a["probe"]["unguided_iteration"].get<int>(), guiding_probe_iteration(schedule, 32));
   EXPECT_TRUE(a["probe"]["measured"].get<bool>());
@@ -234,7 +234,7 @@ TEST(Guiding, AutoJudgesInRoundsAndStaysUnbiased) {
   // before passed.
   scene.film.width = scene.film.height = 48;
   c = quick_config(224);
-  c.guiding.auto_off = true;
+  c.guiding.enabled = OnOffAuto::Auto;
   c.guiding.training_spp = 128;
   const nlohmann::json b = render_scene(scene, c).log["guiding"]["auto"];
   std::printf("guiding-auto on cornell-box 48x48, training 128 spp: %s\n", b.dump().c_str());
@@ -260,7 +260,7 @@ TEST(Guiding, AutoContinuesOnTheRegularScheduleOnceDecided) {
   const std::vector<int> planned = make_schedule(guiding_schedule(), 256);
   auto render = [&](const std::string& verdict, int training_spp) {
     RenderConfig c = quick_config(256);
-    c.guiding.auto_off = true;
+    c.guiding.enabled = OnOffAuto::Auto;
     c.guiding.training_spp = training_spp;
     c.guiding.test_verdict = verdict;
     return render_scene(scene, c);
@@ -417,4 +417,26 @@ TEST(Guiding, VMMFieldIsUnbiasedAndDeterministic) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("expected sdtree or vmm"), std::string::npos) << e.what();
   }
+}
+
+// --guiding-auto where the render is shorter than training: the probe's
+// training alone would cost more than guiding could win back, so it is off
+// from the first sample, renders as --no-guiding does and says why.
+TEST(Guiding, AutoIsOffForARenderShorterThanTraining) {
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 24;
+  RenderConfig c = quick_config(64);
+  c.guiding.enabled = OnOffAuto::Auto;
+  c.threads = 1;  // the same summation order as the plain render's
+  const RenderResult r = render_scene(scene, c);
+  EXPECT_EQ(r.log["options"]["guiding"].get<std::string>(), "off");
+  EXPECT_EQ(r.log["guiding"]["auto"]["verdict"].get<std::string>(), "off");
+  EXPECT_EQ(r.log["guiding"]["auto"]["why"].get<std::string>(), "the render's 64 spp are fewer than training's 256");
+  RenderConfig plain = quick_config(64);
+  plain.guiding.enabled = OnOffAuto::Off;
+  plain.threads = 1;
+  EXPECT_EQ(test::max_relative_difference(r.image, render_scene(scene, plain).image), 0.0);
+  // Training no longer than the render: auto judges.
+  c.guiding.training_spp = 32;
+  EXPECT_EQ(render_scene(scene, c).log["options"]["guiding"].get<std::string>(), "auto");
 }

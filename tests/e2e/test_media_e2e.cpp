@@ -81,11 +81,11 @@ TEST(MediaDeterminism, IndependentOfThreadsAndBatchSize) {
 TEST(MediaFeatures, GuidingRunsAndCausticsSwitchOff) {
   Scene scene = load_test_scene(medium_sphere_scene(8, "0.1 0.1 0.1", "1 1 1", 0.0f, 16));
   RenderConfig c = quick_config(4);
-  c.guiding.enabled = true;
+  c.guiding.enabled = OnOffAuto::On;
   RenderResult r = render_scene(scene, c);
   EXPECT_NE(r.log["caustics"]["off_because"].get<std::string>().find("participating media"), std::string::npos);
   EXPECT_GT(r.log["recorder"]["recorded_vertices"].get<uint64_t>(), 0u);
-  EXPECT_TRUE(r.log["options"]["guiding"].get<bool>());
+  EXPECT_EQ(r.log["options"]["guiding"].get<std::string>(), "on");
 }
 
 // ---------------------------------------------------------------- guiding in media
@@ -94,7 +94,7 @@ namespace {
 
 RenderConfig guided_config(int spp, uint32_t seed = 0) {
   RenderConfig c = quick_config(spp);
-  c.guiding.enabled = true;
+  c.guiding.enabled = OnOffAuto::On;
   c.seed = seed;
   return c;
 }

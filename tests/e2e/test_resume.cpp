@@ -357,12 +357,14 @@ TEST(Resume, GuidingAutoContinuesItsRoundsAfterResume) {
 // schedule and the image an uninterrupted one does.  The verdict is forced
 // ("off"), so the uninterrupted image is known.
 TEST(Resume, GuidingAutoScheduleSwitchResumesExactly) {
-  Fixture f("autoswitch", " --guiding-auto --test-guiding-verdict off --spp 96");
-  // Guiding schedule for 96 spp: 1 x8, 2 4 8 16 16 16 16 10; the probe holds
-  // out 11 (22 spp) against 12; from 13 (54 spp) the regular schedule: 42.
+  // 256 spp: a shorter render than training's 256 spp has auto off from the start.
+  Fixture f("autoswitch", " --guiding-auto --test-guiding-verdict off --spp 256");
+  // Guiding schedule for 256 spp: 1 x8, 2 4 8 16 16 ...; the probe holds out
+  // 11 (22 spp) against 12; from 13 (54 spp) the regular schedule: 74, 128.
   ASSERT_EQ(f.render("ref.exr").exit_code, 0);
   const nlohmann::json ref = nlohmann::json::parse(std::ifstream(f.out("ref.json")));
-  const std::vector<int> switched{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16, 42};
+  const std::vector<int> switched = switch_schedule(make_schedule(guiding_schedule(), 256), 13, regular_schedule());
+  EXPECT_EQ(switched, (std::vector<int>{1, 1, 1, 1, 1, 1, 1, 1, 2, 4, 8, 16, 16, 74, 128}));
   EXPECT_EQ(ref["scheduler"]["schedule"].get<std::vector<int>>(), switched);
   EXPECT_EQ(ref["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 13);
   for (const std::string at : {"12:0.5", "13:0.5"}) {
@@ -486,7 +488,6 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-min-roughness", {"0.1"}},
     {"--guiding-spatial-threshold", {"2000"}},
     {"--guiding-selection-probability", {"0.25"}},
-    {"--guiding-auto", {}},
     {"--guiding-sampling", {"mis"}},
     {"--guiding-field", {"vmm"}},
     {"--guiding-defensive", {"0.3"}},
@@ -619,7 +620,10 @@ TEST_F(ResumeOptionsCheckpoint, SummationOrderAndCheckpointOptionsResume) {
 TEST(ResumeOptions, ParsedFlagsReachTheirFields) {
   RenderConfig c = parse({"--guiding", "--guiding-selection-probability", "0.25", "--no-caustics", "--sort", "off",
                           "--recorder-vertex-budget", "2", "--checkpoint-first", "8", "--max-paths", "0"});
-  EXPECT_TRUE(c.guiding.enabled);
+  EXPECT_EQ(c.guiding.enabled, OnOffAuto::On);
+  EXPECT_EQ(parse({"--guiding-auto"}).guiding.enabled, OnOffAuto::Auto);
+  EXPECT_EQ(parse({"--guiding", "--no-guiding"}).guiding.enabled, OnOffAuto::Off);
+  EXPECT_EQ(parse({}).guiding.enabled, OnOffAuto::Off);  // the default until issue 12's bar is met
   EXPECT_EQ(c.guiding.selection_probability, 0.25f);
   EXPECT_FALSE(c.caustics.enabled);
   EXPECT_FALSE(c.sort);

@@ -97,7 +97,7 @@ TEST(RougheningE2E, IndependentOfThreadsAndBatchSizeGuidedOrNot) {
   Scene scene = load_test_scene(mirror_room_scene(32, 24, 0.0f));
   for (bool guided : {false, true}) {
     RenderConfig a = roughening_config(16, 0.05f), b = roughening_config(16, 0.05f);
-    a.guiding.enabled = b.guiding.enabled = guided;
+    a.guiding.enabled = b.guiding.enabled = guided ? OnOffAuto::On : OnOffAuto::Off;
     a.threads = 1;
     a.batch_size = 1024;
     a.max_paths = 4096;

@@ -125,7 +125,7 @@ TEST(TimeLimit, AdaptiveAndInverseVarianceImagesStayValidWhenStoppedInsideAnIter
     const std::string m = mode;
     if (m == "adaptive") c.adaptive.enabled = true;
     if (m != "adaptive") c.combine = "inverse-variance";
-    if (m == "guided inverse-variance") c.guiding.enabled = true;
+    if (m == "guided inverse-variance") c.guiding.enabled = OnOffAuto::On;
     StopRequest stop;
     RenderResult r = render_stopped_by_time(scene, c, 3, 0.4, stop);
     ASSERT_FALSE(r.interrupted);

@@ -187,8 +187,9 @@ struct WavefrontEngine::Impl {
   bool track_through_interfaces(Ray& ray, Hit& hit, uint32_t slot, ShadeOutput& out);
   // Whether a path's ray goes on through the surface it hit as it was: an
   // "interface" by its own material (not a mix's choice), neither a light nor
-  // a holdout, in a scene with media, for a path that is not alpha-only.
-  bool passes_through(const Hit& hit, const PathState& ps) const;
+  // a holdout, in a scene with media, for a path that is not alpha-only:
+  // then the shape's index, else -1.
+  int passing_shape(const Hit& hit, const PathState& ps) const;
   void scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium, ShadeOutput& out);
   void sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out);
   std::optional<PhaseContinuation> sample_phase_continuation(const MediumVertex& v) const;
@@ -237,8 +238,9 @@ struct WavefrontEngine::Impl {
     if constexpr (kObserve) observer->vertex_done(pool[slot].vertex);
     out.freed.push_back(slot);
   }
-  // Queues the path's next ray, leaving the surface `si`.
-  void queue_ray(uint32_t slot, const SurfaceInteraction& si, const Ray& ray, ShadeOutput& out) {
+  // Queues the path's next ray, leaving the surface `si` (an interaction or a crossing).
+  template <class Surface>
+  void queue_ray(uint32_t slot, const Surface& si, const Ray& ray, ShadeOutput& out) {
     out.rays.rays.push_back(ray);
     out.rays.paths.push_back(slot);
     if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;

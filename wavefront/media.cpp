@@ -86,12 +86,13 @@ bool WavefrontEngine::Impl::track_through_interfaces(Ray& ray, Hit& hit, uint32_
   constexpr int kMaxCrossings = 64;
   for (int crossing = 0; crossing < kMaxCrossings; ++crossing) {
     if (interact_in_medium(ray, hit, slot, out)) return true;
-    if (!hit.hit() || !passes_through(hit, pool[slot])) return false;
+    const int shape = passing_shape(hit, pool[slot]);
+    if (shape < 0) return false;
     ++out.vertices;
-    const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
-    ray = spawn_ray(si, -si.wo);
-    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
-    pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
+    const SurfaceCrossing c = surface_crossing(scene, accel, ray, hit, shape);
+    ray = spawn_ray(c, glm::normalize(ray.d));
+    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = c.skip;
+    pool.medium[slot] = medium_after(scene, c.shape, c.ng, ray.d, pool.medium[slot]);
     hit = accel.intersect1(ray, pool.curve_skip.empty() ? PrimRef{} : pool.curve_skip[slot]);
   }
   return false;
@@ -303,13 +304,18 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     if ((kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) && hit.inst != kInvalidId)
       hit = accel.intersect1(ray, skip);
     // A mix material's choice reads the whole interaction; passing on needs only the crossing.
-    const SurfaceInteraction si = what == ShapeCrossing::AtHit ? compute_interaction(scene, accel, ray, hit)
-                                                                : crossing_interaction(scene, accel, ray, hit);
-    if (what == ShapeCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
+    SurfaceCrossing c;
+    if (what == ShapeCrossing::AtHit) {
+      const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+      if (!bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
+      c = surface_crossing(si);
+    } else {
+      c = surface_crossing(scene, accel, ray, hit, shape);
+    }
     if (!track(hit.t)) return T;
-    medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
-    ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));
-    skip = si.skip;
+    medium = medium_after(scene, c.shape, c.ng, ray.d, medium);
+    ray = spawn_ray_to(c, end, vec3(0.0f), vec3(0.0f));
+    skip = c.skip;
     if (last) {
       track(ray.tmax);
       return T;

@@ -42,6 +42,11 @@ struct ShadeOutput {
   ShadowQueue shadows;
   std::vector<uint32_t> freed;
   uint64_t vertices = 0;
+  // Rays the medium stage traced itself past an interface (continuation
+  // rays that never enter a batch), and with EngineOptions::capture_rays the
+  // rays themselves, so that the ray counts and the capture include them.
+  uint64_t retraced = 0;
+  std::vector<Ray> retraced_rays;
 };
 
 // One surface vertex while it is shaded: what its steps share.

@@ -94,6 +94,8 @@ bool WavefrontEngine::Impl::track_through_interfaces(Ray& ray, Hit& hit, uint32_
     if (!pool.curve_skip.empty()) pool.curve_skip[slot] = c.skip;
     pool.medium[slot] = medium_after(scene, c.shape, c.ng, ray.d, pool.medium[slot]);
     hit = accel.intersect1(ray, pool.curve_skip.empty() ? PrimRef{} : pool.curve_skip[slot]);
+    ++out.retraced;
+    if (opt.capture_rays) out.retraced_rays.push_back(ray);
   }
   return false;
 }

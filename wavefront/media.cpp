@@ -18,6 +18,10 @@ namespace theia {
 
 namespace {
 
+// How many paths ahead the medium stage fetches its path records: a path's
+// tracking and crossings take long enough that a few hide the misses.
+constexpr size_t kMediumPrefetchDistance = 4;
+
 // Tracking numbers are keyed by the ray itself as well as the path sample,
 // so two segments of one path (across an interface, at one depth) never
 // share a stream.
@@ -55,8 +59,16 @@ void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   blocked.assign(n, 0);  // here: 1 = the path left the batch in the medium
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    for (size_t i = r.begin(); i < r.end(); ++i)
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      // The rays are in their sort order, which scatters the path records
+      // (and the medium and flight-depth tables): fetch a few paths ahead.
+      if (i + kMediumPrefetchDistance < n) {
+        const uint32_t ahead = b.paths[i + kMediumPrefetchDistance];
+        __builtin_prefetch(&pool[ahead]);
+        pool.prefetch_cold(ahead);
+      }
       blocked[i] = track_through_interfaces(b.rays[i], hits[i], b.paths[i], out);
+    }
   });
   // The passing rays keep their order; surface shading and escaped rays see only them.
   size_t kept = 0;

@@ -394,9 +394,12 @@ MediumSegment medium_segment(const Medium& m, const Ray& ray, float t0, float t1
   MediumSegment seg;
   vec3 o = ray.o, d = ray.d;
   if (m.kind != MediumKind::Homogeneous) {
-    const Transform medium_from_render = m.render_from_medium.inverse();
-    o = medium_from_render.point(ray.o);
-    d = medium_from_render.vector(ray.d);
+    // Transform::inverse() would copy both matrices (~175 instructions a
+    // segment); this is its point() and vector() read in place.
+    const mat4& inv = m.render_from_medium.m_inv;
+    const vec4 r = inv * vec4(ray.o, 1.0f);
+    o = r.w == 1.0f ? vec3(r) : vec3(r) / r.w;
+    d = mat3(inv) * ray.d;
   }
   const float len = glm::length(d);
   if (!(len > 0.0f) || !std::isfinite(len)) return seg;

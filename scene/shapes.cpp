@@ -322,11 +322,11 @@ void triangle_normal_derivatives(const TriangleMesh& m, size_t tri, const vec2 u
 // A triangle hit's point and error bound: where both the full interaction
 // and a crossing (surface_crossing.h) start.
 [[gnu::always_inline]] inline void triangle_point(const TriangleMesh& m, size_t tri, float b0, float b1, float b2,
-                                                  SurfaceInteraction& si) {
+                                                  vec3& p, vec3& p_error) {
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
   const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
-  si.p = b0 * p0 + b1 * p1 + b2 * p2;
-  si.p_error = gamma_bound(7) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
+  p = b0 * p0 + b1 * p1 + b2 * p2;
+  p_error = gamma_bound(7) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
 }
 
 // `normal_derivatives`: whether dndu and dndv are wanted (only a bump map reads them).
@@ -336,7 +336,7 @@ SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, s
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
   const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
   SurfaceInteraction si;
-  triangle_point(m, tri, b0, b1, b2, si);
+  triangle_point(m, tri, b0, b1, b2, si.p, si.p_error);
   vec2 uv[3];
   triangle_uvs(m, tri, uv);
   si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
@@ -498,24 +498,17 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   return si;
 }
 
-SurfaceInteraction crossing_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit) {
-  const int shape = accel.shape_index(hit);
+SurfaceCrossing surface_crossing(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit, int shape) {
   if (shape < 0 || scene.shapes[size_t(shape)].kind != ShapeKind::TriangleMesh || accel.instance_index(hit) >= 0)
-    return compute_interaction(scene, accel, ray, hit);
+    return surface_crossing(compute_interaction(scene, accel, ray, hit));
   const Shape& s = scene.shapes[size_t(shape)];
-  SurfaceInteraction si;
+  SurfaceCrossing c;
   const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
   const float b0 = 1.0f - hit.u - hit.v;
-  triangle_point(m, hit.prim, b0, hit.u, hit.v, si);
-  si.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, hit.prim, b0, hit.u, hit.v, &si.ns);
-  si.prim = int(hit.prim);
-  si.wo = -glm::normalize(ray.d);
-  si.t = hit.t;
-  si.shape = shape;
-  si.material = s.material;
-  si.area_light = s.area_light;
-  si.instance = -1;
-  return si;
+  triangle_point(m, hit.prim, b0, hit.u, hit.v, c.p, c.p_error);
+  c.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, hit.prim, b0, hit.u, hit.v, nullptr);
+  c.shape = shape;
+  return c;
 }
 
 vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const vec3& w) {
@@ -537,14 +530,31 @@ vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const
 // above zero rejects exactly that hit and nothing else.
 constexpr float kSpawnTMin = std::numeric_limits<float>::min();
 
-Ray spawn_ray(const SurfaceInteraction& si, const vec3& d) {
+namespace {
+
+// The spawns from a surface point with error bound p_error and normal ng.
+template <class Surface>
+Ray spawn_from(const Surface& si, const vec3& d) {
   return Ray{offset_ray_origin(si.p, si.p_error, si.ng, d), kSpawnTMin, d, kInfinity};
 }
 
-Ray spawn_ray_to(const SurfaceInteraction& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
+template <class Surface>
+Ray spawn_from_to(const Surface& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
   vec3 pf = offset_ray_origin(si.p, si.p_error, si.ng, p_to - si.p);
   vec3 pt = offset_ray_origin(p_to, p_to_error, n_to, pf - p_to);
   return Ray{pf, kSpawnTMin, pt - pf, 1.0f - kShadowEpsilon};
+}
+
+}  // namespace
+
+Ray spawn_ray(const SurfaceInteraction& si, const vec3& d) { return spawn_from(si, d); }
+Ray spawn_ray(const SurfaceCrossing& c, const vec3& d) { return spawn_from(c, d); }
+
+Ray spawn_ray_to(const SurfaceInteraction& si, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
+  return spawn_from_to(si, p_to, p_to_error, n_to);
+}
+Ray spawn_ray_to(const SurfaceCrossing& c, const vec3& p_to, const vec3& p_to_error, const vec3& n_to) {
+  return spawn_from_to(c, p_to, p_to_error, n_to);
 }
 
 // ---------------------------------------------------------------- sampling

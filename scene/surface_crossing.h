@@ -1,18 +1,32 @@
 // Whether a ray goes on through a surface (shape_crossing), and the part of
-// a surface hit it needs to go on (crossing_interaction): the point, its
-// error bound, the normals and the shape, by compute_interaction's own
-// formulas (triangle_point, triangle_normal), without the uv, the
-// derivatives and the tangents that only shading reads.
+// a surface hit it needs to go on (surface_crossing): the point, its error
+// bound, the geometric normal, the shape and the curve segment to skip, by
+// compute_interaction's own formulas (triangle_point, triangle_normal),
+// without the uv, the derivatives, the tangents and the shading normal that
+// only shading reads.
 #pragma once
 
 #include "scene/shapes.h"
 
 namespace theia {
 
-// compute_interaction's p, p_error, ng, ns, wo, t, prim, shape, material,
-// area_light and instance (the rest left at their defaults) for a top-level
-// triangle mesh; for any other shape all of compute_interaction.
-SurfaceInteraction crossing_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit);
+struct SurfaceCrossing {
+  vec3 p{0.0f}, p_error{0.0f}, ng{0.0f};
+  int shape = -1;
+  PrimRef skip;
+};
+
+// compute_interaction's p, p_error, ng, shape and skip for a hit on `shape`
+// (accel.shape_index(hit), which the caller has looked up already): for a
+// top-level triangle mesh computed alone, for any other shape taken from
+// compute_interaction.
+SurfaceCrossing surface_crossing(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit, int shape);
+inline SurfaceCrossing surface_crossing(const SurfaceInteraction& si) {
+  return {si.p, si.p_error, si.ng, si.shape, si.skip};
+}
+// spawn_ray and spawn_ray_to leaving a crossing.
+Ray spawn_ray(const SurfaceCrossing& c, const vec3& d);
+Ray spawn_ray_to(const SurfaceCrossing& c, const vec3& p_to, const vec3& p_to_error, const vec3& n_to);
 
 // What a shape does to a ray crossing it, where the shape alone decides it: a
 // holdout or a surface with a BSDF blocks, an interface or a virtual light

@@ -232,10 +232,15 @@ void WavefrontEngine::Impl::merge_outputs() {
     queue_append(shadows, out.shadows);
     pool.free_slots.insert(pool.free_slots.end(), out.freed.begin(), out.freed.end());
     stats.path_vertices += out.vertices;
+    stats.continuation_rays += out.retraced;
+    if (opt.capture_rays)
+      opt.capture_rays->insert(opt.capture_rays->end(), out.retraced_rays.begin(), out.retraced_rays.end());
     queue_clear(out.rays);
     queue_clear(out.shadows);
     out.freed.clear();
     out.vertices = 0;
+    out.retraced = 0;
+    out.retraced_rays.clear();
   }
   stats.peak_queued_rays = std::max(stats.peak_queued_rays, queued_rays);
   stats.peak_queued_shadow_rays = std::max(stats.peak_queued_shadow_rays, shadows.size());

@@ -68,7 +68,8 @@ struct EngineOptions {
   // Path guiding (EngineHooks::guide): how guided vertices sample.
   GuidedSampling guiding;
   // Benchmarks only: when set, every traced ray is appended here in the order
-  // it was traced, so the raw Embree rate can be measured on the same rays.
+  // it was traced (the medium stage's re-traces past interfaces after their
+  // batch), so the raw Embree rate can be measured on the same rays.
   std::vector<Ray>* capture_rays = nullptr;
   std::vector<Ray>* capture_shadow_rays = nullptr;
 };

@@ -42,6 +42,11 @@ struct ShadeOutput {
   ShadowQueue shadows;
   std::vector<uint32_t> freed;
   uint64_t vertices = 0;
+  // Rays the medium stage traced itself past an interface (continuation
+  // rays that never enter a batch), and with EngineOptions::capture_rays the
+  // rays themselves, so that the ray counts and the capture include them.
+  uint64_t retraced = 0;
+  std::vector<Ray> retraced_rays;
 };
 
 // One surface vertex while it is shaded: what its steps share.
@@ -187,8 +192,9 @@ struct WavefrontEngine::Impl {
   bool track_through_interfaces(Ray& ray, Hit& hit, uint32_t slot, ShadeOutput& out);
   // Whether a path's ray goes on through the surface it hit as it was: an
   // "interface" by its own material (not a mix's choice), neither a light nor
-  // a holdout, in a scene with media, for a path that is not alpha-only.
-  bool passes_through(const Hit& hit, const PathState& ps) const;
+  // a holdout, in a scene with media, for a path that is not alpha-only:
+  // then the shape's index, else -1.
+  int passing_shape(const Hit& hit, const PathState& ps) const;
   void scatter_in_medium(const Ray& ray, const FreeFlight& ff, uint32_t slot, int medium, ShadeOutput& out);
   void sample_direct_light_in_medium(const MediumVertex& v, int medium, ShadeOutput& out);
   std::optional<PhaseContinuation> sample_phase_continuation(const MediumVertex& v) const;
@@ -237,8 +243,9 @@ struct WavefrontEngine::Impl {
     if constexpr (kObserve) observer->vertex_done(pool[slot].vertex);
     out.freed.push_back(slot);
   }
-  // Queues the path's next ray, leaving the surface `si`.
-  void queue_ray(uint32_t slot, const SurfaceInteraction& si, const Ray& ray, ShadeOutput& out) {
+  // Queues the path's next ray, leaving the surface `si` (an interaction or a crossing).
+  template <class Surface>
+  void queue_ray(uint32_t slot, const Surface& si, const Ray& ray, ShadeOutput& out) {
     out.rays.rays.push_back(ray);
     out.rays.paths.push_back(slot);
     if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;

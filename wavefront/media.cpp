@@ -18,6 +18,10 @@ namespace theia {
 
 namespace {
 
+// How many paths ahead the medium stage fetches its path records: a path's
+// tracking and crossings take long enough that a few hide the misses.
+constexpr size_t kMediumPrefetchDistance = 4;
+
 // Tracking numbers are keyed by the ray itself as well as the path sample,
 // so two segments of one path (across an interface, at one depth) never
 // share a stream.
@@ -55,8 +59,16 @@ void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
   blocked.assign(n, 0);  // here: 1 = the path left the batch in the medium
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    for (size_t i = r.begin(); i < r.end(); ++i)
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      // The rays are in their sort order, which scatters the path records
+      // (and the medium and flight-depth tables): fetch a few paths ahead.
+      if (i + kMediumPrefetchDistance < n) {
+        const uint32_t ahead = b.paths[i + kMediumPrefetchDistance];
+        __builtin_prefetch(&pool[ahead]);
+        pool.prefetch_cold(ahead);
+      }
       blocked[i] = track_through_interfaces(b.rays[i], hits[i], b.paths[i], out);
+    }
   });
   // The passing rays keep their order; surface shading and escaped rays see only them.
   size_t kept = 0;
@@ -86,13 +98,16 @@ bool WavefrontEngine::Impl::track_through_interfaces(Ray& ray, Hit& hit, uint32_
   constexpr int kMaxCrossings = 64;
   for (int crossing = 0; crossing < kMaxCrossings; ++crossing) {
     if (interact_in_medium(ray, hit, slot, out)) return true;
-    if (!hit.hit() || !passes_through(hit, pool[slot])) return false;
+    const int shape = passing_shape(hit, pool[slot]);
+    if (shape < 0) return false;
     ++out.vertices;
-    const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
-    ray = spawn_ray(si, -si.wo);
-    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
-    pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
+    const SurfaceCrossing c = surface_crossing(scene, accel, ray, hit, shape);
+    ray = spawn_ray(c, glm::normalize(ray.d));
+    if (!pool.curve_skip.empty()) pool.curve_skip[slot] = c.skip;
+    pool.medium[slot] = medium_after(scene, c.shape, c.ng, ray.d, pool.medium[slot]);
     hit = accel.intersect1(ray, pool.curve_skip.empty() ? PrimRef{} : pool.curve_skip[slot]);
+    ++out.retraced;
+    if (opt.capture_rays) out.retraced_rays.push_back(ray);
   }
   return false;
 }
@@ -303,13 +318,18 @@ RGB WavefrontEngine::Impl::shadow_transmittance(Ray ray, int medium, PrimRef ski
     if ((kind == ShapeKind::Sphere || kind == ShapeKind::Cylinder) && hit.inst != kInvalidId)
       hit = accel.intersect1(ray, skip);
     // A mix material's choice reads the whole interaction; passing on needs only the crossing.
-    const SurfaceInteraction si = what == ShapeCrossing::AtHit ? compute_interaction(scene, accel, ray, hit)
-                                                                : crossing_interaction(scene, accel, ray, hit);
-    if (what == ShapeCrossing::AtHit && !bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
+    SurfaceCrossing c;
+    if (what == ShapeCrossing::AtHit) {
+      const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
+      if (!bsdf_is_passthrough(make_bsdf(scene, si, UVFootprint{}))) return RGB(0.0f);
+      c = surface_crossing(si);
+    } else {
+      c = surface_crossing(scene, accel, ray, hit, shape);
+    }
     if (!track(hit.t)) return T;
-    medium = medium_after(scene, si.shape, si.ng, ray.d, medium);
-    ray = spawn_ray_to(si, end, vec3(0.0f), vec3(0.0f));
-    skip = si.skip;
+    medium = medium_after(scene, c.shape, c.ng, ray.d, medium);
+    ray = spawn_ray_to(c, end, vec3(0.0f), vec3(0.0f));
+    skip = c.skip;
     if (last) {
       track(ray.tmax);
       return T;

@@ -18,10 +18,10 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   // BSDF).  Interfaces matter only in scenes with media.
   // The medium stage crosses them itself (track_through_interfaces); this
   // serves a path past its bound of crossings.
-  if (passes_through(hit, ps)) {
+  if (const int shape = passing_shape(hit, ps); shape >= 0) {
     ++out.vertices;
-    const SurfaceInteraction si = crossing_interaction(scene, accel, ray, hit);
-    return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
+    const SurfaceCrossing c = surface_crossing(scene, accel, ray, hit, shape);
+    return queue_ray(slot, c, spawn_ray(c, glm::normalize(ray.d)), out);
   }
   const SurfaceInteraction si = compute_interaction(scene, accel, ray, hit);
   // A holdout matte blocks the ray and adds neither colour nor alpha.
@@ -50,11 +50,12 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   continue_path<kObserve>(v, *c, out);
 }
 
-bool WavefrontEngine::Impl::passes_through(const Hit& hit, const PathState& ps) const {
-  if (pool.medium.empty() || ps.alpha_only) return false;
+int WavefrontEngine::Impl::passing_shape(const Hit& hit, const PathState& ps) const {
+  if (pool.medium.empty() || ps.alpha_only) return -1;
   const int shape = accel.shape_index(hit);
-  return shape >= 0 && scene.shapes[size_t(shape)].area_light < 0 &&
-         shape_crossing(scene, shape) == ShapeCrossing::Passes;
+  const bool passes = shape >= 0 && scene.shapes[size_t(shape)].area_light < 0 &&
+                      shape_crossing(scene, shape) == ShapeCrossing::Passes;
+  return passes ? shape : -1;
 }
 
 // The vertex's sample dimensions, throughput, caustic flags, roughening and

@@ -5,6 +5,7 @@
 #include "core/color.h"
 #include "core/metrics.h"
 #include "render_helpers.h"
+#include "wavefront/engine.h"
 
 #include <gtest/gtest.h>
 
@@ -86,6 +87,32 @@ TEST(MediaFeatures, GuidingRunsAndCausticsSwitchOff) {
   EXPECT_NE(r.log["caustics"]["off_because"].get<std::string>().find("participating media"), std::string::npos);
   EXPECT_GT(r.log["recorder"]["recorded_vertices"].get<uint64_t>(), 0u);
   EXPECT_EQ(r.log["options"]["guiding"].get<std::string>(), "on");
+}
+
+// The medium stage traces a ray past an interface itself, outside the
+// batches: those traces count as continuation rays and enter the capture.
+// Behind a clear medium's interface sphere nothing scatters or is shaded, so
+// every traced ray that hits the sphere is followed by exactly one re-trace
+// (a camera ray's crossing in, then its crossing out), and there are no others.
+TEST(MediaRayCounts, ReTracesPastInterfacesAreCountedAndCaptured) {
+  Scene scene = load_test_scene(medium_sphere_scene(16, "0 0 0", "0 0 0", 0.0f, 8));
+  RenderableScene rs(scene);
+  Film film(scene.film.width, scene.film.height);
+  EngineOptions opt;
+  std::vector<Ray> rays, shadow_rays;
+  opt.capture_rays = &rays;
+  opt.capture_shadow_rays = &shadow_rays;
+  WavefrontEngine engine(rs, film, opt);
+  engine.render(0, 4);
+  const EngineStats& st = engine.stats();
+  EXPECT_EQ(rays.size(), st.camera_rays + st.continuation_rays);
+  EXPECT_EQ(shadow_rays.size(), st.shadow_rays);
+  const uint64_t hitting = uint64_t(std::count_if(rays.begin(), rays.end(), [&](const Ray& r) {
+    return rs.accel.intersect1(r).hit();
+  }));
+  EXPECT_GT(hitting, 0u);
+  EXPECT_EQ(st.continuation_rays, hitting);
+  EXPECT_EQ(st.total_rays(), rays.size() + shadow_rays.size());
 }
 
 // ---------------------------------------------------------------- guiding in media

@@ -114,6 +114,9 @@ struct WavefrontEngine::Impl {
   PathObserver* observer;             // hooks.observer
   bool light_sampler_primitives = false;  // light_sampler.chooses_primitives(): emitter hits name their triangle
   bool light_sampler_learns = false;  // light_sampler.wants_feedback(): shadow rays carry its choice
+  // NEE's light_choice pair decides nothing (sample_dims.h light_choice_fixed): not drawn.
+  bool light_choice_fixed =
+      theia::light_choice_fixed(scene, light_sampler.wants_feedback(), light_sampler.chooses_primitives());
   CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
   std::vector<uint8_t> sealed_media;  // scene/media.h sealed_media: NEE from their vertices is always blocked
 

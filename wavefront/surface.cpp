@@ -175,8 +175,9 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   // light_choice and light_prim are one pair of slots (sample_dims.h): one
   // draw of the pair gives both numbers, bit for bit the two 1D draws, for
   // one hash and index shuffle instead of two.
+  // Where they decide nothing (one light: light_choice_fixed) they are not drawn.
   static_assert(bounce_dims(0).light_prim == bounce_dims(0).light_choice + 1 && bounce_dims(0).light_choice % 2 == 0);
-  const vec2 u_light = sample2(ps, v.dims.light_choice);
+  const vec2 u_light = light_choice_fixed ? vec2(0.5f) : sample2(ps, v.dims.light_choice);
   auto sl = light_sampler.sample(ctx, u_light.x);
   if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light)) return;
   auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), u_light.y, true, sl->primitive);

@@ -87,10 +87,17 @@ float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
 // What the bsdf_pdf of a layered sample needs later: the BxDF and the two
 // local directions.  One cache-line pair, for a cold per-path table.
 struct alignas(64) DeferredPdf {
-  BxDF bxdf;
-  vec3 wo{0.0f}, wi{0.0f};
-  TransportMode mode = TransportMode::Radiance;
+  // Left uninitialised, so that a pool's table of them (megabytes) is not
+  // written, nor its pages faulted in, before a layered sample uses a slot.
+  DeferredPdf() {}
+  DeferredPdf(const BxDF& b, const vec3& o, const vec3& i, TransportMode m) : bxdf(b), wo(o), wi(i), mode(m) {}
+  union {
+    BxDF bxdf;
+  };
+  vec3 wo, wi;
+  TransportMode mode;
 };
+static_assert(std::is_trivially_copyable_v<DeferredPdf> && sizeof(DeferredPdf) == 128);
 // bsdf_pdf of the sample `d` was made for, bit for bit.
 inline float deferred_pdf(const DeferredPdf& d) { return bxdf_pdf(d.bxdf, d.wo, d.wi, d.mode); }
 // For the stochastic layered BxDFs a non-specular sample reports bsdf_pdf()

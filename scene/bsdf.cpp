@@ -391,7 +391,7 @@ float bsdf_pdf(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
 }
 
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
-                                      TransportMode mode) {
+                                      TransportMode mode, DeferredPdf* defer) {
   vec3 wo = bsdf.shading.to_local(wo_world);
   if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
   auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u, mode);
@@ -399,7 +399,10 @@ std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, fl
   BSDFSample s;
   s.f = bs->f;
   s.pdf = bs->pdf;
-  if (bs->pdf_is_proportional && !bs->is_specular()) {
+  if (bs->pdf_is_proportional && !bs->is_specular() && defer) {
+    *defer = DeferredPdf{bsdf.bxdf, wo, bs->wi, mode};
+    s.pdf_deferred = true;
+  } else if (bs->pdf_is_proportional && !bs->is_specular()) {
     float pdf = bxdf_pdf(bsdf.bxdf, wo, bs->wi, mode);
     if (!(pdf > 0.0f)) return std::nullopt;
     s.f = bs->f * (pdf / bs->pdf);

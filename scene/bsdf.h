@@ -56,6 +56,9 @@ struct BSDFSample {
   uint8_t flags = 0;  // flags of the lobe that produced wi
   float roughness = 1.0f;
   float eta = 1.0f;   // relative index crossed by a refraction (pbrt-v4's etaScale uses its square)
+  // A layered sample whose bsdf_pdf was left to deferred_pdf (bsdf_sample's
+  // `defer`): pdf is the walk's own, only proportional to the density.
+  bool pdf_deferred = false;
   bool is_specular() const { return (flags & kLobeSpecular) != 0; }
   bool is_transmission() const { return (flags & kLobeTransmission) != 0; }
 };
@@ -81,11 +84,30 @@ RGB bsdf_f(const BSDF& bsdf, const vec3& wo, const vec3& wi, TransportMode mode 
 BSDF bsdf_from(const BxDF& bxdf, const Frame& shading, const vec3& ng);
 // Solid-angle pdf that bsdf_sample() produces wi (non-specular lobes only).
 float bsdf_pdf(const BSDF& bsdf, const vec3& wo, const vec3& wi);
+// What the bsdf_pdf of a layered sample needs later: the BxDF and the two
+// local directions.  One cache-line pair, for a cold per-path table.
+struct alignas(64) DeferredPdf {
+  // Left uninitialised, so that a pool's table of them (megabytes) is not
+  // written, nor its pages faulted in, before a layered sample uses a slot.
+  DeferredPdf() {}
+  DeferredPdf(const BxDF& b, const vec3& o, const vec3& i, TransportMode m) : bxdf(b), wo(o), wi(i), mode(m) {}
+  union {
+    BxDF bxdf;
+  };
+  vec3 wo, wi;
+  TransportMode mode;
+};
+static_assert(std::is_trivially_copyable_v<DeferredPdf> && sizeof(DeferredPdf) == 128);
+// bsdf_pdf of the sample `d` was made for, bit for bit.
+inline float deferred_pdf(const DeferredPdf& d) { return bxdf_pdf(d.bxdf, d.wo, d.wi, d.mode); }
 // For the stochastic layered BxDFs a non-specular sample reports bsdf_pdf()
 // as its pdf (what MIS needs) and f rescaled so that f / pdf is the random
 // walk's own weight, as pbrt-v4's pdfIsProportional handling amounts to.
+// With `defer`, such a sample keeps the walk's own f and pdf (the same ratio)
+// and leaves in *defer what deferred_pdf needs for bsdf_pdf (pdf_deferred):
+// the pdf costs a second walk, and only MIS at an emitter the ray finds reads it.
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u,
-                                      TransportMode mode = TransportMode::Radiance);
+                                      TransportMode mode = TransportMode::Radiance, DeferredPdf* defer = nullptr);
 // The scattering event of a direction chosen elsewhere (by a path-guiding
 // distribution): f, bsdf_pdf, and the lobe the direction belongs to with its
 // flags, roughness and eta, as bsdf_sample would report them.  nullopt where

@@ -41,6 +41,12 @@ EngineSizes engine_sizes(const EngineOptions& o, uint64_t pixels, int threads) {
   return s;
 }
 
+static bool has_layered_material(const Scene& scene) {
+  return std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
+    return m.kind == MaterialKind::CoatedDiffuse || m.kind == MaterialKind::CoatedConductor;
+  });
+}
+
 WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOptions& o, const EngineHooks& h)
     : scene(rs.scene), accel(rs.accel), lights(rs.lights), light_sampler(*rs.light_sampler), camera(rs.camera),
       filter(rs.filter), film(f), opt(o), hooks(h), observer(h.observer),
@@ -50,7 +56,8 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
                                          .guiding = h.guide != nullptr && o.guiding.roulette_correction,
                                          .adjoint_roulette = h.guide != nullptr && o.guiding.adjoint_roulette,
                                          .media = rs.scene.has_media(),
-                                         .roughening = o.roughening > 0.0f}) {
+                                         .roughening = o.roughening > 0.0f,
+                                         .layered = o.defer_layered_pdf && has_layered_material(rs.scene)}) {
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     bounds_min = b.min;

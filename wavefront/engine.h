@@ -65,6 +65,11 @@ struct EngineOptions {
   // Path-space regularisation strength gamma in [0, 1] (seeds/000 ch. 1
   // eq. 25, scene/bsdf.h bsdf_roughen): 0 is off and costs nothing.
   float roughening = 0.0f;
+  // A layered BSDF sample's MIS pdf (a second random walk) is computed only
+  // where an emitter the ray finds needs it (PathState::prev_pdf, kDeferredPdf).
+  // Tests turn it off to compare with the eager pdf; the image is the same but
+  // for the rounding of f / pdf.
+  bool defer_layered_pdf = true;
   // Path guiding (EngineHooks::guide): how guided vertices sample.
   GuidedSampling guiding;
   // Benchmarks only: when set, every traced ray is appended here in the order

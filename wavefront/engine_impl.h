@@ -119,6 +119,9 @@ struct WavefrontEngine::Impl {
   PathObserver* observer;             // hooks.observer
   bool light_sampler_primitives = false;  // light_sampler.chooses_primitives(): emitter hits name their triangle
   bool light_sampler_learns = false;  // light_sampler.wants_feedback(): shadow rays carry its choice
+  // NEE's light_choice pair decides nothing (sample_dims.h light_choice_fixed): not drawn.
+  bool light_choice_fixed =
+      theia::light_choice_fixed(scene, light_sampler.wants_feedback(), light_sampler.chooses_primitives());
   CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
   std::vector<uint8_t> sealed_media;  // scene/media.h sealed_media: NEE from their vertices is always blocked
 
@@ -213,7 +216,7 @@ struct WavefrontEngine::Impl {
   void prepare_vertex(ShadingPoint& v) const;
   template <bool kObserve>
   void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
-  std::optional<Continuation> sample_continuation(const ShadingPoint& v) const;
+  std::optional<Continuation> sample_continuation(const ShadingPoint& v, DeferredPdf* defer) const;
   template <bool kObserve>
   void continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out);
   bool survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local, float eta_scale,
@@ -283,6 +286,13 @@ struct WavefrontEngine::Impl {
   float light_choice_pmf(const LightSampleContext& ctx, int light, int primitive) const {
     return primitive < 0 ? light_sampler.pmf(ctx, light) : light_sampler.pmf_primitive(ctx, light, primitive);
   }
+  // The MIS pdf of the BSDF sample that made the path's ray (kDeferredPdf:
+  // computed now from the path's deferred_pdf, bit for bit what eager
+  // sampling would have stored).
+  float prev_mis_pdf(const PathState& ps) const {
+    if (ps.prev_pdf != kDeferredPdf) return ps.prev_pdf;
+    return deferred_pdf(pool.deferred_pdf[size_t(&ps - pool.paths.data())]);
+  }
   static LightSampleContext previous_vertex(const PathState& ps) {
     return LightSampleContext{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
   }
@@ -302,7 +312,7 @@ void WavefrontEngine::Impl::add_emission(const PathState& ps, int light, const R
                                          int primitive) {
   float w = 1.0f;
   if (!(ps.flags & kPathPrevSpecular))
-    w = power_heuristic(1, ps.prev_pdf, 1, light_choice_pmf(previous_vertex(ps), light, primitive) * light_pdf());
+    w = power_heuristic(1, prev_mis_pdf(ps), 1, light_choice_pmf(previous_vertex(ps), light, primitive) * light_pdf());
   RGB contribution = ps.filter_weight * ps.beta * w * Le;
   if (splats_emission(ps.depth)) film.splat(ps.pixel, ps.sample, contribution, path_event(ps.flags));
   if constexpr (kObserve) observer->emission_added(ps.vertex, ps.pixel, contribution, w);

@@ -12,6 +12,7 @@
 
 #include "core/sampler.h"
 #include "scene/filter.h"
+#include "scene/scene.h"
 
 #include <cstdint>
 
@@ -60,6 +61,19 @@ constexpr BounceDims bounce_dims(uint32_t depth) {
       THEIA_BOUNCE_DIMS(THEIA_BOUNCE_DIM_VALUE)
 #undef THEIA_BOUNCE_DIM_VALUE
   };
+}
+
+// True when NEE's light_choice pair (light_choice, light_prim) decides
+// nothing, so that the engine need not draw it: one light, not an area light
+// (sample_li reads the primitive number only to pick a shape's triangle), and
+// a light sampler that neither learns nor names triangles.  Every such sampler
+// returns that light for every u (uniform and power: one entry; the light BVH:
+// an infinite light takes the whole infinite share, any other is the tree's
+// one leaf), which tests/unit/test_light_sampler.cpp checks.  The pair keeps
+// its slots, so every other decision draws what it drew.
+inline bool light_choice_fixed(const Scene& scene, bool sampler_learns, bool sampler_names_primitives) {
+  return scene.lights.size() == 1 && scene.lights[0].kind != LightKind::Area && !sampler_learns &&
+         !sampler_names_primitives;
 }
 
 // The table's own checks: every slot inside its page, 2D slots on even

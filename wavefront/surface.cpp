@@ -45,7 +45,10 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   prepare_vertex<kObserve>(v);
   sample_direct_light<kObserve>(v, out);
   // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
-  std::optional<Continuation> c = sample_continuation(v);
+  // Without an observer (which reports every vertex's pdf) a layered
+  // sample's MIS pdf waits for an emitter to need it (kDeferredPdf).
+  DeferredPdf* defer = !kObserve && !pool.deferred_pdf.empty() ? &pool.deferred_pdf[slot] : nullptr;
+  std::optional<Continuation> c = sample_continuation(v, defer);
   if (!c || !(c->bs.pdf > 0.0f)) return finish_path<kObserve>(slot, out);
   continue_path<kObserve>(v, *c, out);
 }
@@ -176,8 +179,9 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   // light_choice and light_prim are one pair of slots (sample_dims.h): one
   // draw of the pair gives both numbers, bit for bit the two 1D draws, for
   // one hash and index shuffle instead of two.
+  // Where they decide nothing (one light: light_choice_fixed) they are not drawn.
   static_assert(bounce_dims(0).light_prim == bounce_dims(0).light_choice + 1 && bounce_dims(0).light_choice % 2 == 0);
-  const vec2 u_light = sample2(ps, v.dims.light_choice);
+  const vec2 u_light = light_choice_fixed ? vec2(0.5f) : sample2(ps, v.dims.light_choice);
   auto sl = light_sampler.sample(ctx, u_light.x);
   if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light)) return;
   auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), u_light.y, true, sl->primitive);
@@ -211,12 +215,13 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
 // The continuation direction: a BSDF sample where the vertex is not guided,
 // else guide and BSDF combined as the options say.  An unguided vertex
 // draws exactly the numbers it drew before guiding existed.
-std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v) const {
+std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v,
+                                                                      DeferredPdf* defer) const {
   if (!v.guided()) {
-    std::optional<BSDFSample> bs =
-        bsdf_sample(v.bsdf, v.si.wo, sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir));
+    std::optional<BSDFSample> bs = bsdf_sample(v.bsdf, v.si.wo, sample1(v.ps, v.dims.bsdf_lobe),
+                                               sample2(v.ps, v.dims.bsdf_dir), TransportMode::Radiance, defer);
     if (!bs) return std::nullopt;
-    return Continuation{*bs, bs->pdf, 1.0};
+    return Continuation{*bs, bs->pdf_deferred ? kDeferredPdf : bs->pdf, 1.0};
   }
   GuidedDraw u{sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir)};
   if (opt.guiding.mixing == GuideMixing::Resampled) {

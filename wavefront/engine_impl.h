@@ -215,6 +215,10 @@ struct WavefrontEngine::Impl {
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
   void report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
+  // The guide's share of a guided vertex's mixture, as MIS weights see it.
+  float mis_guide_share(const ShadingPoint& v) const {
+    return opt.guiding.mixing == GuideMixing::Resampled ? kRISCandidateShare : v.guide_fraction;
+  }
   // One-sample MIS: the guide's share of directions in a region, capped.
   float guide_share(uint32_t region) const {
     return std::min(hooks.guide->selection_probability(region), opt.guiding.selection_max);
@@ -258,7 +262,14 @@ struct WavefrontEngine::Impl {
     if (light_sampler_learns) q.chosen.push_back(chosen);
     if (!pool.medium.empty()) q.medium.push_back(medium);
     if (film.aov_events()) q.event.push_back(event);
+    if (defers_nee_mis()) q.deferred_mis.emplace_back();
   }
+  // Guided NEE weighs its MIS weight only once the shadow ray is known to be
+  // unoccluded (DeferredNeeMIS); not where the observer records the weight
+  // with the vertex, nor in scenes with media (their shadow rays splat in the
+  // medium stage).
+  bool defers_nee_mis() const { return hooks.guide != nullptr && observer == nullptr && pool.medium.empty(); }
+  void apply_deferred_nee_mis();  // on `shadows`, after `blocked` is known
   void enqueue(const Ray& ray, uint32_t path);
   Batch take_spare();
 

@@ -153,6 +153,8 @@ struct WavefrontEngine::Impl {
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
   const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
   size_t refill_below = 0;  // camera rays refill the pool below this many live paths
+  size_t live_cap = 0;      // at most this many live paths (the pool, or less while observed)
+  size_t full_batch_size = 0;  // sizes.batch_size for the whole pool (sizes' is for live_cap)
   std::optional<std::chrono::steady_clock::time_point> signal_seen;
   std::optional<std::chrono::steady_clock::time_point> camera_deadline;  // stop_camera_samples_at
 
@@ -170,6 +172,7 @@ struct WavefrontEngine::Impl {
   void process_batch(Batch& b);
   void trace_caustics();                    // the caustic pass over this iteration's samples
   void generate_camera_rays(size_t count);  // camera_rays.cpp
+  void cap_live_paths();                    // live_cap, sizes.batch_size and refill_below for an iteration
   void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
                   const vec3& origin);
   void sort_rays(Batch& b);

@@ -341,6 +341,10 @@ GuidingFeature::GuidingFeature(const GuidingOptions& options, const Bounds3& sce
 
 GuidingFeature::~GuidingFeature() = default;
 
+namespace {
+constexpr float kTrainingPoolShare = 0.25f;
+}  // namespace
+
 void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const {
   if (!tree_) return;
   hooks.guide = vmm_ ? static_cast<const DirectionalGuide*>(vmm_.get()) : tree_.get();
@@ -350,6 +354,9 @@ void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const 
   engine.guiding.selection_max = options_.selection_max;
   engine.guiding.roulette_correction = options_.roulette_correction;
   engine.guiding.adjoint_roulette = options_.adjoint_roulette;
+  // Training iterations keep a quarter of the pool's paths in flight (on
+  // veach-ajar the frame's pixel count): the recorder's vertices stay warmer.
+  hooks.observed_pool_share = kTrainingPoolShare;
 }
 
 void GuidingFeature::attach(WavefrontEngine& engine) {

@@ -18,9 +18,41 @@
 
 namespace theia {
 
+namespace {
+
+// atan2(y, x) in [-pi, pi] without libm's call (atan2f and its atanf were
+// ~2.6% of a guided veach-ajar render's CPU after training: every pdf() and
+// every training deposit maps a direction).  Cephes atanf: the ratio of the
+// smaller to the larger component, reduced by atan(a) = pi/4 + atan((a-1) /
+// (a+1)) above tan(pi/8), then its degree-9 odd polynomial, within ~2 ulp
+// of atan; the quadrant's pi/2 - r, pi - r add one more rounding of pi.
+// So phi is off by a few 1e-7 at most, the size of atan2f's own rounding
+// and of the float phi / 2 pi after it: a direction that close to a quad's
+// edge could read its neighbour either way (sample() says the same of the
+// map back).
+inline float atan2_poly(float y, float x) {
+  const float ax = std::abs(x), ay = std::abs(y);
+  const float hi = std::max(ax, ay), lo = std::min(ax, ay);
+  if (!(hi > 0.0f)) return 0.0f;
+  const float a = lo / hi;
+  const bool reduce = a > 0.41421356237f;
+  const float t = reduce ? (a - 1.0f) / (a + 1.0f) : a;
+  const float z = t * t;
+  // Explicit fmas, so that every inlined copy rounds alike.
+  const float p = std::fma(std::fma(std::fma(8.05374449538e-2f, z, -1.38776856032e-1f), z, 1.99777106478e-1f), z,
+                           -3.33329491539e-1f);
+  float r = std::fma(p * z, t, t);
+  if (reduce) r += 0.25f * kPi;
+  if (ay > ax) r = 0.5f * kPi - r;
+  if (x < 0.0f) r = kPi - r;
+  return y < 0.0f ? -r : r;
+}
+
+}  // namespace
+
 vec2 sd_direction_to_square(const vec3& wi) {
   float x = std::clamp(0.5f * (wi.z + 1.0f), 0.0f, kOneMinusEpsilon);
-  float phi = std::atan2(wi.y, wi.x);
+  float phi = atan2_poly(wi.y, wi.x);
   if (phi < 0.0f) phi += 2.0f * kPi;
   float y = std::clamp(phi * kInv2Pi, 0.0f, kOneMinusEpsilon);
   return {x, y};
@@ -462,7 +494,9 @@ uint32_t SDTree::target_leaf(const vec3& p, const vec3& wi, float radiance, floa
   return leaf;
 }
 
-void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
+// Not inlined: add_sample and add_samples must deposit bit for bit alike,
+// and two inlined copies may be contracted (fma) differently.
+[[gnu::noinline]] void SDTree::deposit_sample(SpatialLeaf& leaf, const SDTreeSample& s) {
   leaf.sample_count += 1.0;
   double value = double(s.radiance) / double(std::max(s.pdf, options_.pdf_floor));
   if (value > 0.0) deposit(leaf.building.data(), sd_direction_to_square(s.wi / glm::length(s.wi)), value);

@@ -58,6 +58,8 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
                                          .media = rs.scene.has_media(),
                                          .roughening = o.roughening > 0.0f,
                                          .layered = o.defer_layered_pdf && has_layered_material(rs.scene)}) {
+  full_batch_size = sizes.batch_size;
+  live_cap = pool.capacity();
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {
     bounds_min = b.min;
@@ -104,9 +106,24 @@ void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, ui
                  : nullptr;
   camera_end = ranges ? ranges->total() : uint64_t(film.pixel_count()) * sample_count;
   next_camera = std::min(first_camera, camera_end);
-  refill_below = size_t(opt.occupancy_threshold * float(pool.capacity()));
+  cap_live_paths();
   signal_seen.reset();
   abandoned = false;
+}
+
+// EngineHooks::observed_pool_share: batches sized for the paths that live
+// (an eighth, as engine_sizes does for the pool), the refill at the same
+// occupancy of them.  Unobserved, the pool's own sizes.
+void WavefrontEngine::Impl::cap_live_paths() {
+  constexpr size_t kMinCappedPaths = size_t(1) << 14;
+  live_cap = pool.capacity();
+  sizes.batch_size = full_batch_size;
+  if (observer && hooks.observed_pool_share > 0.0f) {
+    const size_t share = size_t(double(hooks.observed_pool_share) * double(pool.capacity()));
+    live_cap = std::clamp(share, std::min(kMinCappedPaths, pool.capacity()), pool.capacity());
+    if (opt.batch_size == 0 && live_cap < pool.capacity()) sizes.batch_size = std::max<size_t>(live_cap / 8, 1024);
+  }
+  refill_below = size_t(opt.occupancy_threshold * float(live_cap));
 }
 
 // One turn of the loop: a batch (one bounce of at most batch_size rays), a
@@ -150,7 +167,7 @@ bool WavefrontEngine::Impl::advance() {
 // Once stopped, no camera ray is generated: the paths in flight finish,
 // so exactly the pixel-samples [first_camera, next_camera) are complete.
 bool WavefrontEngine::Impl::can_generate() const {
-  return next_camera < camera_end && !pool.free_slots.empty() && !(opt.stop && opt.stop->raised()) &&
+  return next_camera < camera_end && pool.live() < live_cap && !(opt.stop && opt.stop->raised()) &&
          !(camera_deadline && std::chrono::steady_clock::now() >= *camera_deadline);
 }
 
@@ -162,7 +179,7 @@ bool WavefrontEngine::Impl::out_of_time() {
 }
 
 void WavefrontEngine::Impl::generate_camera_rays_and_report() {
-  generate_camera_rays(pool.capacity() - pool.live());
+  generate_camera_rays(live_cap - pool.live());
   report_progress();
 }
 

@@ -94,6 +94,10 @@ struct EngineHooks {
   // render() call runs its pass for the same samples.  Not with per-pixel
   // sample ranges (adaptive sampling) or the throughput-reset image.
   CausticTracer* caustics = nullptr;
+  // > 0: while an observer is attached, at most this share of the pool's
+  // paths live at once (not fewer than 2^14): the recorder's vertices of
+  // fewer paths in flight stay in cache (guiding's training iterations).
+  float observed_pool_share = 0.0f;
 };
 
 // The pool and batch sizes a render uses: `options`' where set, otherwise

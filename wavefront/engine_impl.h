@@ -161,6 +161,8 @@ struct WavefrontEngine::Impl {
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
   const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
   size_t refill_below = 0;  // camera rays refill the pool below this many live paths
+  size_t live_cap = 0;      // at most this many live paths (the pool, or less while observed)
+  size_t full_batch_size = 0;  // sizes.batch_size for the whole pool (sizes' is for live_cap)
   std::optional<std::chrono::steady_clock::time_point> signal_seen;
   std::optional<std::chrono::steady_clock::time_point> camera_deadline;  // stop_camera_samples_at
 
@@ -178,6 +180,7 @@ struct WavefrontEngine::Impl {
   void process_batch(Batch& b);
   void trace_caustics();                    // the caustic pass over this iteration's samples
   void generate_camera_rays(size_t count);  // camera_rays.cpp
+  void cap_live_paths();                    // live_cap, sizes.batch_size and refill_below for an iteration
   void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
                   const vec3& origin);
   void sort_rays(Batch& b);
@@ -224,6 +227,10 @@ struct WavefrontEngine::Impl {
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
   void report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;
+  // The guide's share of a guided vertex's mixture, as MIS weights see it.
+  float mis_guide_share(const ShadingPoint& v) const {
+    return opt.guiding.mixing == GuideMixing::Resampled ? kRISCandidateShare : v.guide_fraction;
+  }
   // One-sample MIS: the guide's share of directions in a region, capped.
   float guide_share(uint32_t region) const {
     return std::min(hooks.guide->selection_probability(region), opt.guiding.selection_max);
@@ -268,7 +275,14 @@ struct WavefrontEngine::Impl {
     if (light_sampler_learns) q.chosen.push_back(chosen);
     if (!pool.medium.empty()) q.medium.push_back(medium);
     if (film.aov_events()) q.event.push_back(event);
+    if (defers_nee_mis()) q.deferred_mis.emplace_back();
   }
+  // Guided NEE weighs its MIS weight only once the shadow ray is known to be
+  // unoccluded (DeferredNeeMIS); not where the observer records the weight
+  // with the vertex, nor in scenes with media (their shadow rays splat in the
+  // medium stage).
+  bool defers_nee_mis() const { return hooks.guide != nullptr && observer == nullptr && pool.medium.empty(); }
+  void apply_deferred_nee_mis();  // on `shadows`, after `blocked` is known
   void enqueue(const Ray& ray, uint32_t path);
   Batch take_spare();
 

@@ -10,6 +10,7 @@
 #pragma once
 
 #include "core/color.h"
+#include "core/directional_guide.h"
 #include "core/light_sampler.h"
 #include "scene/accel.h"
 
@@ -20,6 +21,18 @@
 #include <vector>
 
 namespace theia {
+
+// A guided vertex's NEE MIS weight, left for when its shadow ray turns out
+// unoccluded (the guide's pdf is a quadtree descent, and most shadow rays of
+// an indirectly lit scene are blocked).  region == kNoGuideRegion: the
+// weight is already in the contribution.
+struct DeferredNeeMIS {
+  vec3 wi{0.0f};
+  uint32_t region = kNoGuideRegion;
+  float light_pdf = 0.0f;
+  float bsdf_pdf = 0.0f;
+  float selection = 0.0f;  // the guide's share of the mixture the weight compares against
+};
 
 #define THEIA_QUEUE_MEMBER(type, name, doc) std::vector<type> name;
 #define THEIA_QUEUE_VISIT(type, name, doc) f(name);
@@ -63,7 +76,8 @@ namespace theia {
   F(SampledLight, chosen, "the light sampler's choice (only when it learns from outcomes)")       \
   F(PrimRef, skip, "the curve segment the ray leaves (only in scenes with curves)")                   \
   F(int32_t, medium, "the medium the ray starts in (only in scenes with media)")                   \
-  F(uint8_t, event, "the path's PathEvent, its film layer (only with --aov-events)")
+  F(uint8_t, event, "the path's PathEvent, its film layer (only with --aov-events)")             \
+  F(DeferredNeeMIS, deferred_mis, "a guided vertex's MIS weight still to apply (guided, unobserved, no media)")
 
 // Rays that hit nothing: infinite lights see them (the escaped-ray stage).
 #define THEIA_ESCAPED_QUEUE_FIELDS(F)          \

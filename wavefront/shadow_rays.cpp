@@ -37,6 +37,7 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
   }
   {
     ScopedTimer timer(stats.phases[Phase::Shade]);
+    apply_deferred_nee_mis();
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (observer && i + kObserverPrefetch < n) observer->prefetch(s.vertex[i + kObserverPrefetch]);

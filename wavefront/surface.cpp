@@ -6,6 +6,8 @@
 
 #include "scene/surface_crossing.h"
 
+#include <tbb/parallel_for.h>
+
 namespace theia {
 
 template <bool kObserve>
@@ -159,8 +161,23 @@ uint8_t WavefrontEngine::Impl::caustic_flags(const PathState& ps, const BSDF& bs
 float WavefrontEngine::Impl::scattering_pdf(const ShadingPoint& v, const vec3& wi) const {
   const float p = bsdf_pdf(v.bsdf, v.si.wo, wi);
   if (!v.guided()) return p;
-  const float c = opt.guiding.mixing == GuideMixing::Resampled ? kRISCandidateShare : v.guide_fraction;
-  return guided_mis_pdf(p, hooks.guide->pdf(v.guide_region, wi), c);
+  return guided_mis_pdf(p, hooks.guide->pdf(v.guide_region, wi), mis_guide_share(v));
+}
+
+// The MIS weight sample_direct_light left out of a guided vertex's
+// contribution, applied to the shadow rays that reach their light: the
+// weight scattering_pdf would have given, from the same densities.
+void WavefrontEngine::Impl::apply_deferred_nee_mis() {
+  ShadowQueue& s = shadows;
+  if (s.deferred_mis.empty()) return;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, s.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const DeferredNeeMIS& d = s.deferred_mis[i];
+      if (blocked[i] || d.region == kNoGuideRegion) continue;
+      const float p = guided_mis_pdf(d.bsdf_pdf, hooks.guide->pdf(d.region, d.wi), d.selection);
+      s.contribution[i] *= power_heuristic(1, d.light_pdf, 1, p);
+    }
+  });
 }
 
 static PathVertexInfo vertex_info(const ShadingPoint& v, const vec3& wi, const RGB& local, float pdf) {
@@ -191,7 +208,10 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   if (!ls || !(light_pdf > 0.0f) || !std::isfinite(light_pdf)) return;
   const RGB f = bsdf_f(v.bsdf, v.si.wo, ls->wi) * std::abs(glm::dot(ls->wi, v.ns));
   if (is_black(f)) return;
-  const float w = ls->is_delta ? 1.0f : power_heuristic(1, light_pdf, 1, scattering_pdf(v, ls->wi));
+  // Guided and unobserved: the weight waits for the shadow ray's outcome
+  // (apply_deferred_nee_mis), the contribution is queued without it.
+  const bool defer = !kObserve && !ls->is_delta && v.guided() && defers_nee_mis();
+  const float w = ls->is_delta || defer ? 1.0f : power_heuristic(1, light_pdf, 1, scattering_pdf(v, ls->wi));
   const RGB contribution = ps.filter_weight * v.beta * f * (ls->L * (w / light_pdf));
   if (!is_finite(contribution) || is_black(contribution)) return;
 
@@ -203,6 +223,9 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
       film.aov_events() ? path_event(first_event_bits(ps.flags, event_of_lobe(bsdf_nondelta_kind(v.bsdf)))) : 0;
   queue_shadow(out, ray, contribution, ps, *sl, v.si.skip, medium, event);
   ShadowQueue& q = out.shadows;
+  if (defer)
+    q.deferred_mis.back() =
+        DeferredNeeMIS{ls->wi, v.guide_region, light_pdf, bsdf_pdf(v.bsdf, v.si.wo, ls->wi), mis_guide_share(v)};
   if constexpr (kObserve) {
     q.mis_weight.push_back(w);
     PathVertexInfo info = vertex_info(v, ls->wi, f / light_pdf, light_pdf);

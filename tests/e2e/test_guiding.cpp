@@ -126,6 +126,24 @@ TEST(Guiding, FieldFrozenAfterTrainingSamples) {
   EXPECT_GT(max_relative_difference(r.image, all.image), 1e-3);
 }
 
+// Training iterations (the recorder attached) keep at most a quarter of the
+// pool's paths in flight (EngineHooks::observed_pool_share); the iterations
+// after training fill the whole pool again.  160 x 160 pixels: a pool of
+// 102,400 paths (4 per pixel), 25,600 while training.
+TEST(Guiding, TrainingKeepsAQuarterOfThePoolInFlight) {
+  Scene scene = load_test_scene_file(kCornell);
+  scene.film.width = scene.film.height = 160;
+  RenderConfig c = guided_config(16);
+  c.threads = 1;
+  c.guiding.training_spp = 16;  // every iteration trains: 1 x8, 2, 4, 2
+  RenderResult trained = render_scene(scene, c);
+  ASSERT_EQ(trained.log["paths"]["pool"].get<size_t>(), 102400u);
+  EXPECT_LE(trained.log["paths"]["peak_live"].get<size_t>(), 25600u);
+  c.spp = 48;  // then 32 spp frozen, in iterations of 16 and more
+  RenderResult after = render_scene(scene, c);
+  EXPECT_GT(after.log["paths"]["peak_live"].get<size_t>(), 25600u);
+}
+
 // With --time-limit the field also stops learning once --guiding-training-share
 // of the limit has passed.  A limit of 1000 s is never reached here: a share of
 // 1e-9 (1 us, passed before the first iteration begins) means no training at

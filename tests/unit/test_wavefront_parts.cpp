@@ -104,7 +104,7 @@ TEST(Queues, BytesFollowTheTable) {
   EXPECT_EQ(RayQueue::kItemBytes, sizeof(Ray) + sizeof(uint32_t));
   EXPECT_EQ(ShadowQueue::kItemBytes,
             sizeof(Ray) + sizeof(RGB) + 3 * sizeof(uint32_t) + sizeof(float) + sizeof(SampledLight) + sizeof(PrimRef) +
-                sizeof(int32_t) + sizeof(uint8_t));
+                sizeof(int32_t) + sizeof(uint8_t) + sizeof(DeferredNeeMIS));
   ShadowQueue q;
   q.rays.reserve(100);
   q.pixel.reserve(100);

@@ -94,7 +94,7 @@ uint64_t options_fingerprint(const RenderConfig& c) {
 // Where --guiding-auto cannot pay, it is off from the first sample.  A
 // render shorter than guiding's training budget cannot earn back what
 // training costs (each training sample 1.4-2.5x an unguided one; on
-// cornell-box at 64 spp --guiding-auto took 1.7-1.9x the CPU time), and the
+// cornell-box at 64 spp --guiding-auto took 1.6-1.9x the CPU time), and the
 // recorder's debug layers need the recorder on every sample, which auto stops
 // when it turns guiding off.
 static std::string guiding_auto_off_because(const RenderConfig& c) {

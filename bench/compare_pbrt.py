@@ -8,10 +8,13 @@ os.wait4's rusage: start-up, scene loading and BVH build count, as they do for
 whoever waits for the image.
 
     compare_pbrt.py --theia build/theia --pbrt /path/to/pbrt --spp 64 --runs 3 [SCENE ...]
+    compare_pbrt.py --theia build/theia --base OLD/theia --pbrt /path/to/pbrt --spp 64 --runs 3
     compare_pbrt.py --theia build/theia --threads 1,2 --spp 16 --runs 3 [SCENE ...]
 
-The second form renders with theia alone at each thread count and reports
-wall-time scaling.  Standard library only (Debian's /usr/bin/python3)."""
+--base adds an earlier theia build to the same rotation (base, theia, pbrt,
+base, ...): the machine's speed drifts by the hour, and a change is only
+measured against a build run in the same minutes.  The second form renders
+with theia alone at each thread count and reports wall-time scaling.  Standard library only (Debian's /usr/bin/python3)."""
 import argparse
 import os
 import re
@@ -80,16 +83,29 @@ def speed_ratio(pbrt, theia):
     return pbrt.cpu_med / theia.cpu_med, pbrt.cpu_min / theia.cpu_min
 
 
+def paired_ratio(num_runs, den_runs):
+    """Median over rounds k of num[k] / den[k] CPU-s: runs of one round share the
+    machine's minutes, so the ratio holds when the machine's speed drifts."""
+    return statistics.median(n.cpu_s / d.cpu_s for n, d in zip(num_runs, den_runs))
+
+
 def comparison_table(rows):
-    """rows: (scene, pixels, spp, theia Summary, pbrt Summary) -> markdown lines."""
+    """rows: (scene, pixels, spp, theia Summary, pbrt Summary[, base Summary]) -> markdown lines.
+    With a base, two more columns: pbrt-v4 against the base, and the base's CPU-s
+    over theia's (> 1: theia is faster than the base)."""
+    with_base = any(len(r) > 5 for r in rows)
+    extra = " pbrt CPU-s / base CPU-s med | base CPU-s / theia CPU-s med |" if with_base else ""
     out = ["| scene | pixels x spp | theia CPU-us/sample min / med | pbrt-v4 CPU-us/sample min / med "
-           "| pbrt CPU-s / theia CPU-s med (min) | theia peak MiB | pbrt-v4 peak MiB |",
-           "|---|---|---|---|---|---|---|"]
-    for scene, pixels, spp, t, p in rows:
+           "| pbrt CPU-s / theia CPU-s med (min) | theia peak MiB | pbrt-v4 peak MiB |" + extra,
+           "|---|---|---|---|---|---|---|" + ("---|---|" if with_base else "")]
+    for scene, pixels, spp, t, p, *base in rows:
         med, mn = speed_ratio(p, t)
-        out.append(f"| {scene} | {pixels} x {spp} | {t.us_per_sample_min:.3f} / {t.us_per_sample_med:.3f} "
-                   f"| {p.us_per_sample_min:.3f} / {p.us_per_sample_med:.3f} | {med:.2f} ({mn:.2f}) "
-                   f"| {t.peak_mib:.0f} | {p.peak_mib:.0f} |")
+        line = (f"| {scene} | {pixels} x {spp} | {t.us_per_sample_min:.3f} / {t.us_per_sample_med:.3f} "
+                f"| {p.us_per_sample_min:.3f} / {p.us_per_sample_med:.3f} | {med:.2f} ({mn:.2f}) "
+                f"| {t.peak_mib:.0f} | {p.peak_mib:.0f} |")
+        if base:
+            line += f" {p.cpu_med / base[0].cpu_med:.2f} | {base[0].cpu_med / t.cpu_med:.3f} |"
+        out.append(line)
     return out
 
 
@@ -132,6 +148,7 @@ def main():
     ap.add_argument("scenes", nargs="*", help="scene names under scenes/ or .pbrt paths (default: the validation scenes)")
     ap.add_argument("--theia", required=True)
     ap.add_argument("--pbrt", help="pbrt-v4 binary (required unless --threads)")
+    ap.add_argument("--base", help="an earlier theia binary, rendered in the same rotation")
     ap.add_argument("--spp", type=int, required=True)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--threads", help="comma-separated theia thread counts: report scaling instead of comparing")
@@ -161,21 +178,33 @@ def main():
         print("\n".join(scaling_table(rows, threads)))
         return
 
-    rows = []
+    rows, paired_lines = [], []
     for scene in scenes:
         name = scene_name(scene)
-        theia_runs, pbrt_runs = [], []
-        for k in range(a.runs):  # interleaved: theia pbrt theia pbrt ...
+        theia_runs, pbrt_runs, base_runs = [], [], []
+        for k in range(a.runs):  # interleaved: [base] theia pbrt [base] theia pbrt ...
+            if a.base:
+                out = os.path.join(work, f"{name}-base-{k}.exr")
+                base_runs.append(run_measured(theia_cmd(a.base, scene, a.spp, out), out + ".out"))
             out = os.path.join(work, f"{name}-theia-{k}.exr")
             theia_runs.append(run_measured(theia_cmd(a.theia, scene, a.spp, out), out + ".out"))
             out = os.path.join(work, f"{name}-pbrt-{k}.exr")
             pbrt_runs.append(run_measured(pbrt_cmd(a.pbrt, scene, a.spp, out), out + ".out"))
         pixels = film_pixels(scene)
-        rows.append((name, pixels, a.spp, Summary(theia_runs, a.spp * pixels), Summary(pbrt_runs, a.spp * pixels)))
+        samples = a.spp * pixels
+        row = (name, pixels, a.spp, Summary(theia_runs, samples), Summary(pbrt_runs, samples))
+        rows.append(row + ((Summary(base_runs, samples),) if a.base else ()))
+        paired = f"paired pbrt / theia {paired_ratio(pbrt_runs, theia_runs):.3f}"
+        if a.base:
+            paired += (f", pbrt / base {paired_ratio(pbrt_runs, base_runs):.3f}, "
+                       f"base / theia {paired_ratio(base_runs, theia_runs):.3f}")
+        paired_lines.append(f"- {name}: {paired}")
         print(f"{name}: done", file=sys.stderr)
     print(f"theia vs pbrt-v4, {a.spp} spp, {a.runs} interleaved runs each; CPU = user + sys of the whole process; "
           f"{load_note(load_before)}")
     print("\n".join(comparison_table(rows)))
+    print("\nMedians of the per-round CPU-s ratios (each round's runs share the same minutes):")
+    print("\n".join(paired_lines))
 
 
 if __name__ == "__main__":

@@ -61,6 +61,22 @@ class Arithmetic(unittest.TestCase):
         row = cp.scaling_table([("s", {1: one, 2: two})], [1, 2])[2]
         self.assertEqual(row, "| s | 3.00 | 2.00 | 1.50x | 1.80 | 2.00 |")
 
+    def test_paired_ratio_is_the_median_of_per_round_ratios(self):
+        # Round 2's machine was slow for both: the ratio of medians (5 / 2 = 2.5)
+        # is not what any round measured; the paired median is 2.0.
+        pbrt = [cp.Run(2.0, 1, 1), cp.Run(4.0, 1, 1), cp.Run(10.0, 1, 1)]
+        theia = [cp.Run(1.0, 1, 1), cp.Run(2.0, 1, 1), cp.Run(4.0, 1, 1)]
+        self.assertAlmostEqual(cp.paired_ratio(pbrt, theia), 2.0)
+
+    def test_a_base_build_adds_its_columns(self):
+        theia = cp.Summary([cp.Run(1.5, 250.4, 1)], samples=1000)
+        pbrt = cp.Summary([cp.Run(3.0, 40.6, 2)], samples=1000)
+        base = cp.Summary([cp.Run(2.0, 240.0, 1)], samples=1000)
+        table = cp.comparison_table([("s", 10, 100, theia, pbrt, base)])
+        self.assertEqual(table[0].count("|"), 10)
+        self.assertEqual(table[2], "| s | 10 x 100 | 1500.000 / 1500.000 | 3000.000 / 3000.000 | 2.00 (2.00) "
+                                   "| 250 | 41 | 1.50 | 1.333 |")
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -425,6 +425,21 @@ def parse_configuration(text):
     return name, shlex.split(args)
 
 
+def configuration_binaries(texts, configurations, default):
+    """'NAME=PATH' per --config-theia to {name: binary} over every configuration (default: --theia), so
+    that a base and a changed build render side by side under the same load."""
+    names = [label for label, _ in configurations]
+    binaries = {label: default for label in names}
+    for text in texts or []:
+        name, _, path = text.partition("=")
+        if not name or not path:
+            sys.exit(f"--config-theia {text}: expected NAME=PATH")
+        if name not in binaries:
+            sys.exit(f"--config-theia {text}: no configuration {name}; configurations: {', '.join(names)}")
+        binaries[name] = path
+    return binaries
+
+
 def equal_time_reference(theia, name, scene, ref, spp, out_dir):
     if ref:
         return os.path.join(ROOT, ref)
@@ -446,7 +461,8 @@ def run_side_by_side(cmds):
 
 
 def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, reference_spp, out_dir,
-               side_by_side=False):
+               side_by_side=False, binaries=None):
+    binaries = binaries or {label: theia for label, _ in configurations}
     scenes = {sc[0]: sc for sc in EQUAL_TIME_SCENES}
     os.makedirs(out_dir, exist_ok=True)
     rows = []
@@ -468,8 +484,8 @@ def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, re
                 outs, cmds = [], []
                 for label, args in configurations:
                     out = os.path.join(out_dir, f"{name}-{label}-{budget:g}s-seed{seed}.exr")
-                    cmd = [theia, "render", scene, "-o", out, "--spp", str(spp_cap), "--time-limit", f"{budget:g}",
-                           "--seed", str(seed), "-q"] + args
+                    cmd = [binaries[label], "render", scene, "-o", out, "--spp", str(spp_cap),
+                           "--time-limit", f"{budget:g}", "--seed", str(seed), "-q"] + args
                     if side_by_side:
                         cmd += ["--threads", str(threads)]
                     print(" ".join(shlex.quote(a) for a in cmd), flush=True)
@@ -494,6 +510,8 @@ def equal_time(theia, scene_names, budgets, n_seeds, configurations, spp_cap, re
     groups = aggregate(rows)
     how = (f" The configurations of a seed ran side by side, each with `--threads {threads}`."
            if side_by_side else "")
+    if len(set(binaries.values())) > 1:
+        how += " Binaries: " + ", ".join(f"{label} `{binaries[label]}`" for label, _ in configurations) + "."
     lines = [f"# Equal time: median of {n_seeds} seeds", "",
              "Each render: `theia render SCENE --spp " + str(spp_cap) + " --time-limit BUDGET --seed S` plus the "
              "configuration's arguments; relMSE and MAPE against the reference (tests/data, or rendered unguided at "
@@ -541,6 +559,9 @@ def main():
     ep.add_argument("--config", action="append", metavar="NAME=ARGS",
                     help="a configuration (repeatable; the first is the baseline); default: "
                     + ", ".join(f"{n}={' '.join(a)}" for n, a in EQUAL_TIME_CONFIGURATIONS))
+    ep.add_argument("--config-theia", action="append", metavar="NAME=PATH",
+                    help="render configuration NAME with this theia instead of --theia (repeatable): a base build "
+                    "against a changed one, interleaved or side by side")
     ep.add_argument("--spp", type=int, default=65536, help="upper bound on spp (the time limit ends the renders)")
     ep.add_argument("--reference-spp", type=int, default=4096)
     ep.add_argument("--out", default="out/equal-time")
@@ -555,7 +576,8 @@ def main():
     if a.command == "equal-time":
         configs = [parse_configuration(c) for c in a.config] if a.config else EQUAL_TIME_CONFIGURATIONS
         equal_time(a.theia, a.scenes.split(","), [float(b) for b in a.budgets.split(",")], a.seeds, configs,
-                   a.spp, a.reference_spp, a.out, a.side_by_side)
+                   a.spp, a.reference_spp, a.out, a.side_by_side,
+                   configuration_binaries(a.config_theia, configs, a.theia))
         return
     if a.command == "seeds":
         seeds(a.theia, a.scene, a.spp, a.seeds, a.out, extra)

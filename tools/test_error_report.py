@@ -156,6 +156,16 @@ class EqualTime(unittest.TestCase):
         with self.assertRaises(SystemExit):
             er.parse_configuration("=--guiding")
 
+    def test_each_configuration_renders_with_its_binary(self):
+        configs = [("unguided", []), ("guided", ["--guiding"]), ("guided-new", ["--guiding"])]
+        self.assertEqual(er.configuration_binaries(None, configs, "build/theia"),
+                         {"unguided": "build/theia", "guided": "build/theia", "guided-new": "build/theia"})
+        self.assertEqual(er.configuration_binaries(["guided-new=/tmp/new/theia"], configs, "build/theia"),
+                         {"unguided": "build/theia", "guided": "build/theia", "guided-new": "/tmp/new/theia"})
+        for bad in ["guided-new", "=/tmp/theia", "auto=/tmp/theia"]:
+            with self.assertRaises(SystemExit):
+                er.configuration_binaries([bad], configs, "build/theia")
+
 
 if __name__ == "__main__":
     unittest.main()

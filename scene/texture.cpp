@@ -100,8 +100,14 @@ void load_image(Image& image, const std::string& base_dir, const ImageReserve& r
   image.width = buf.width;
   image.height = buf.height;
   image.channels = nc;
-  image.pixels.resize(buf.pixel_count() * size_t(nc));
   size_t src_nc = buf.channels.size();
+  // Where the texture keeps the file's channels as they are, the file's
+  // buffer becomes the texture's: a second copy of a large picture is
+  // another run of fresh pages for the kernel to zero.
+  bool in_place = src_nc == size_t(nc);
+  for (int c = 0; c < nc; ++c) in_place = in_place && ch[size_t(c)] == c;
+  if (!in_place) image.pixels.resize(buf.pixel_count() * size_t(nc));
+  std::vector<float>& out = in_place ? buf.data : image.pixels;
   for (size_t i = 0; i < buf.pixel_count(); ++i)
     for (int c = 0; c < nc; ++c) {
       float v = buf.data[i * src_nc + size_t(ch[size_t(c)])];
@@ -111,8 +117,9 @@ void load_image(Image& image, const std::string& base_dir, const ImageReserve& r
         else if (enc.kind == Encoding::Gamma)
           v = std::pow(std::max(v, 0.0f), enc.gamma);
       }
-      image.pixels[i * size_t(nc) + size_t(c)] = v;
+      out[i * size_t(nc) + size_t(c)] = v;
     }
+  if (in_place) image.pixels = std::move(buf.data);
   // A texel that is NaN, infinite or beyond kMaxEmission would put the same
   // (or an overflow) into every path that reads it: documented clamp to 0,
   // with one warning per image.  Negative float texels stay (float images are

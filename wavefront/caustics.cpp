@@ -20,7 +20,10 @@ namespace {
 
 // Sample dimensions of a light path (its own seed keeps them apart from the camera paths').
 constexpr uint32_t kDimPosition = 0, kDimDirection = 2, kDimBsdfDir = 4, kDimLight = 6, kDimPrim = 7, kDimLobe = 8;
-constexpr size_t kChunk = size_t(1) << 16;  // light paths traced together
+// Light paths traced together.  Their buffers (~190 bytes a path) are first
+// touched in the render, page by page: a larger chunk costs the kernel more
+// zeroed pages than it saves in per-chunk overhead.
+constexpr size_t kChunk = size_t(1) << 13;
 constexpr size_t kGrain = 256;
 
 // A light path on its way: throughput and the ray it travels.

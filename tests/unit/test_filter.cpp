@@ -294,3 +294,26 @@ TEST(Filter, FilmSumsSignedWeightsAndLeavesCancelledPixelsBlack) {
       EXPECT_EQ(v, 0.0f) << pixel << " " << img.channels[c];
     }
 }
+
+// The Gaussian samples each axis from the equal-probability segments of its
+// factor: against f / integral(f) itself (pbrt-v4's default filter and a
+// wide, unequal one), chi-square cannot tell the two apart, and the weights
+// f / pdf stay near their mean (their second moment within 1% of its square).
+TEST(Filter, GaussianAxesFollowF) {
+  const Filter filters[] = {filter_of(FilterKind::Gaussian, vec2(1.5f)),
+                            filter_of(FilterKind::Gaussian, vec2(3.0f, 1.0f), 1.2f)};
+  for (const Filter& f : filters) {
+    auto r = chi2_test_square([&](vec2 u) { return std::optional(sample_filter(f, u).p); },
+                              [&](vec2 p) { return filter_eval(f, p) / filter_integral(f); }, -f.radius, f.radius,
+                              1'000'000, 40, 0.01, int(std::size(filters)), name_of(f) + " vs f");
+    EXPECT_TRUE(r.passed) << r.report;
+    double sum = 0.0, sum_sq = 0.0;
+    const uint32_t n = 1 << 16;
+    for (uint32_t i = 0; i < n; ++i) {
+      const float w = sample_filter(f, sample_2d({5, 2, i}, 0)).weight;
+      sum += w, sum_sq += double(w) * w;
+    }
+    EXPECT_NEAR(sum / n, filter_integral(f), 1e-3 * filter_integral(f)) << name_of(f);
+    EXPECT_LT(sum_sq / n / sqr(sum / n), 1.01) << name_of(f);
+  }
+}

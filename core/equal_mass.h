@@ -39,7 +39,8 @@ struct EqualMass1D {
       return std::min(a + v * (b - a), b);
     }
     // The inverse of the linear density's cdf, in the form that stays finite as fa -> 0.
-    const float s = std::min(v * (fa + fb) / (fa + std::sqrt(fa * fa + v * (fb * fb - fa * fa))), 1.0f);
+    const float s =
+        v > 0.0f ? std::min(v * (fa + fb) / (fa + std::sqrt(fa * fa + v * (fb * fb - fa * fa))), 1.0f) : 0.0f;
     const float density = fa + s * (fb - fa);
     *inv_pdf = density > 0.0f ? float(n) * (b - a) * 0.5f * (fa + fb) / density : 0.0f;
     return std::min(a + s * (b - a), b);

@@ -296,17 +296,18 @@ TEST(Filter, FilmSumsSignedWeightsAndLeavesCancelledPixelsBlack) {
 }
 
 // The Gaussian samples each axis from the equal-probability segments of its
-// factor: against f / integral(f) itself (pbrt-v4's default filter and a
-// wide, unequal one), chi-square cannot tell the two apart, and the weights
-// f / pdf stay near their mean (their second moment within 1% of its square).
-TEST(Filter, GaussianAxesFollowF) {
+// factor, linear within each: its density is its own (SamplingMatchesItsPdf)
+// and close to f but not f: in the outermost segment, wide because the tail
+// holds little mass, the line to f(radius) = 0 lies above the convex tail
+// (about 2x f in the last 1/40 of pbrt-v4's default radius; chi-square
+// against f at 1M samples sees it).  The weights f / pdf are exact, so what
+// the approximation can cost is variance: their mean is the integral and
+// their second moment within 1% of its square (1 for sampling exactly by f),
+// for pbrt-v4's default filter and a wide, unequal one.
+TEST(Filter, GaussianWeightsStayNearTheirMean) {
   const Filter filters[] = {filter_of(FilterKind::Gaussian, vec2(1.5f)),
                             filter_of(FilterKind::Gaussian, vec2(3.0f, 1.0f), 1.2f)};
   for (const Filter& f : filters) {
-    auto r = chi2_test_square([&](vec2 u) { return std::optional(sample_filter(f, u).p); },
-                              [&](vec2 p) { return filter_eval(f, p) / filter_integral(f); }, -f.radius, f.radius,
-                              1'000'000, 40, 0.01, int(std::size(filters)), name_of(f) + " vs f");
-    EXPECT_TRUE(r.passed) << r.report;
     double sum = 0.0, sum_sq = 0.0;
     const uint32_t n = 1 << 16;
     for (uint32_t i = 0; i < n; ++i) {

@@ -16,9 +16,19 @@ float gaussian(float x, float sigma) {
 // Integral of the unit-area Gaussian over [-r, r].
 float gaussian_integral(float r, float sigma) { return std::erf(r / (sigma * std::sqrt(2.0f))); }
 
+float gaussian_1d(float x, float sigma, float offset) { return std::max(0.0f, gaussian(x, sigma) - offset); }
+
 float gaussian_eval(const Filter& f, vec2 p) {
-  return std::max(0.0f, gaussian(p.x, f.sigma) - f.gaussian_offset.x) *
-         std::max(0.0f, gaussian(p.y, f.sigma) - f.gaussian_offset.y);
+  return gaussian_1d(p.x, f.sigma, f.gaussian_offset.x) * gaussian_1d(p.y, f.sigma, f.gaussian_offset.y);
+}
+
+// The equal-probability segments of one axis's factor over [-r, r].
+EqualMass1D gaussian_axis(float r, float sigma, float offset) {
+  std::vector<float> table(kGaussianCells);
+  for (int i = 0; i < kGaussianCells; ++i)
+    table[size_t(i)] = gaussian_1d((2.0f * (float(i) + 0.5f) / float(kGaussianCells) - 1.0f) * r, sigma, offset);
+  return EqualMass1D(Distribution1D(table), kGaussianSegments, -r, r,
+                     [&](float x) { return gaussian_1d(x, sigma, offset); });
 }
 
 // Mitchell-Netravali over [-2, 2]; integrates to 1 for every B and C.
@@ -80,7 +90,7 @@ Filter make_filter(const FilterParams& params) {
   f.b = params.b;
   f.c = params.c;
   f.tau = params.tau;
-  // The sampling table holds (32 radius)^2 cells: a radius of 1e30 would ask for all memory.
+  // Mitchell's and Lanczos' sampling table holds (32 radius)^2 cells: a radius of 1e30 would ask for all memory.
   if (!(f.radius.x > 0.0f && f.radius.y > 0.0f && f.radius.x <= kMaxFilterRadius && f.radius.y <= kMaxFilterRadius))
     throw_error("filter: \"radius\" must be positive and at most {} pixels, got ({}, {})", kMaxFilterRadius,
                 f.radius.x, f.radius.y);
@@ -93,7 +103,8 @@ Filter make_filter(const FilterParams& params) {
       f.gaussian_offset = {gaussian(f.radius.x, f.sigma), gaussian(f.radius.y, f.sigma)};
       f.integral = (gaussian_integral(f.radius.x, f.sigma) - 2.0f * f.radius.x * f.gaussian_offset.x) *
                    (gaussian_integral(f.radius.y, f.sigma) - 2.0f * f.radius.y * f.gaussian_offset.y);
-      break;
+      for (int a = 0; a < 2; ++a) f.gaussian_axis[a] = gaussian_axis(f.radius[a], f.sigma, f.gaussian_offset[a]);
+      return f;
     case FilterKind::Mitchell:
       if (!(std::isfinite(f.b) && std::isfinite(f.c)))
         throw_error("mitchell filter: \"B\" and \"C\" must be finite, got {} and {}", f.b, f.c);
@@ -132,6 +143,11 @@ FilterSample sample_filter(const Filter& f, vec2 u) {
   switch (f.kind) {
     case FilterKind::Box: return {(2.0f * u - 1.0f) * f.radius, 1.0f};
     case FilterKind::Triangle: return {{sample_tent(u.x, f.radius.x), sample_tent(u.y, f.radius.y)}, 1.0f};
+    case FilterKind::Gaussian: {
+      vec2 inv_pdf;
+      const vec2 p(f.gaussian_axis[0].sample(u.x, &inv_pdf.x), f.gaussian_axis[1].sample(u.y, &inv_pdf.y));
+      return {p, gaussian_eval(f, p) * inv_pdf.x * inv_pdf.y};
+    }
     default: {
       float pdf = 0.0f;
       ivec2 cell(0);
@@ -140,7 +156,6 @@ FilterSample sample_filter(const Filter& f, vec2 u) {
       // The table's density over [0,1)^2 becomes a density over the filter's extent.
       pdf /= 4.0f * f.radius.x * f.radius.y;
       if (!(pdf > 0.0f)) return {p, 0.0f};
-      if (f.kind == FilterKind::Gaussian) return {p, tabulated_eval(f, p) / pdf};
       // pbrt-v4's f[cell] / pdf is +-integral(|table|) up to rounding; taken
       // exactly, so that opposite weights cancel to exactly 0.
       vec2 centre = ((vec2(cell) + 0.5f) / vec2(f.table_size) * 2.0f - 1.0f) * f.radius;
@@ -154,6 +169,7 @@ float filter_pdf(const Filter& f, vec2 p) {
   switch (f.kind) {
     case FilterKind::Box: return 1.0f / (4.0f * f.radius.x * f.radius.y);
     case FilterKind::Triangle: return tent_pdf(p.x, f.radius.x) * tent_pdf(p.y, f.radius.y);
+    case FilterKind::Gaussian: return f.gaussian_axis[0].pdf(p.x) * f.gaussian_axis[1].pdf(p.y);
     default: return f.distribution.pdf((p / f.radius + 1.0f) * 0.5f) / (4.0f * f.radius.x * f.radius.y);
   }
 }

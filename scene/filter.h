@@ -7,6 +7,7 @@
 #pragma once
 
 #include "core/distribution2d.h"
+#include "core/equal_mass.h"
 #include "core/math.h"
 #include "scene/scene.h"
 
@@ -25,21 +26,29 @@ struct Filter {
   float b = 1.0f / 3.0f, c = 1.0f / 3.0f;  // Mitchell
   float tau = 3.0f;                        // Lanczos
   float integral = 0.0f;                   // of f over its support
-  Distribution2D distribution; // tabulated filters: |f| over [-radius, radius]
+  Distribution2D distribution; // Mitchell, Lanczos: |f| over [-radius, radius]
   ivec2 table_size{0};
+  // Gaussian: f is separable and positive, so each axis is sampled on its own
+  // from the quantiles of its factor, in constant time instead of a 2D
+  // table's two searches (every camera sample pays for them).
+  EqualMass1D gaussian_axis[2];
 };
 
 inline constexpr float kMaxFilterRadius = 32.0f;  // pixels
+// Per axis of the Gaussian; its quantiles come from a table of kGaussianCells.
+inline constexpr int kGaussianSegments = 256, kGaussianCells = 4096;
 
 // Throws Error for a radius that is not in (0, kMaxFilterRadius], a
 // non-positive or non-finite sigma or tau, or a non-finite B or C.
 Filter make_filter(const FilterParams& params);
 
 // Box: uniform, weight 1.  Triangle: separable tent, weight 1.  Both are exact
-// importance sampling of f / integral(f).  Gaussian, Mitchell, Lanczos:
-// pbrt-v4's FilterSampler, sampled from the tabulated |f| at 32 cells per unit
-// radius.  Gaussian: the weight is f(p) / pdf(p) at p itself, which keeps
-// E[weight * g(p)] equal to the integral of f * g exactly.  Mitchell and
+// importance sampling of f / integral(f).  Gaussian: per axis, from
+// kGaussianSegments equal-probability segments of its factor, linear within
+// each (EqualMass1D);
+// the weight is f(p) / pdf(p) at p itself, which keeps E[weight * g(p)]
+// equal to the integral of f * g exactly.  Mitchell, Lanczos: pbrt-v4's
+// FilterSampler, sampled from the tabulated |f| at 32 cells per unit radius.  Mitchell and
 // Lanczos: pbrt-v4's weight, the cell's tabulated f over the pdf, which is
 // +-integral(|table|) in every cell: a pixel's weights sum to a multiple of
 // it, exactly 0 when they cancel (the film leaves that pixel black, as

@@ -1,6 +1,7 @@
 // Every warp and tabulated distribution in core/ against its own pdf, by
 // chi-square; and the harness itself against a deliberately wrong pdf.
 #include "core/distribution2d.h"
+#include "core/equal_mass.h"
 #include "core/log.h"
 #include "core/sampling.h"
 #include "tests/unit/chi2.h"
@@ -103,6 +104,38 @@ TEST(Chi2Distributions, Distribution1DWithRandomTables) {
         [&](vec2 p) { return pdf(p.x); }, vec2(0.0f), vec2(1.0f), kSamples, 50, kSignificance, 3,
         "Distribution1D n=" + std::to_string(n));
     EXPECT_TRUE(r.passed) << r.report;
+  }
+}
+
+// EqualMass1D over [lo, hi]: its density is the one it reports (chi-square),
+// every segment holds 1/n of the samples, and 1 / pdf is what sample() writes.
+TEST(Chi2Distributions, EqualMass1DFromRandomTables) {
+  const float lo = -1.5f, hi = 2.5f;
+  for (size_t n : {size_t(7), size_t(64)}) {
+    Distribution1D d(random_table(n, 300 + n, 0.2f));
+    EqualMass1D e(d, 32, lo, hi, [&](float x) { return 1.0f + 0.5f * std::sin(3.0f * x); });
+    ASSERT_EQ(e.size(), 32);
+    EXPECT_EQ(e.bounds.front(), lo);
+    EXPECT_EQ(e.bounds.back(), hi);
+    auto r = chi2_test_square(
+        [&](vec2 u) {
+          float inv_pdf = 0.0f;
+          float x = e.sample(u.x, &inv_pdf);
+          if (std::abs(inv_pdf * e.pdf(x) - 1.0f) > 1e-5f) return std::optional<vec2>();
+          return std::optional(vec2(x, u.y));
+        },
+        [&](vec2 p) { return e.pdf(p.x); }, vec2(lo, 0.0f), vec2(hi, 1.0f), kSamples, 50,
+        kSignificance, 2, "EqualMass1D n=" + std::to_string(n));
+    EXPECT_TRUE(r.passed) << r.report;
+    // The segments are d's quantiles: each holds probability 1/32 under d.
+    for (int k = 0; k <= 32; ++k) {
+      float t = (e.bounds[size_t(k)] - lo) / (hi - lo);
+      size_t i = std::min(size_t(t * float(n)), n - 1);
+      float cdf = d.cdf[i] + (t * float(n) - float(i)) * (d.cdf[i + 1] - d.cdf[i]);
+      EXPECT_NEAR(cdf, float(k) / 32.0f, 1e-5f) << "n=" << n << " k=" << k;
+    }
+    EXPECT_EQ(e.pdf(lo - 0.01f), 0.0f);
+    EXPECT_EQ(e.pdf(hi + 0.01f), 0.0f);
   }
 }
 

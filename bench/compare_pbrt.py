@@ -89,6 +89,12 @@ def paired_ratio(num_runs, den_runs):
     return statistics.median(n.cpu_s / d.cpu_s for n, d in zip(num_runs, den_runs))
 
 
+def round_order(builds, k):
+    """The theia builds of round k: reversed every other round, so that neither
+    of two builds always runs first (a cold page cache, a clock that ramps)."""
+    return list(reversed(builds)) if k % 2 == 0 else list(builds)
+
+
 def comparison_table(rows):
     """rows: (scene, pixels, spp, theia Summary, pbrt Summary[, base Summary]) -> markdown lines.
     With a base, two more columns: pbrt-v4 against the base, and the base's CPU-s
@@ -182,12 +188,11 @@ def main():
     for scene in scenes:
         name = scene_name(scene)
         theia_runs, pbrt_runs, base_runs = [], [], []
-        for k in range(a.runs):  # interleaved: [base] theia pbrt [base] theia pbrt ...
-            if a.base:
-                out = os.path.join(work, f"{name}-base-{k}.exr")
-                base_runs.append(run_measured(theia_cmd(a.base, scene, a.spp, out), out + ".out"))
-            out = os.path.join(work, f"{name}-theia-{k}.exr")
-            theia_runs.append(run_measured(theia_cmd(a.theia, scene, a.spp, out), out + ".out"))
+        for k in range(a.runs):  # interleaved: [base] theia pbrt theia [base] pbrt ...
+            builds = [("theia", a.theia, theia_runs)] + ([("base", a.base, base_runs)] if a.base else [])
+            for tag, binary, runs in round_order(builds, k):
+                out = os.path.join(work, f"{name}-{tag}-{k}.exr")
+                runs.append(run_measured(theia_cmd(binary, scene, a.spp, out), out + ".out"))
             out = os.path.join(work, f"{name}-pbrt-{k}.exr")
             pbrt_runs.append(run_measured(pbrt_cmd(a.pbrt, scene, a.spp, out), out + ".out"))
         pixels = film_pixels(scene)

@@ -68,6 +68,11 @@ class Arithmetic(unittest.TestCase):
         theia = [cp.Run(1.0, 1, 1), cp.Run(2.0, 1, 1), cp.Run(4.0, 1, 1)]
         self.assertAlmostEqual(cp.paired_ratio(pbrt, theia), 2.0)
 
+    def test_builds_take_turns_at_going_first(self):
+        builds = ["theia", "base"]
+        self.assertEqual([cp.round_order(builds, k)[0] for k in range(4)], ["base", "theia", "base", "theia"])
+        self.assertEqual(cp.round_order(["theia"], 1), ["theia"])
+
     def test_a_base_build_adds_its_columns(self):
         theia = cp.Summary([cp.Run(1.5, 250.4, 1)], samples=1000)
         pbrt = cp.Summary([cp.Run(3.0, 40.6, 2)], samples=1000)

@@ -73,21 +73,13 @@ constexpr uint32_t kMaxNodes = std::numeric_limits<uint32_t>::max() - 2;
 
 // Picks the quadrant of c in a node and rescales c to the quadrant's own
 // [0,1)^2; exact in binary floating point.
+// Without branches: a direction's quadrant is a coin flip at every level,
+// which a predictor cannot learn (2c - 0 and 2c - 1 are both exact).
 inline int descend(vec2& c) {
-  int i = 0;
-  if (c.x >= 0.5f) {
-    i |= 1;
-    c.x = 2.0f * c.x - 1.0f;
-  } else {
-    c.x *= 2.0f;
-  }
-  if (c.y >= 0.5f) {
-    i |= 2;
-    c.y = 2.0f * c.y - 1.0f;
-  } else {
-    c.y *= 2.0f;
-  }
-  return i;
+  const int right = c.x >= 0.5f, upper = c.y >= 0.5f;
+  c.x = 2.0f * c.x - float(right);
+  c.y = 2.0f * c.y - float(upper);
+  return right | upper << 1;
 }
 
 template <typename T>
@@ -250,8 +242,13 @@ float stored_share(double a, double b) {
   if (!(total > 0.0)) return 0.5f;
   return a <= b ? float(a / total) : -float(b / total);
 }
-inline double first_share(float s) { return std::signbit(s) ? 1.0 - double(-s) : double(s); }
-inline double second_share(float s) { return std::signbit(s) ? double(-s) : 1.0 - double(s); }
+// Either side's share, chosen by a select rather than a branch (the side a
+// lookup takes is unpredictable).
+inline double side_share(float s, bool second) {
+  const double kept = std::abs(double(s));
+  return std::signbit(s) == second ? kept : 1.0 - kept;
+}
+inline double first_share(float s) { return side_share(s, false); }
 
 // Every index_lookups() takes a new generation, so that a thread's last leaf
 // is never read against another tree or another update's boxes.
@@ -715,8 +712,8 @@ namespace {
 // row within it) and so the density's factor, 4 x their product: one
 // expression for sample() and pdf(), which then agree bit for bit.
 inline double quadrant_factor(const GuideNode& node, int i) {
-  const double px = (i & 1) ? second_share(node.column) : first_share(node.column);
-  const double py = (i & 2) ? second_share(node.row[i & 1]) : first_share(node.row[i & 1]);
+  const double px = side_share(node.column, i & 1);
+  const double py = side_share(node.row[i & 1], i & 2);
   return 4.0 * px * py;
 }
 
@@ -771,21 +768,15 @@ GuideSample SDTree::sample(uint32_t region, vec2 u) const {
     if (node.link & kGuideNodeEmpty) break;
     // Column first (x: quadrants 0,2 vs 1,3), then the row within it; a
     // share of 0 or 1 is never crossed (u < 1).
+    // Selects, not branches: u's side is a coin flip (same doubles either way).
     double b = first_share(node.column);
-    int i = 0;
-    if (ux < b) {
-      ux /= b;
-    } else {
-      ux = (ux - b) / second_share(node.column);
-      i |= 1;
-    }
+    const bool right = ux >= b;
+    ux = (right ? ux - b : ux) / side_share(node.column, right);
+    int i = int(right);
     b = first_share(node.row[i]);
-    if (uy < b) {
-      uy /= b;
-    } else {
-      uy = (uy - b) / second_share(node.row[i]);
-      i |= 2;
-    }
+    const bool upper = uy >= b;
+    uy = (upper ? uy - b : uy) / side_share(node.row[i], upper);
+    i |= int(upper) << 1;
     ux = std::min(ux, kBelowOne);
     uy = std::min(uy, kBelowOne);
     density *= quadrant_factor(node, i);

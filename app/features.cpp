@@ -159,6 +159,9 @@ void check(const GuidingOptions& o) {
     throw_error("--guiding-sampling mis takes --guiding-selection-probability {} as the guide's share, above "
                 "--guiding-selection-max {}: raise the cap (1: none)",
                 o.selection_probability, o.selection_max);
+  if (!(o.roulette_floor > 0.0f && o.roulette_floor <= 1.0f))
+    throw_error("--guiding-roulette-floor must be in (0, 1] (1: no adjoint-driven roulette at guided vertices), got {}",
+                o.roulette_floor);
   if (!(o.defensive >= 0.0f && o.defensive <= 1.0f))
     throw_error("--guiding-defensive must be in [0, 1], got {}", o.defensive);
   if (!(o.split_decay > 0.0 && o.split_decay <= 0.5))
@@ -354,6 +357,7 @@ void GuidingFeature::configure(EngineOptions& engine, EngineHooks& hooks) const 
   engine.guiding.selection_max = options_.selection_max;
   engine.guiding.roulette_correction = options_.roulette_correction;
   engine.guiding.adjoint_roulette = options_.adjoint_roulette;
+  engine.guiding.roulette_floor = options_.roulette_floor;
   // Training iterations keep a quarter of the pool's paths in flight (on
   // veach-ajar the frame's pixel count): the recorder's vertices stay warmer.
   hooks.observed_pool_share = kTrainingPoolShare;

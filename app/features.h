@@ -128,6 +128,12 @@ struct GuidingOptions : SDTreeOptions {
   // variance of the frozen field's samples for 19% more rays; on
   // guiding-panel it ties, with 6% fewer rays.
   bool adjoint_roulette = true;
+  // EngineOptions::guiding: adjoint-driven roulette's least survival
+  // probability, in (0, 1].  On veach-ajar (256 spp, 96 of training, seeds
+  // 0-2) relMSE x rays fell from 6.6 at 0.1 to 4.0 at 0.5 (3.9 at 0.7, with
+  // 17% more rays; 6.6 again at 1, where paths run to the depth limit); on
+  // guiding-panel 0.5 ties 0.1.
+  float roulette_floor = 0.5f;
   // The field learns from samples [0, training_spp) of every pixel (a split
   // frame's part: the first training_spp of its range), then is frozen and
   // the recorder detached, so the rest of the render pays for guided
@@ -173,6 +179,9 @@ void declare_options(V& v, GuidingOptions& o) {
   v.image("adjoint_roulette", o.adjoint_roulette,
           "Guided paths: adjoint-driven Russian roulette (survival from the field's estimate of the continuation's "
           "contribution against the path's pixel estimate)");
+  v.image("roulette_floor", o.roulette_floor,
+          "Adjoint-driven roulette: a guided continuation survives with at least this probability, in (0, 1]; "
+          "bounds the weight roulette adds at a guided vertex by 1 / floor");
   v.image("training_spp", o.training_spp,
           "The field learns from the first this many samples per pixel, then is frozen and the recorder stops "
           "(0: it learns from every sample)");

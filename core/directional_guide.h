@@ -47,6 +47,10 @@ struct GuidedSampling {
   // its direction) against the path's pixel estimate (its first vertex's
   // outgoing radiance from the field), not with its throughput.
   bool adjoint_roulette = false;
+  // Adjoint-driven roulette's least survival probability: the estimates are
+  // coarse, and a survivor's weight grows by up to 1 / floor at each guided
+  // vertex, so a low floor turns the field's mistakes into fireflies.
+  float roulette_floor = 0.5f;
 };
 
 struct GuideSample {

@@ -280,9 +280,10 @@ bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, uint32_t roul
 // estimate, the field's outgoing radiance at its first guided vertex times
 // the throughput there (a diffuse guess: albedo x integral / 2 pi).  A path
 // survives surely above a third of the estimate (the lower edge of Vorba's
-// weight window, s = 5), in proportion below, and at least one time in ten
-// (the estimates are coarse; the floor bounds a survivor's weight).  -1 (the
-// throughput rule) where the vertex is not guided or nothing is known.
+// weight window, s = 5), in proportion below, and at least with the floor
+// (GuidedSampling::roulette_floor: the estimates are coarse; the floor bounds
+// a survivor's weight).  -1 (the throughput rule) where the vertex is not
+// guided or nothing is known.
 float WavefrontEngine::Impl::adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta) {
   if (!v.guided()) return -1.0f;
   const float integral = hooks.guide->radiance_integral(v.guide_region);
@@ -294,7 +295,7 @@ float WavefrontEngine::Impl::adjoint_survival(const ShadingPoint& v, const Conti
   if (estimate == 0.0f) return -1.0f;
   const float expected = luminance(v.ps.filter_weight * beta) * c.guide_pdf * integral;
   if (!std::isfinite(expected)) return -1.0f;
-  return std::clamp(3.0f * expected / estimate, 0.1f, 1.0f);
+  return std::clamp(3.0f * expected / estimate, opt.guiding.roulette_floor, 1.0f);
 }
 
 // The scattering vertex, to the observer: the path's handle moves to it.

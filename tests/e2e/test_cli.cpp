@@ -78,6 +78,7 @@ TEST(CommandLine, MissingSceneAndBadOptionsFail) {
   const std::string out = " -o " + (d / "o.exr").string();
   for (const char* bad : {" --guiding-selection-probability 1", " --caustics-caster-roughness -1", " --guiding-spatial-threshold 0",
                           " --guiding-selection-max 0", " --guiding-selection-max 1.5",
+                          " --guiding-roulette-floor 0", " --guiding-roulette-floor 1.5",
                           " --guiding --guiding-sampling mis --guiding-selection-probability 0.9"}) {
     RunResult r = run("render " + (d / "s.pbrt").string() + out + bad);
     EXPECT_NE(r.exit_code, 0) << bad;

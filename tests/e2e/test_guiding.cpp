@@ -408,6 +408,19 @@ TEST(Guiding, SelectionCapIsUnbiasedDeterministicAndApplies) {
   EXPECT_EQ(plain.log["guiding"]["selection"]["capped_leaves"].get<uint64_t>(), 0u);
 }
 
+// --guiding-roulette-floor: adjoint-driven roulette's least survival at a
+// guided vertex.  Any floor leaves the mean alone; a higher one keeps more
+// paths alive (here 1: guided vertices never end a path by roulette).
+TEST(Guiding, RouletteFloorIsUnbiasedAndApplies) {
+  RenderConfig c = guided_config(128);
+  c.guiding.roulette_floor = 0.05f;
+  RenderResult low = render_unbiased_and_deterministic(c);
+  EXPECT_EQ(low.log["options"]["guiding_roulette_floor"].get<float>(), 0.05f);
+  c.guiding.roulette_floor = 1.0f;
+  RenderResult high = render_unbiased_and_deterministic(c);
+  EXPECT_GT(high.log["paths"]["average_length"].get<double>(), low.log["paths"]["average_length"].get<double>() * 1.01);
+}
+
 // --guiding-field vmm: the mixture field guides without bias, trains the same
 // whatever the thread count (its checkpoint: test_resume.cpp; its saved field:
 // test_field_e2e.cpp).

@@ -497,6 +497,7 @@ const std::map<std::string, std::vector<std::string>> kChanged = {
     {"--guiding-pdf-floor", {"0"}},
     {"--guiding-training-spp", {"8"}},
     {"--guiding-adjoint-roulette", {"off"}},
+    {"--guiding-roulette-floor", {"0.2"}},
     {"--guiding-training-share", {"0.5"}},
     {"--guiding-regular-after-training", {"off"}},
     {"--caustics", {"off"}},

@@ -7,6 +7,7 @@
 // and bench/README.md come from this program.
 //
 //   theia_bench [--large] [--spp N] [--threads N[,N...]] [--runs K] [--json FILE]
+//               [--scene PREFIX] [--phases] [--engine-only]
 #include "app/render.h"
 #include "cachepoints/light_sampler.h"
 #include "core/log.h"
@@ -158,9 +159,12 @@ size_t traced_triangles(const Scene& s) {
 struct Measurement {
   double engine_mrays = 0, trace_phase_mrays = 0, raw_mrays = 0, render_seconds = 0, render_cpu_seconds = 0;
   uint64_t rays = 0;
+  PhaseTimes<Phase, size_t(Phase::Count)> phases;
 };
 
-Measurement measure(const Scene& scene, int spp, bool sort) {
+// engine_only: the timed render alone, for profiling it (no capturing
+// render, no raw pass: raw_mrays stays 0).
+Measurement measure(const Scene& scene, int spp, bool sort, bool engine_only) {
   RenderableScene rs(scene);
   const Accel& accel = rs.accel;
   EngineOptions opt;
@@ -179,7 +183,9 @@ Measurement measure(const Scene& scene, int spp, bool sort) {
     m.render_cpu_seconds = render_cpu;
     m.engine_mrays = double(m.rays) / st.render_seconds * 1e-6;
     m.trace_phase_mrays = double(m.rays) / (st.phases[Phase::Trace] + st.phases[Phase::TraceShadow]) * 1e-6;
+    m.phases = st.phases;
   }
+  if (engine_only) return m;
 
   // The same rays, in the same (sorted or queue) order, traced alone.  They
   // are captured by a second, untimed render (the engine is deterministic):
@@ -220,6 +226,9 @@ struct BenchOptions {
   int runs = 1;                // sort on, off, on, off, ...: interleaved so load falls on both alike
   bool large = false;          // the 10.5M-triangle 1080p scene instead of the two small ones
   std::string json_path;
+  std::string scene;           // only the scenes whose name starts with this
+  bool phases = false;         // each render's phase seconds (EngineStats::phases) after its row
+  bool engine_only = false;    // the timed render alone (for a profiler): no raw Embree pass
 };
 
 bool parse_threads(const char* list, std::vector<int>& out) {
@@ -242,7 +251,10 @@ bool parse_args(int argc, char** argv, BenchOptions& o) {
     else if (!std::strcmp(argv[i], "--threads") && has_value) { if (!parse_threads(argv[++i], o.threads)) return false; }
     else if (!std::strcmp(argv[i], "--runs") && has_value) o.runs = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--json") && has_value) o.json_path = argv[++i];
+    else if (!std::strcmp(argv[i], "--scene") && has_value) o.scene = argv[++i];
     else if (!std::strcmp(argv[i], "--large")) o.large = true;
+    else if (!std::strcmp(argv[i], "--phases")) o.phases = true;
+    else if (!std::strcmp(argv[i], "--engine-only")) o.engine_only = true;
     else return false;
   }
   if (o.spp == 0) o.spp = o.large ? 2 : 16;
@@ -290,12 +302,20 @@ void print_summary(const std::vector<Row>& rows, const std::vector<std::string>&
                     threads[k], med(scene, threads[0], sort, wall) / med(scene, threads[k], sort, wall));
 }
 
+void print_phases(const Measurement& m) {
+  std::printf("  phases (s):");
+  for (size_t p = 0; p < size_t(Phase::Count); ++p) std::printf(" %s %.3f", kPhaseNames[p], m.phases.seconds[p]);
+  std::printf("\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   BenchOptions o;
   if (!parse_args(argc, argv, o)) {
-    std::fprintf(stderr, "usage: theia_bench [--large] [--spp N] [--threads N[,N...]] [--runs K] [--json FILE]\n");
+    std::fprintf(stderr,
+                 "usage: theia_bench [--large] [--spp N] [--threads N[,N...]] [--runs K] [--json FILE]\n"
+                 "                   [--scene PREFIX] [--phases] [--engine-only]\n");
     return 2;
   }
   set_verbosity(Verbosity::Quiet);
@@ -306,8 +326,10 @@ int main(int argc, char** argv) {
   } else {
     Scene cornell = load_scene(std::string(THEIA_SCENES) + "/cornell-box/scene.pbrt");
     load_images(cornell);
-    scenes.emplace_back("cornell-box", std::move(cornell));
-    scenes.emplace_back("", make_million_triangle_scene());
+    if (o.scene.empty() || std::string("cornell-box").starts_with(o.scene))
+      scenes.emplace_back("cornell-box", std::move(cornell));
+    if (o.scene.empty() || std::string("bumpy-spheres").starts_with(o.scene))
+      scenes.emplace_back("", make_million_triangle_scene());
   }
   std::vector<std::string> names;
   for (auto& [name, scene] : scenes) {
@@ -326,10 +348,11 @@ int main(int argc, char** argv) {
     for (const auto& [name, scene] : scenes)
       for (int run = 0; run < o.runs; ++run)
         for (bool sort : {true, false}) {
-          Measurement m = measure(scene, o.spp, sort);
+          Measurement m = measure(scene, o.spp, sort, o.engine_only);
           std::printf("%-22s %-5s %7d %10.2f %9.2fM %11.2fM %9.2fM %8.2fx %9.2f %9.2f\n", name.c_str(),
                       sort ? "on" : "off", threads, double(m.rays) * 1e-6, m.engine_mrays, m.trace_phase_mrays,
                       m.raw_mrays, m.raw_mrays / m.engine_mrays, m.render_seconds, m.render_cpu_seconds);
+          if (o.phases) print_phases(m);
           std::fflush(stdout);
           rows.push_back({name, threads, run, sort, m});
           out.push_back({{"scene", name},

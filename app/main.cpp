@@ -16,18 +16,6 @@
 #include <string>
 #include <unistd.h>
 
-// jemalloc, linked into this executable (CMakeLists.txt), reads its options
-// from this symbol at start-up: the heap on transparent huge pages.  A
-// render's buffers (path pool, film copies, queues, Embree's BVH) are first
-// touched page by page, and in a virtual machine each 4 KiB page fault traps
-// to the hypervisor; 2 MiB pages make 1/512 as many faults and TLB misses.
-// Where the system offers huge pages only on request
-// (/sys/kernel/mm/transparent_hugepage/enabled = madvise) jemalloc requests
-// them; where it offers none, nothing changes.  Images are unchanged.
-extern "C" {
-const char* malloc_conf = "thp:always,metadata_thp:auto";
-}
-
 namespace {
 theia::StopRequest g_stop;
 extern "C" void on_stop_signal(int) { g_stop.raise(theia::StopReason::Signal); }

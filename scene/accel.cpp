@@ -284,6 +284,7 @@ struct Accel::Impl {
   std::vector<std::vector<int>> proto_shape;  // prototype -> geometry id -> shape index
   std::vector<int> instance_prototype;        // Scene instance -> prototype
   std::vector<uint8_t> shape_passes;          // Scene shape -> shape_crossing says Passes (intersect_passing)
+  std::vector<std::vector<vec3>> passing_normals;  // Scene shape -> its triangles' unit normals, if it passes
   std::vector<glm::dmat4> render_from_instance, instance_from_render;  // per Scene instance
   std::atomic<int64_t> embree_bytes{0};
   std::atomic<int64_t> embree_peak{0};
@@ -478,6 +479,14 @@ Accel::Accel(const Scene& scene) : impl_(std::make_unique<Impl>()) {
                        (s.area_light < 0 || size_t(s.area_light) < scene.lights.size());
     I.shape_passes[i] = known && shape_crossing(scene, int(i)) == ShapeCrossing::Passes ? 1 : 0;
   }
+  I.passing_normals.resize(scene.shapes.size());
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& s = scene.shapes[i];
+    if (!I.shape_passes[i] || s.kind != ShapeKind::TriangleMesh || s.mesh < 0) continue;
+    const TriangleMesh& m = scene.meshes[size_t(s.mesh)];
+    I.passing_normals[i].resize(m.triangle_count());
+    for (size_t t = 0; t < m.triangle_count(); ++t) I.passing_normals[i][t] = triangle_unit_normal(m, t);
+  }
 
   // Prototypes first: instances need their committed scenes.
   I.prototypes.assign(scene.prototypes.size(), nullptr);
@@ -640,6 +649,12 @@ vec2 Accel::quadric_uv(const Ray& ray, const Hit& hit) const {
   return {qh.u, qh.v};
 }
 
+const vec3* Accel::passing_unit_normals(int shape) const {
+  if (shape < 0 || size_t(shape) >= impl_->passing_normals.size() || impl_->passing_normals[size_t(shape)].empty())
+    return nullptr;
+  return impl_->passing_normals[size_t(shape)].data();
+}
+
 int Accel::shape_index(const Hit& hit) const {
   if (hit.geom == kInvalidId) return -1;
   if (hit.inst == kInvalidId) return hit.geom < impl_->top_shape.size() ? impl_->top_shape[hit.geom] : -1;
@@ -673,6 +688,7 @@ size_t Accel::memory_bytes() const {
                (impl_->top_shape.size() + impl_->top_instance.size()) * sizeof(int) +
                (impl_->render_from_instance.size() + impl_->instance_from_render.size()) * sizeof(glm::dmat4);
   for (const auto& t : impl_->proto_shape) own += t.size() * sizeof(int);
+  for (const auto& n : impl_->passing_normals) own += n.size() * sizeof(vec3);
   return size_t(embree) + own + impl_->curve_bytes;
 }
 

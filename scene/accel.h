@@ -103,6 +103,10 @@ class Accel {
   // its (u, v), found again from the ray that hit (compute_interaction asks).
   vec2 quadric_uv(const Ray& ray, const Hit& hit) const;
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
+  // A triangle mesh that rays pass through (an interface: intersect_passing's
+  // shapes): its triangles' unit normals (scene/surface_crossing.h
+  // triangle_unit_normal), computed once; nullptr for any other shape.
+  const vec3* passing_unit_normals(int shape) const;
   int instance_index(const Hit& hit) const;  // index into Scene::instances, or -1
   // Scene instance i's render_from_instance and its inverse, in double, as
   // hit points are carried back to render space (computed once, not per hit).

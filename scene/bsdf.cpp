@@ -7,6 +7,7 @@
 #include "scene/texture.h"
 
 #include <bit>
+#include <memory>
 
 namespace theia {
 
@@ -388,6 +389,32 @@ float bsdf_pdf(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {
   vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
   if (wo.z == 0.0f) return 0.0f;
   return bxdf_pdf(bsdf.bxdf, wo, wi);
+}
+
+DeferredPdf::DeferredPdf(const BxDF& b, const vec3& o, const vec3& i, TransportMode m)
+    : top(b.kind == BxDFKind::CoatedDiffuse ? b.coated_diffuse.top : b.coated_conductor.top), wo(o), wi(i),
+      n_samples(b.kind == BxDFKind::CoatedDiffuse ? b.coated_diffuse.layer.n_samples
+                                                  : b.coated_conductor.layer.n_samples),
+      kind(b.kind), mode(m) {
+  if (kind == BxDFKind::CoatedDiffuse) std::construct_at(&diffuse, b.coated_diffuse.base);
+  else std::construct_at(&conductor, b.coated_conductor.base);
+}
+
+// The layer's other parameters are left at their defaults: the layered pdf
+// does not read them.
+float deferred_pdf(const DeferredPdf& d) {
+  if (d.kind == BxDFKind::CoatedDiffuse) {
+    CoatedDiffuseBxDF b;
+    b.top = d.top;
+    b.base = d.diffuse;
+    b.layer.n_samples = d.n_samples;
+    return bxdf_pdf(BxDF(b), d.wo, d.wi, d.mode);
+  }
+  CoatedConductorBxDF b;
+  b.top = d.top;
+  b.base = d.conductor;
+  b.layer.n_samples = d.n_samples;
+  return bxdf_pdf(BxDF(b), d.wo, d.wi, d.mode);
 }
 
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,

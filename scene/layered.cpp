@@ -273,6 +273,8 @@ std::optional<BxDFSample> walk_sample(const Coated& b, vec3 wo, float uc, vec2 u
   return std::nullopt;
 }
 
+// Reads only the coat, the base and n_samples of b: a deferred pdf
+// (scene/bsdf.h DeferredPdf) keeps no more.
 template <typename Coated>
 float walk_pdf(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
   if (wo.z < 0.0f) {

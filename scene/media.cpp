@@ -146,17 +146,39 @@ bool walk_grid(const Medium& m, const MediumSegment& seg, TrackingRng& rng, Visi
     }
   }
   const float sigma_t_max = majorant_scale(m);
+  // The stepping state in scalars, not in arrays indexed by the axis that
+  // steps: those went through the stack, a store and a reload on the loop's
+  // critical path per cell crossed (most of a walk's cells see no
+  // collision).  The same numbers in the same order: the walk is unchanged.
+  double n0 = next[0], n1 = next[1], n2 = next[2];
+  int c0 = cell[0], c1 = cell[1], c2 = cell[2];
+  const ptrdiff_t stride1 = res, stride2 = ptrdiff_t(res) * res;
+  ptrdiff_t index = (ptrdiff_t(c2) * res + c1) * res + c0;
+  const float* majorants = m.majorants.data();
+  const double s1 = double(seg.s1);
   double s = seg.s0;
   float depth = kNoDepth;
   while (true) {
-    const int a = next[0] < next[1] ? (next[0] < next[2] ? 0 : 2) : (next[1] < next[2] ? 1 : 2);
-    const double s_end = std::min(double(seg.s1), next[a]);
-    const float majorant = m.majorants[(size_t(cell[2]) * res + size_t(cell[1])) * res + size_t(cell[0])];
-    if (!walk_span(m, seg, s, s_end, sigma_t_max * majorant, depth, rng, visit)) return false;
-    if (s_end >= double(seg.s1)) return true;
-    cell[a] += step[a];
-    if (cell[a] < 0 || cell[a] >= res) return true;
-    next[a] += delta[a];
+    const int a = n0 < n1 ? (n0 < n2 ? 0 : 2) : (n1 < n2 ? 1 : 2);
+    const double s_end = std::min(s1, a == 0 ? n0 : (a == 1 ? n1 : n2));
+    if (!walk_span(m, seg, s, s_end, sigma_t_max * majorants[index], depth, rng, visit)) return false;
+    if (s_end >= s1) return true;
+    if (a == 0) {
+      c0 += step[0];
+      if (c0 < 0 || c0 >= res) return true;
+      n0 += delta[0];
+      index += step[0];
+    } else if (a == 1) {
+      c1 += step[1];
+      if (c1 < 0 || c1 >= res) return true;
+      n1 += delta[1];
+      index += step[1] * stride1;
+    } else {
+      c2 += step[2];
+      if (c2 < 0 || c2 >= res) return true;
+      n2 += delta[2];
+      index += step[2] * stride2;
+    }
   }
 }
 

@@ -24,6 +24,10 @@ SurfaceCrossing surface_crossing(const Scene& scene, const Accel& accel, const R
 inline SurfaceCrossing surface_crossing(const SurfaceInteraction& si) {
   return {si.p, si.p_error, si.ng, si.shape, si.skip};
 }
+// Triangle tri's unit geometric normal as wound (before pbrt-v4's
+// orientation): what surface_crossing and compute_interaction start from,
+// and what Accel::passing_unit_normals holds.
+vec3 triangle_unit_normal(const TriangleMesh& m, size_t tri);
 // spawn_ray and spawn_ray_to leaving a crossing.
 Ray spawn_ray(const SurfaceCrossing& c, const vec3& d);
 Ray spawn_ray_to(const SurfaceCrossing& c, const vec3& p_to, const vec3& p_to_error, const vec3& n_to);

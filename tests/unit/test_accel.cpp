@@ -4,10 +4,12 @@
 #include "scene/accel.h"
 #include "scene/parser.h"
 #include "scene/shapes.h"
+#include "scene/surface_crossing.h"
 #include "tests/unit/scene_builders.h"
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <random>
 
 using namespace theia;
@@ -625,6 +627,43 @@ TEST(AccelInterface, IntersectPassingFindsTheFirstCrossingAndTheBlockerBehind) {
   EXPECT_FALSE(shorter.stop.hit());
   EXPECT_EQ(shorter.passes, 2u);
   EXPECT_EQ(shorter.first_pass.t, plain.t);
+}
+
+// The unit normals the accel keeps for a passing mesh are
+// triangle_unit_normal's bit for bit, and a crossing made with them is
+// compute_interaction's (p, p_error, ng); other shapes have none.
+TEST(AccelInterface, PassingMeshesKeepTheirUnitNormals) {
+  std::string text = "WorldBegin\nAttributeBegin\nMaterial \"interface\"\nReverseOrientation\nRotate 30 1 1 0\n"
+                     "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 0 1 0.3 -1 1 -0.2] "
+                     "\"integer indices\" [0 1 2 0 2 3]\nAttributeEnd\n"
+                     "Material \"diffuse\"\nTranslate 0 0 4\n"
+                     "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 0 1 0] \"integer indices\" [0 1 2]\n";
+  Scene sc = parse_scene_string(text, "normals.pbrt", ".");
+  Accel a(sc);
+  ASSERT_EQ(sc.shapes.size(), 2u);
+  const vec3* unit = a.passing_unit_normals(0);
+  ASSERT_NE(unit, nullptr);
+  EXPECT_EQ(a.passing_unit_normals(1), nullptr);
+  EXPECT_EQ(a.passing_unit_normals(-1), nullptr);
+  const TriangleMesh& m = sc.meshes[size_t(sc.shapes[0].mesh)];
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    const vec3 n = triangle_unit_normal(m, t);
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(std::bit_cast<uint32_t>(unit[t][i]), std::bit_cast<uint32_t>(n[i]));
+  }
+  int crossings = 0;
+  for (float x : {-0.6f, -0.1f, 0.2f, 0.5f}) {
+    const Ray r = make_ray(vec3(x, 0.1f, -5.0f), glm::normalize(vec3(0.05f, -0.02f, 1.0f)));
+    const Hit h = a.intersect1(r);
+    if (!h.hit() || a.shape_index(h) != 0) continue;
+    ++crossings;
+    const SurfaceCrossing c = surface_crossing(sc, a, r, h, 0);
+    const SurfaceCrossing full = surface_crossing(compute_interaction(sc, a, r, h));
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_EQ(std::bit_cast<uint32_t>(c.ng[i]), std::bit_cast<uint32_t>(full.ng[i]));
+      EXPECT_EQ(std::bit_cast<uint32_t>(c.p[i]), std::bit_cast<uint32_t>(full.p[i]));
+    }
+  }
+  EXPECT_GE(crossings, 2);
 }
 
 TEST(AccelAlpha, CutOutSphereShowsItsFarSideAndWhatLiesBehind) {

@@ -2,11 +2,13 @@
 // white furnace, albedo against independent quadrature, reciprocity, pdf
 // normalisation, and the layered BxDFs' sampling against their evaluation.
 // The chi-square sweep is in test_bsdf_chi2.cpp.
+#include "scene/bsdf.h"
 #include "tests/unit/bxdf_test_util.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <random>
 
 using namespace theia;
@@ -302,4 +304,28 @@ TEST(LayeredBxDF, SamplingWeightsAgreeWithEvaluationAndConserveEnergy) {
   // Deterministic: the same arguments give the same value.
   EXPECT_EQ(bxdf_f(b, dir_at(0.4f), dir_at(0.7f, 2.0f)), bxdf_f(b, dir_at(0.4f), dir_at(0.7f, 2.0f)));
   EXPECT_TRUE(is_black(bxdf_f(b, dir_at(0.4f), -dir_at(0.7f, 2.0f))));  // opaque base
+}
+
+// A deferred layered pdf (scene/bsdf.h DeferredPdf) keeps only the coat, the
+// base and the walk count: bit for bit bsdf_pdf of the whole BxDF, whatever
+// its layer's other parameters (thickness, albedo, g, depth), both modes.
+TEST(LayeredBxDF, DeferredPdfIsTheWholeBxDFsPdfBitForBit) {
+  std::vector<BxDF> cases = {coated_diffuse(0.001f, RGB(0.2f, 0.05f, 0.0f)), coated_diffuse(0.3f, RGB(0.5f), RGB(0.8f)),
+                             coated_conductor(0.05f, 0.2f), coated_conductor(0.0f, 0.3f, 1.3f)};
+  layer_of(cases[1]) = LayerParams{0.3f, 0.6f, RGB(0.9f, 0.5f, 0.2f), 7, 3};
+  layer_of(cases[2]) = LayerParams{0.05f, -0.4f, RGB(0.4f), 4, 2};
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  int nonzero = 0;
+  for (const BxDF& b : cases)
+    for (int i = 0; i < 200; ++i) {
+      const vec3 wo = sample_uniform_sphere(vec2(u01(rng), u01(rng)));
+      const vec3 wi = sample_uniform_sphere(vec2(u01(rng), u01(rng)));
+      for (TransportMode mode : {TransportMode::Radiance, TransportMode::Importance}) {
+        const float whole = bxdf_pdf(b, wo, wi, mode);
+        ASSERT_EQ(std::bit_cast<uint32_t>(deferred_pdf(DeferredPdf(b, wo, wi, mode))), std::bit_cast<uint32_t>(whole));
+        nonzero += whole > 0.0f;
+      }
+    }
+  EXPECT_GT(nonzero, 600);
 }

@@ -101,7 +101,10 @@ static std::string guiding_auto_off_because(const RenderConfig& c) {
   if (!c.guiding.judged()) return {};
   if (RecorderFeature::debug_layers(c.recorder)) return "--recorder-debug";
   const int training = judged_training_spp(c.guiding.training_spp);
-  if (c.spp < training) return fmt::format("the render's {} spp are fewer than training's {}", c.spp, training);
+  // Guiding pays for its training with the samples after it: a render that
+  // ends within training has none.
+  if (c.spp <= training)
+    return fmt::format("the render's {} spp leave none after training's {}", c.spp, training);
   return {};
 }
 

@@ -57,7 +57,9 @@ def run_measured(cmd, log_path):
 
 
 def theia_cmd(binary, scene, spp, out, threads=None):
-    cmd = [binary, "render", scene, "--spp", str(spp), "-q", "-o", out]
+    # Unguided, as pbrt-v4's volpath is (theia's default, --guiding-auto, would
+    # probe guiding above its training budget of spp).
+    cmd = [binary, "render", scene, "--spp", str(spp), "--no-guiding", "-q", "-o", out]
     return cmd + ["--threads", str(threads)] if threads else cmd
 
 

@@ -119,7 +119,7 @@ def make_variant(tmp, name):
 def render(args, scene, sampler, spp, seed, exr):
     """(log, CPU seconds, peak MiB) of one render."""
     r = run_measured([args.theia, "render", scene, "--spp", str(spp), "--seed", str(seed),
-                      "--light-sampler", sampler, "-o", exr, "-q"], exr + ".out")
+                      "--light-sampler", sampler, "--no-guiding", "-o", exr, "-q"], exr + ".out")
     with open(exr[:-len(".exr")] + ".json") as f:
         return json.load(f), r.cpu_s, r.peak_mib
 

@@ -26,8 +26,8 @@
                              [--config NAME=ARGS ...] [--spp CAP] [--out DIR]
       Equal-time comparison (issue 12): renders each scene under each
       `--time-limit` budget with seeds 0..N-1 and each configuration
-      (default: unguided = no arguments, guided = --guiding; --config
-      'auto=--guiding auto' adds one; the first is the baseline), and writes a
+      (default: unguided = --no-guiding, guided = --guiding; --config
+      auto=--guiding-auto adds one; the first is the baseline), and writes a
       Markdown table of the median over seeds of relMSE and MAPE against the
       reference (and their ratio to the baseline), the variance across seeds,
       the spp reached, time per spp, path length, SD-tree leaves and the
@@ -91,7 +91,8 @@ EQUAL_TIME_SCENES = VALIDATION_SCENES + [("guiding-panel", "scenes/guiding-panel
                                          ("fog-slit", "scenes/fog-slit/scene.pbrt", None)]
 EQUAL_TIME_DEFAULT_SCENES = ["guiding-panel", "cornell-box", "living-room", "material-testball", "veach-mis",
                              "veach-ajar"]
-EQUAL_TIME_CONFIGURATIONS = [("unguided", []), ("guided", ["--guiding"])]
+# theia's own default is --guiding-auto: the baseline says --no-guiding.
+EQUAL_TIME_CONFIGURATIONS = [("unguided", ["--no-guiding"]), ("guided", ["--guiding"])]
 # Where a render log may hold the guide-draw failure rate (the share of guided
 # draws that end the path); the first key found anywhere in the log is used.
 GUIDE_FAILURE_KEYS = ("guide_draw_failure_rate", "draw_failure_rate", "guide_failure_rate")
@@ -445,7 +446,7 @@ def equal_time_reference(theia, name, scene, ref, spp, out_dir):
         return os.path.join(ROOT, ref)
     path = os.path.join(out_dir, f"{name}-reference.exr")
     if not os.path.exists(path):
-        cmd = [theia, "render", scene, "-o", path, "--spp", str(spp), "--seed", "1000003", "-q"]
+        cmd = [theia, "render", scene, "-o", path, "--spp", str(spp), "--seed", "1000003", "-q", "--no-guiding"]
         print(" ".join(shlex.quote(a) for a in cmd), flush=True)
         subprocess.run(cmd, check=True)
     return path

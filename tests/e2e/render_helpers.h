@@ -84,9 +84,12 @@ Shape "trianglemesh" "point3 P" [-4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4] "integer in
 )";
 }
 
+// Unguided whatever the default (--guiding-auto turns itself off below the
+// training budget, but not above it): the engine's estimators on their own.
 inline RenderConfig quick_config(int spp) {
   RenderConfig c;
   c.spp = spp;
+  c.guiding.enabled = OnOffAuto::Off;
   return c;
 }
 

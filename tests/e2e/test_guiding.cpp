@@ -284,7 +284,8 @@ TEST(Guiding, AutoContinuesOnTheRegularScheduleOnceDecided) {
     return render_scene(scene, c);
   };
   // Off: the probe holds out iteration 11 (22 spp) against 12; from 13 (54 spp) on, regular.
-  RenderResult off = render("off", 256);
+  // (Training 255: a render of exactly its training budget would be off from the start.)
+  RenderResult off = render("off", 255);
   EXPECT_EQ(off.log["guiding"]["auto"]["verdict"].get<std::string>(), "off");
   EXPECT_EQ(off.log["scheduler"]["schedule"].get<std::vector<int>>(), switch_schedule(planned, 13, regular_schedule()));
   EXPECT_EQ(off.log["scheduler"]["schedule_switch"]["at_iteration"].get<int>(), 13);
@@ -450,9 +451,10 @@ TEST(Guiding, VMMFieldIsUnbiasedAndDeterministic) {
   }
 }
 
-// --guiding-auto where the render is shorter than training: the probe's
+// --guiding-auto where the render ends within training: the probe's
 // training alone would cost more than guiding could win back, so it is off
-// from the first sample, renders as --no-guiding does and says why.
+// from the first sample, renders as --no-guiding does and says why (also at
+// exactly the training budget: no sample would follow training).
 TEST(Guiding, AutoIsOffForARenderShorterThanTraining) {
   Scene scene = load_test_scene_file(kCornell);
   scene.film.width = scene.film.height = 24;
@@ -462,12 +464,14 @@ TEST(Guiding, AutoIsOffForARenderShorterThanTraining) {
   const RenderResult r = render_scene(scene, c);
   EXPECT_EQ(r.log["options"]["guiding"].get<std::string>(), "off");
   EXPECT_EQ(r.log["guiding"]["auto"]["verdict"].get<std::string>(), "off");
-  EXPECT_EQ(r.log["guiding"]["auto"]["why"].get<std::string>(), "the render's 64 spp are fewer than training's 256");
+  EXPECT_EQ(r.log["guiding"]["auto"]["why"].get<std::string>(), "the render's 64 spp leave none after training's 256");
   RenderConfig plain = quick_config(64);
   plain.guiding.enabled = OnOffAuto::Off;
   plain.threads = 1;
   EXPECT_EQ(test::max_relative_difference(r.image, render_scene(scene, plain).image), 0.0);
-  // Training no longer than the render: auto judges.
+  c.guiding.training_spp = 64;
+  EXPECT_EQ(render_scene(scene, c).log["options"]["guiding"].get<std::string>(), "off");
+  // Training shorter than the render: auto judges.
   c.guiding.training_spp = 32;
   EXPECT_EQ(render_scene(scene, c).log["options"]["guiding"].get<std::string>(), "auto");
 }

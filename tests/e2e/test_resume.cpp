@@ -624,7 +624,7 @@ TEST(ResumeOptions, ParsedFlagsReachTheirFields) {
   EXPECT_EQ(c.guiding.enabled, OnOffAuto::On);
   EXPECT_EQ(parse({"--guiding-auto"}).guiding.enabled, OnOffAuto::Auto);
   EXPECT_EQ(parse({"--guiding", "--no-guiding"}).guiding.enabled, OnOffAuto::Off);
-  EXPECT_EQ(parse({}).guiding.enabled, OnOffAuto::Off);  // the default until issue 12's bar is met
+  EXPECT_EQ(parse({}).guiding.enabled, OnOffAuto::Auto);  // the default since issue 12's bars hold
   EXPECT_EQ(c.guiding.selection_probability, 0.25f);
   EXPECT_FALSE(c.caustics.enabled);
   EXPECT_FALSE(c.sort);

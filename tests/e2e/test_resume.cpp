@@ -357,8 +357,8 @@ TEST(Resume, GuidingAutoContinuesItsRoundsAfterResume) {
 // schedule and the image an uninterrupted one does.  The verdict is forced
 // ("off"), so the uninterrupted image is known.
 TEST(Resume, GuidingAutoScheduleSwitchResumesExactly) {
-  // 256 spp: a shorter render than training's 256 spp has auto off from the start.
-  Fixture f("autoswitch", " --guiding-auto --test-guiding-verdict off --spp 256");
+  // Training 255 of 256 spp: a render that ends within training has auto off from the start.
+  Fixture f("autoswitch", " --guiding-auto --test-guiding-verdict off --spp 256 --guiding-training-spp 255");
   // Guiding schedule for 256 spp: 1 x8, 2 4 8 16 16 ...; the probe holds out
   // 11 (22 spp) against 12; from 13 (54 spp) the regular schedule: 74, 128.
   ASSERT_EQ(f.render("ref.exr").exit_code, 0);

@@ -60,10 +60,12 @@ PBRT
 done
 
 # The farm's jobs: the sequence on the default partition, the split frame on the preemptible one.
+# Unguided (--no-guiding; the default --guiding-auto may guide at this spp): a split frame's parts
+# would each learn their own field, unbiased but not the unsplit image (theia merge says so).
 "$theia" farm submit --pattern "$work/shot/frame.%04d.pbrt" --frames 1-4 -d "$work/seq" --spp "$SPP" \
-  --cpus-per-task 1 --signal-seconds 30 || fail "farm submit (sequence)"
+  --cpus-per-task 1 --signal-seconds 30 --render-options "--no-guiding" || fail "farm submit (sequence)"
 "$theia" farm submit "$work/shot/frame.0001.pbrt" -d "$work/split" --split 4 --spp "$SPP" --cpus-per-task 1 \
-  --partition preempt || fail "farm submit (split)"
+  --partition preempt --render-options "--no-guiding" || fail "farm submit (split)"
 seq_job=$(sed -n 's/.*"id": "\([0-9]*\)".*/\1/p' "$work/seq/farm.json" | head -1)
 parts_job=$(sed -n 's/.*"id": "\([0-9]*\)".*/\1/p' "$work/split/farm.json" | head -1)
 [ -n "$seq_job" ] && [ -n "$parts_job" ] || fail "no job ids in farm.json"
@@ -102,7 +104,7 @@ echo "requeued ${parts_job}_2 (frame.0001 part 2) mid-render"
 
 # The uninterrupted renders, while the farm finishes.
 for f in 1 2 3 4; do
-  "$theia" render "$work/shot/frame.000$f.pbrt" -o "$work/ref/frame.000$f.exr" --spp "$SPP" --threads 1 -q ||
+  "$theia" render "$work/shot/frame.000$f.pbrt" -o "$work/ref/frame.000$f.exr" --spp "$SPP" --threads 1 -q --no-guiding ||
     fail "reference render of frame $f"
 done
 

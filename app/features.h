@@ -133,8 +133,8 @@ struct GuidingOptions : SDTreeOptions {
   // probability, in (0, 1].  On veach-ajar (256 spp, 96 of training, seeds
   // 0-2) relMSE x rays fell from 6.6 at 0.1 to 4.0 at 0.5 (3.9 at 0.7, with
   // 17% more rays; 6.6 again at 1, where paths run to the depth limit); on
-  // guiding-panel 0.5 ties 0.1.
-  float roulette_floor = 0.5f;
+  // guiding-panel 0.5 ties 0.1.  The engine's default, in one place.
+  float roulette_floor = GuidedSampling{}.roulette_floor;
   // The field learns from samples [0, training_spp) of every pixel (a split
   // frame's part: the first training_spp of its range), then is frozen and
   // the recorder detached, so the rest of the render pays for guided

@@ -20,16 +20,12 @@ namespace {
 
 // Sample dimensions of a light path (its own seed keeps them apart from the camera paths').
 constexpr uint32_t kDimPosition = 0, kDimDirection = 2, kDimBsdfDir = 4, kDimLight = 6, kDimPrim = 7, kDimLobe = 8;
-// Light paths traced together.  Their buffers (~190 bytes a path) are first
-// touched in the render, page by page: a larger chunk costs the kernel more
-// zeroed pages than it saves in per-chunk overhead.
-constexpr size_t kChunk = size_t(1) << 13;
 constexpr size_t kGrain = 256;
 
 // A light path on its way: throughput and the ray it travels.
 struct LightPath {
   RGB beta{0.0f};
-  bool alive = false;
+  Ray ray;
 };
 
 // Veach's correction for shading normals in light transport (thesis 5.3;
@@ -114,7 +110,7 @@ std::vector<Bounds3> find_caster_boxes(const Scene& scene, const std::vector<uin
 struct Connection {
   vec2 raster{0.0f};
   RGB value{0.0f};  // per unit raster area, before the filter
-  bool alive = false;
+  Ray shadow;
 };
 
 }  // namespace
@@ -233,30 +229,20 @@ CausticTracer::CausticTracer(const Scene& scene, const Accel& accel, const Light
   else std::fill(traced_.begin(), traced_.end(), 0);
 }
 
-// One pass: the light paths of an iteration's samples, traced a chunk at a
-// time and splatted into the film as parts of their camera samples.
+// What passes share: the scene's caster boxes and sphere estimates, made
+// by the first pass and kept.
 struct CausticTracer::Scratch {
   std::vector<Bounds3> caster_boxes;
   // Per traced light entry (light_of_entry_): its sphere's estimate, when it is one.
   std::vector<SphereEmitter> sphere_emitters;
-  std::vector<Ray> rays, shadow, dense;
-  std::vector<Hit> hits, dense_hits;
-  std::vector<uint8_t> blocked, dense_blocked;
-  std::vector<uint32_t> live;
-  std::vector<LightPath> paths;
-  std::vector<Connection> connections;
-
-  // Buffers for chunks of up to n light paths.
-  void reserve(size_t n) {
-    if (rays.size() >= n) return;
-    for (auto* v : {&rays, &shadow, &dense}) v->resize(n);
-    for (auto* v : {&hits, &dense_hits}) v->resize(n);
-    for (auto* v : {&blocked, &dense_blocked}) v->resize(n);
-    paths.resize(n);
-    connections.resize(n);
-  }
 };
 
+// One pass: the light paths of an iteration's samples, each traced from its
+// light to its splat by one thread, and splatted into the film as parts of
+// their camera samples.  A light path is a few incoherent rays, mostly one
+// (88% end at their first hit on veach-mis): traced where they are made,
+// they need no buffers, and both threads stay busy where a batch's serial
+// gathers and traces left one waiting.
 struct CausticTracer::Pass {
   const CausticTracer& tracer;
   Film& film;
@@ -271,27 +257,18 @@ struct CausticTracer::Pass {
   const std::vector<Bounds3>& caster_boxes;
   const std::vector<SphereEmitter>& sphere_emitters;
 
-  // The chunk in flight.
-  uint64_t first = 0;
-  size_t n = 0;
-  std::vector<Ray>&rays, &shadow, &dense;
-  std::vector<Hit>&hits, &dense_hits;
-  std::vector<uint8_t>&blocked, &dense_blocked;
-  std::vector<uint32_t>& live;
-  std::vector<LightPath>& paths;
-  std::vector<Connection>& connections;
+  // A range of paths' events, added to the pass's once.
+  struct Counts {
+    uint64_t caster_hits = 0, receiver_hits = 0, splats = 0, dropped = 0;
+  };
   std::atomic<uint64_t> caster_hits{0}, receiver_hits{0}, splats{0}, dropped{0};
 
-  Pass(const CausticTracer& t, Scratch& sc, Film& f, const CausticSamples& s,
+  Pass(const CausticTracer& t, const Scratch& sc, Film& f, const CausticSamples& s,
        const std::function<UVFootprint(const SurfaceInteraction&)>& fp)
       : tracer(t), film(f), footprint(fp), samples(s), seed(uint32_t(hash(t.options_.seed, 0xca057u))),
         pixels(f.pixel_count()), total(uint64_t(pixels) * uint64_t(s.sample_end - s.sample_begin)), width(f.width),
         height(f.height), radius(filter_radius(t.filter_)), inv_integral(1.0f / filter_integral(t.filter_)),
-        caster_boxes(sc.caster_boxes), sphere_emitters(sc.sphere_emitters), rays(sc.rays), shadow(sc.shadow),
-        dense(sc.dense), hits(sc.hits), dense_hits(sc.dense_hits), blocked(sc.blocked),
-        dense_blocked(sc.dense_blocked), live(sc.live), paths(sc.paths), connections(sc.connections) {
-    sc.reserve(size_t(std::min<uint64_t>(kChunk, total)));
-  }
+        caster_boxes(sc.caster_boxes), sphere_emitters(sc.sphere_emitters) {}
 
   static std::vector<SphereEmitter> find_sphere_emitters(const CausticTracer& t, const std::vector<Bounds3>& boxes) {
     std::vector<SphereEmitter> e;
@@ -305,152 +282,129 @@ struct CausticTracer::Pass {
       if (caustic_first_ray::may_meet(ray, b)) return true;
     return false;
   }
-  SamplerKey key(size_t i) const {
-    uint64_t k = first + i;
-    return SamplerKey{seed, uint32_t(k % pixels), samples.sample_begin + uint32_t(k / pixels)};
+  SamplerKey key(uint64_t path) const {
+    return SamplerKey{seed, uint32_t(path % pixels), samples.sample_begin + uint32_t(path / pixels)};
   }
   // Whether camera sample (pixel, sample) of this pass was rendered.
   bool rendered(size_t pixel, uint32_t sample) const {
     const uint64_t n = samples.sample_end - samples.sample_begin;
     return uint64_t(pixel) * n + (sample - samples.sample_begin) < samples.rendered;
   }
-  template <class Body>
-  void parallel(Body&& body) const {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i != r.end(); ++i) body(i);
-    });
-  }
-  // Only the live paths' rays are traced, gathered densely: most light
-  // paths end at their first hit (a caustic needs a caster, then a receiver).
-  template <class Alive>
-  size_t gather(const std::vector<Ray>& from, Alive&& alive) {
-    live.clear();
-    for (size_t i = 0; i < n; ++i)
-      if (alive(i)) live.push_back(uint32_t(i));
-    for (size_t j = 0; j < live.size(); ++j) dense[j] = from[live[j]];
-    return live.size();
-  }
-  void trace_rays() {
-    size_t m = gather(rays, [&](size_t i) { return paths[i].alive; });
-    tracer.accel_.intersect(std::span<const Ray>(dense.data(), m), std::span(dense_hits.data(), m), false);
-    for (size_t j = 0; j < m; ++j) hits[live[j]] = dense_hits[j];
-  }
-  void trace_connections() {
-    size_t m = gather(shadow, [&](size_t i) { return connections[i].alive; });
-    tracer.accel_.occluded(std::span<const Ray>(dense.data(), m), std::span(dense_blocked.data(), m));
-    for (size_t j = 0; j < m; ++j) blocked[live[j]] = dense_blocked[j];
-  }
   // A path that may go on: its throughput is finite and not black (a
   // non-finite one is counted).
-  bool keep(const RGB& v) {
-    if (!is_finite(v)) dropped.fetch_add(1, std::memory_order_relaxed);
+  static bool keep(const RGB& v, Counts& c) {
+    if (!is_finite(v)) ++c.dropped;
     return is_finite(v) && !is_black(v);
   }
   // The surface a path's ray hit, if it is one the pass shades (no holdout).
-  std::optional<std::pair<SurfaceInteraction, BSDF>> surface(size_t i) const {
-    SurfaceInteraction si = compute_interaction(tracer.scene_, tracer.accel_, rays[i], hits[i]);
+  std::optional<std::pair<SurfaceInteraction, BSDF>> surface(const Ray& ray, const Hit& hit) const {
+    SurfaceInteraction si = compute_interaction(tracer.scene_, tracer.accel_, ray, hit);
     if (si.shape >= 0 && tracer.scene_.shapes[size_t(si.shape)].holdout) return std::nullopt;
     BSDF bsdf = make_bsdf(tracer.scene_, si, footprint(si));
     return std::pair{si, bsdf};
   }
 
-  void leave_light();
-  void the_caster();
-  void the_receiver();
-  void splat();
+  // The steps of one light path; each returns what the next takes, or
+  // nothing where the path ends.
+  std::optional<LightPath> leave_light(const SamplerKey& k, Counts& c) const;
+  std::optional<LightPath> the_caster(const SamplerKey& k, const LightPath& path, const Hit& hit, Counts& c) const;
+  std::optional<Connection> the_receiver(const LightPath& path, const Hit& hit, Counts& c) const;
+  void splat(uint32_t sample, const Connection& connection, Counts& c) const;
+
+  void trace_path(uint64_t path, Counts& c) const {
+    const SamplerKey k = key(path);
+    const std::optional<LightPath> emitted = leave_light(k, c);
+    if (!emitted) return;
+    const std::optional<LightPath> scattered = the_caster(k, *emitted, tracer.accel_.intersect1(emitted->ray), c);
+    if (!scattered) return;
+    const std::optional<Connection> seen = the_receiver(*scattered, tracer.accel_.intersect1(scattered->ray), c);
+    if (seen && !tracer.accel_.occluded1(seen->shadow)) splat(k.sample, *seen, c);
+  }
+  void trace_all() {
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, total, kGrain), [&](const tbb::blocked_range<uint64_t>& r) {
+      Counts c;
+      for (uint64_t path = r.begin(); path != r.end(); ++path) trace_path(path, c);
+      caster_hits.fetch_add(c.caster_hits, std::memory_order_relaxed);
+      receiver_hits.fetch_add(c.receiver_hits, std::memory_order_relaxed);
+      splats.fetch_add(c.splats, std::memory_order_relaxed);
+      dropped.fetch_add(c.dropped, std::memory_order_relaxed);
+    });
+  }
 };
 
 // Leave a light: a point by area, a cosine-weighted direction.
-void CausticTracer::Pass::leave_light() {
-  parallel([&](size_t i) {
-    SamplerKey k = key(i);
-    paths[i].alive = false;
-    float pmf = 0.0f;
-    int entry = tracer.light_distribution_.sample_discrete(sample_1d(k, kDimLight), &pmf);
-    int light = tracer.light_of_entry_[size_t(entry)];
-    const vec2 u_pos = sample_2d(k, kDimPosition), u_dir = sample_2d(k, kDimDirection);
-    // A sphere light's ray that surely misses every caster box is not made at all.
-    const SphereEmitter& se = sphere_emitters[size_t(entry)];
-    if (se.valid && !caster_boxes.empty() && !caustic_first_ray::sphere_ray_may_meet(se, u_pos, u_dir)) return;
-    auto le = sample_le(tracer.lights_, light, u_pos, sample_1d(k, kDimPrim), u_dir);
-    if (!le || !(pmf > 0.0f)) return;
-    RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
-    if (!keep(beta)) return;
-    const Ray ray = caustic_first_ray::emitted_ray(*le);
-    // The path would end at its first hit in the_caster: not traced at all.
-    if (!may_reach_caster(ray)) return;
-    paths[i] = {beta, true};
-    rays[i] = ray;
-  });
+std::optional<LightPath> CausticTracer::Pass::leave_light(const SamplerKey& k, Counts& c) const {
+  float pmf = 0.0f;
+  int entry = tracer.light_distribution_.sample_discrete(sample_1d(k, kDimLight), &pmf);
+  int light = tracer.light_of_entry_[size_t(entry)];
+  const vec2 u_pos = sample_2d(k, kDimPosition), u_dir = sample_2d(k, kDimDirection);
+  // A sphere light's ray that surely misses every caster box is not made at all.
+  const SphereEmitter& se = sphere_emitters[size_t(entry)];
+  if (se.valid && !caster_boxes.empty() && !caustic_first_ray::sphere_ray_may_meet(se, u_pos, u_dir))
+    return std::nullopt;
+  auto le = sample_le(tracer.lights_, light, u_pos, sample_1d(k, kDimPrim), u_dir);
+  if (!le || !(pmf > 0.0f)) return std::nullopt;
+  RGB beta = le->L * (std::abs(glm::dot(le->n, le->w)) / (pmf * le->pdf_pos * le->pdf_dir));
+  if (!keep(beta, c)) return std::nullopt;
+  const Ray ray = caustic_first_ray::emitted_ray(*le);
+  // The path would end at its first hit in the_caster: not traced at all.
+  if (!may_reach_caster(ray)) return std::nullopt;
+  return LightPath{beta, ray};
 }
 
 // The caster: scatter with the adjoint BSDF.
-void CausticTracer::Pass::the_caster() {
-  parallel([&](size_t i) {
-    if (!paths[i].alive) return;
-    paths[i].alive = false;
-    if (!hits[i].hit() || !may_cast(tracer.scene_, tracer.casting_, tracer.accel_.shape_index(hits[i]))) return;
-    auto hit = surface(i);
-    if (!hit || !bsdf_is_caustic_caster(hit->second, tracer.options_.caster_roughness)) return;
-    const auto& [si, bsdf] = *hit;
-    caster_hits.fetch_add(1, std::memory_order_relaxed);
-    SamplerKey k = key(i);
-    auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
-    if (!bs || !(bs->pdf > 0.0f)) return;
-    RGB beta = paths[i].beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf) *
-               adjoint_shading_correction(si.wo, bs->wi, bsdf.shading.n, si.ng);
-    if (!keep(beta)) return;
-    paths[i] = {beta, true};
-    rays[i] = spawn_ray(si, bs->wi);
-  });
+std::optional<LightPath> CausticTracer::Pass::the_caster(const SamplerKey& k, const LightPath& path, const Hit& h,
+                                                         Counts& c) const {
+  if (!h.hit() || !may_cast(tracer.scene_, tracer.casting_, tracer.accel_.shape_index(h))) return std::nullopt;
+  auto hit = surface(path.ray, h);
+  if (!hit || !bsdf_is_caustic_caster(hit->second, tracer.options_.caster_roughness)) return std::nullopt;
+  const auto& [si, bsdf] = *hit;
+  ++c.caster_hits;
+  auto bs = bsdf_sample(bsdf, si.wo, sample_1d(k, kDimLobe), sample_2d(k, kDimBsdfDir), TransportMode::Importance);
+  if (!bs || !(bs->pdf > 0.0f)) return std::nullopt;
+  RGB beta = path.beta * bs->f * (std::abs(glm::dot(bs->wi, bsdf.shading.n)) / bs->pdf) *
+             adjoint_shading_correction(si.wo, bs->wi, bsdf.shading.n, si.ng);
+  if (!keep(beta, c)) return std::nullopt;
+  return LightPath{beta, spawn_ray(si, bs->wi)};
 }
 
 // The receiver, connected to the camera.
-void CausticTracer::Pass::the_receiver() {
-  parallel([&](size_t i) {
-    connections[i].alive = false;
-    if (!paths[i].alive || !hits[i].hit()) return;
-    auto hit = surface(i);
-    if (!hit || !bsdf_is_caustic_receiver(hit->second)) return;
-    const auto& [si, bsdf] = *hit;
-    receiver_hits.fetch_add(1, std::memory_order_relaxed);
-    auto cw = camera_wi(tracer.camera_, si.p);
-    if (!cw) return;
-    if (cw->raster.x < -radius.x || cw->raster.y < -radius.y || cw->raster.x > float(width) + radius.x ||
-        cw->raster.y > float(height) + radius.y)
-      return;
-    RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
-    RGB value = paths[i].beta * f *
-                (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance *
-                 adjoint_shading_correction(si.wo, cw->wi, bsdf.shading.n, si.ng));
-    if (!keep(value)) return;
-    connections[i] = {cw->raster, value, true};
-    shadow[i] = spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f));
-  });
+std::optional<Connection> CausticTracer::Pass::the_receiver(const LightPath& path, const Hit& h, Counts& c) const {
+  if (!h.hit()) return std::nullopt;
+  auto hit = surface(path.ray, h);
+  if (!hit || !bsdf_is_caustic_receiver(hit->second)) return std::nullopt;
+  const auto& [si, bsdf] = *hit;
+  ++c.receiver_hits;
+  auto cw = camera_wi(tracer.camera_, si.p);
+  if (!cw) return std::nullopt;
+  if (cw->raster.x < -radius.x || cw->raster.y < -radius.y || cw->raster.x > float(width) + radius.x ||
+      cw->raster.y > float(height) + radius.y)
+    return std::nullopt;
+  RGB f = bsdf_f(bsdf, si.wo, cw->wi, TransportMode::Importance);
+  RGB value = path.beta * f *
+              (std::abs(glm::dot(cw->wi, bsdf.shading.n)) * cw->importance *
+               adjoint_shading_correction(si.wo, cw->wi, bsdf.shading.n, si.ng));
+  if (!keep(value, c)) return std::nullopt;
+  return Connection{cw->raster, value, spawn_ray_to(si, cw->p_lens, vec3(0.0f), vec3(0.0f))};
 }
 
 // Splat through the pixel filter, as pbrt-v4's film adds splats, each pixel's
 // share weighted as a part of that pixel's camera sample of the same index.
-void CausticTracer::Pass::splat() {
-  parallel([&](size_t i) {
-    const Connection& c = connections[i];
-    if (!c.alive || blocked[i]) return;
-    splats.fetch_add(1, std::memory_order_relaxed);
-    const uint32_t sample = key(i).sample;
-    int x0 = std::max(0, int(std::ceil(c.raster.x - 0.5f - radius.x)));
-    int x1 = std::min(width - 1, int(std::floor(c.raster.x - 0.5f + radius.x)));
-    int y0 = std::max(0, int(std::ceil(c.raster.y - 0.5f - radius.y)));
-    int y1 = std::min(height - 1, int(std::floor(c.raster.y - 0.5f + radius.y)));
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
-        float h = filter_eval(tracer.filter_, c.raster - vec2(float(x) + 0.5f, float(y) + 0.5f));
-        const size_t pixel = size_t(y) * size_t(width) + size_t(x);
-        if (h == 0.0f || !rendered(pixel, sample)) continue;
-        const float w = camera_filter_sample(tracer.filter_, samples.camera_seed, uint32_t(pixel), sample).weight;
-        // A directly seen caustic's camera path scatters first at its diffuse receiver.
-        film.splat(uint32_t(pixel), sample, c.value * (h * w * inv_integral), kEventDiffuse);
-      }
-  });
+void CausticTracer::Pass::splat(uint32_t sample, const Connection& cn, Counts& c) const {
+  ++c.splats;
+  int x0 = std::max(0, int(std::ceil(cn.raster.x - 0.5f - radius.x)));
+  int x1 = std::min(width - 1, int(std::floor(cn.raster.x - 0.5f + radius.x)));
+  int y0 = std::max(0, int(std::ceil(cn.raster.y - 0.5f - radius.y)));
+  int y1 = std::min(height - 1, int(std::floor(cn.raster.y - 0.5f + radius.y)));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      float h = filter_eval(tracer.filter_, cn.raster - vec2(float(x) + 0.5f, float(y) + 0.5f));
+      const size_t pixel = size_t(y) * size_t(width) + size_t(x);
+      if (h == 0.0f || !rendered(pixel, sample)) continue;
+      const float w = camera_filter_sample(tracer.filter_, samples.camera_seed, uint32_t(pixel), sample).weight;
+      // A directly seen caustic's camera path scatters first at its diffuse receiver.
+      film.splat(uint32_t(pixel), sample, cn.value * (h * w * inv_integral), kEventDiffuse);
+    }
 }
 
 CausticTracer::~CausticTracer() = default;
@@ -466,16 +420,7 @@ void CausticTracer::trace(Film& film, const CausticSamples& samples,
     scratch_->sphere_emitters = Pass::find_sphere_emitters(*this, scratch_->caster_boxes);
   }
   Pass pass(*this, *scratch_, film, samples, footprint);
-  for (pass.first = 0; pass.first < pass.total; pass.first += kChunk) {
-    pass.n = size_t(std::min<uint64_t>(kChunk, pass.total - pass.first));
-    pass.leave_light();
-    pass.trace_rays();
-    pass.the_caster();
-    pass.trace_rays();
-    pass.the_receiver();
-    pass.trace_connections();
-    pass.splat();
-  }
+  pass.trace_all();
   stats_.paths += pass.total;
   stats_.caster_hits += pass.caster_hits.load();
   stats_.receiver_hits += pass.receiver_hits.load();

@@ -113,10 +113,9 @@ class CausticTracer {
   int passes() const { return passes_; }
 
  private:
-  struct Pass;  // one call of trace(): its light paths, chunk by chunk
-  // What passes share: the chunk's buffers and the scene's caster boxes and
-  // sphere estimates, made by the first pass and kept (made per pass, their
-  // fresh pages cost veach-mis 5.7% of its CPU at 32 spp).
+  struct Pass;  // one call of trace(): its light paths
+  // What passes share: the scene's caster boxes and sphere estimates, made
+  // by the first pass and kept.
   struct Scratch;
   std::unique_ptr<Scratch> scratch_;
   const Scene& scene_;

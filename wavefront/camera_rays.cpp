@@ -7,6 +7,8 @@ namespace theia {
 
 namespace {
 
+constexpr size_t kSlotPrefetchDistance = 8;
+
 struct PixelSample {
   uint32_t pixel = 0, sample = 0;
   bool alpha_only = false;  // past the pixel's colour samples: coverage only
@@ -80,6 +82,9 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   const uint32_t width = uint32_t(film.width);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
+      // The free slots' path records were last written by whichever thread
+      // ended their paths: fetch them for writing a few samples ahead.
+      if (i + kSlotPrefetchDistance < r.end()) __builtin_prefetch(&pool[slots[i + kSlotPrefetchDistance]], 1);
       const PixelSample s = camera_sample(first + i, ranges, sample_begin, sample_count);
       const SamplerKey key{opt.seed, s.pixel, s.sample};
       FilterSample fs = camera_filter_sample(filter, opt.seed, s.pixel, s.sample);

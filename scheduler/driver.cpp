@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <mutex>
 #include <numeric>
@@ -16,7 +17,7 @@ namespace theia {
 namespace {
 
 constexpr const char* kSchedulerSection = "scheduler";
-constexpr uint32_t kSchedulerSectionVersion = 4;
+constexpr uint32_t kSchedulerSectionVersion = 5;
 // A WeightedRun's planes in a checkpoint image: runK.R .G .B (sum), .W (weight), .V (variance);
 // the settled run's are settled.R ... settled.V.
 constexpr const char* kRunChannels[5] = {"R", "G", "B", "W", "V"};
@@ -31,6 +32,11 @@ struct Position {
   uint64_t generation = 0;      // of the last checkpoint written or read
   // The first iteration of a schedule switched to (IterationConfig::switch_schedule); -1: none.
   int switched_at = -1;
+  // Wall and CPU seconds the iteration had run when it was interrupted
+  // (camera_done > 0): a resumed iteration's time counts them, so that what
+  // is judged by time (--guiding-auto's efficiency) sees the iteration's
+  // whole cost, as an uninterrupted render does, not just the rest of it.
+  double partial_seconds = 0.0, partial_cpu_seconds = 0.0;
 };
 
 // Raises `stop` with StopReason::TimeLimit at `at`, unless destroyed first.
@@ -160,6 +166,8 @@ Checkpoint make_checkpoint(const IterationConfig& cfg, const std::vector<int>& s
   w.put<uint32_t>(acc.settled.spp_end);
   w.put<uint32_t>(acc.skipped);
   w.put<int32_t>(pos.switched_at);
+  w.put<double>(pos.partial_seconds);
+  w.put<double>(pos.partial_cpu_seconds);
   c.sections.push_back({kSchedulerSection, kSchedulerSectionVersion, std::move(w.bytes)});
   for (const auto& p : cfg.participants) c.sections.push_back({p.name, p.version, p.save()});
   return c;
@@ -204,6 +212,11 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, std::vector<int>& 
   const uint32_t settled_begin = r.get<uint32_t>(), settled_end = r.get<uint32_t>();
   const uint32_t skipped = r.get<uint32_t>();
   pos.switched_at = r.get<int32_t>();
+  pos.partial_seconds = r.get<double>();
+  pos.partial_cpu_seconds = r.get<double>();
+  if (!(pos.partial_seconds >= 0.0 && pos.partial_cpu_seconds >= 0.0 && std::isfinite(pos.partial_seconds) &&
+        std::isfinite(pos.partial_cpu_seconds)))
+    throw_error("{}: bad interrupted-iteration times", what);
   if (!follows_plan(sizes, saved_sizes, pos.switched_at)) throw_error("{}: written for a different schedule", what);
   sizes = saved_sizes;
   if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks || settled_end < settled_begin)
@@ -334,6 +347,7 @@ class IterationRun {
   // The iteration in progress: its clocks.
   std::chrono::steady_clock::time_point iteration_t0_;
   double iteration_cpu0_ = 0.0;
+  double seconds_before_resume_ = 0.0;  // Position::partial_seconds of a resumed iteration, else 0
   nlohmann::json iterations_ = nlohmann::json::array();
   nlohmann::json switch_log_;  // null: the schedule planned up front throughout
 };
@@ -492,8 +506,13 @@ bool IterationRun::render_iteration() {
   info_.index = i;
   info_.spp_begin = cfg_.sample_begin + uint32_t(cumulative_[size_t(i)] - sizes_[size_t(i)]);
   info_.spp_end = cfg_.sample_begin + uint32_t(cumulative_[size_t(i)]);
-  iteration_t0_ = std::chrono::steady_clock::now();
-  iteration_cpu0_ = process_cpu_seconds();
+  // A resumed iteration's clocks start where its interruption stopped them.
+  const bool resumed_inside = pos_.camera_done > 0;
+  seconds_before_resume_ = resumed_inside ? pos_.partial_seconds : 0.0;
+  iteration_t0_ = std::chrono::steady_clock::now() -
+                  std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>(resumed_inside ? pos_.partial_seconds : 0.0));
+  iteration_cpu0_ = process_cpu_seconds() - (resumed_inside ? pos_.partial_cpu_seconds : 0.0);
   info_.elapsed_seconds = seconds_since(cfg_.clock_start);
   tasks_.begin_iteration(info_);
   auto progress = [&](double f) {
@@ -550,6 +569,8 @@ void IterationRun::keep_stopped_iteration(uint64_t done, uint64_t camera_total) 
 // Stopped by a signal inside the iteration: keep exactly the camera samples done.
 void IterationRun::save_interrupted_iteration(uint64_t done) {
   pos_.camera_done = done;
+  pos_.partial_seconds = seconds_since(iteration_t0_);
+  pos_.partial_cpu_seconds = process_cpu_seconds() - iteration_cpu0_;
   if (checkpoints_) write();
   iterations_.push_back({{"spp", {info_.spp_begin, info_.spp_end}}, {"seconds", seconds_since(iteration_t0_)},
                          {"stopped_after_camera_samples", done}});
@@ -568,6 +589,7 @@ bool IterationRun::fold_finished_iteration() {
   film_.clear();
   pos_.iteration = info_.index + 1;
   pos_.camera_done = 0;
+  pos_.partial_seconds = pos_.partial_cpu_seconds = 0.0;
   nlohmann::json evaluation;
   if (cfg_.evaluate) evaluation = cfg_.evaluate(info_, acc_);
   const double checkpoint_before = checkpoint_seconds_;
@@ -579,6 +601,7 @@ bool IterationRun::fold_finished_iteration() {
                          {"cpu_seconds", process_cpu_seconds() - iteration_cpu0_},
                          {"checkpoint", wrote_this_iteration_},
                          {"checkpoint_seconds", checkpoint_seconds_ - checkpoint_before}});
+  if (seconds_before_resume_ > 0.0) iterations_.back()["seconds_before_resume"] = seconds_before_resume_;
   if (evaluation.is_object()) iterations_.back().update(evaluation);
   if (signalled() && !info_.last()) {
     interrupted_ = true;

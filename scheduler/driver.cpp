@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <condition_variable>
 #include <mutex>
 #include <numeric>
@@ -214,9 +213,11 @@ void restore(const Checkpoint& c, const IterationConfig& cfg, std::vector<int>& 
   pos.switched_at = r.get<int32_t>();
   pos.partial_seconds = r.get<double>();
   pos.partial_cpu_seconds = r.get<double>();
-  if (!(pos.partial_seconds >= 0.0 && pos.partial_cpu_seconds >= 0.0 && std::isfinite(pos.partial_seconds) &&
-        std::isfinite(pos.partial_cpu_seconds)))
-    throw_error("{}: bad interrupted-iteration times", what);
+  // At most 1e9 s (31 years): a clock set back further would overflow.
+  if (!(pos.partial_seconds >= 0.0 && pos.partial_seconds <= 1e9 && pos.partial_cpu_seconds >= 0.0 &&
+        pos.partial_cpu_seconds <= 1e9))
+    throw_error("{}: bad interrupted-iteration times ({} s, {} CPU-s)", what, pos.partial_seconds,
+                pos.partial_cpu_seconds);
   if (!follows_plan(sizes, saved_sizes, pos.switched_at)) throw_error("{}: written for a different schedule", what);
   sizes = saved_sizes;
   if (run_spp.size() % 2 != 0 || run_spp.size() / 2 > ImageAccumulator::kMaxBlocks || settled_end < settled_begin)

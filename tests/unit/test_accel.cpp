@@ -538,36 +538,8 @@ TEST(AccelInstances, TwoInstancesOfOneMeshAndASphere) {
   EXPECT_GE(b.max.y, 21.0f);
 }
 
-// ---------------------------------------------------------------- alpha cut-outs
+// ---------------------------------------------------------------- interfaces
 
-// A float checkerboard of two cells along u: alpha 1 for u < 0.5 and 0 (cut
-// out) above.  On a full sphere or disk u = phi / 2 pi, so the half with y < 0
-// is cut away.
-int half_cut_alpha(Scene& sc) {
-  Texture t;
-  t.kind = TextureKind::Checkerboard;
-  t.is_float = true;
-  t.mapping = {2.0f, 1.0f, 0.0f, 0.0f};
-  sc.textures.push_back(t);
-  return int(sc.textures.size()) - 1;
-}
-int constant_alpha(Scene& sc, float a) {
-  Texture t;
-  t.is_float = true;
-  t.value = RGB(a);
-  sc.textures.push_back(t);
-  return int(sc.textures.size()) - 1;
-}
-// The plane x = x0, |y|, |z| <= 10.
-TriangleMesh wall_at_x(float x0) {
-  TriangleMesh m;
-  m.p = {vec3(x0, -10, -10), vec3(x0, 10, -10), vec3(x0, 10, 10), vec3(x0, -10, 10)};
-  m.indices = {0, 1, 2, 0, 2, 3};
-  return m;
-}
-Ray ray_to(vec3 o, vec3 d, float tmax) { return Ray{o, 0.0f, d, tmax}; }
-
-// The sphere's front half (y < 0, seen from -y) is cut away, its back is not.
 // An "interface" surface bounds media and does not scatter: closest-hit rays
 // stop at it (the engine continues them), shadow rays pass it, as pbrt-v4's
 // shadow rays pass a surface without a material.  Every kind of shape, and a
@@ -666,6 +638,36 @@ TEST(AccelInterface, PassingMeshesKeepTheirUnitNormals) {
   EXPECT_GE(crossings, 2);
 }
 
+// ---------------------------------------------------------------- alpha cut-outs
+
+// A float checkerboard of two cells along u: alpha 1 for u < 0.5 and 0 (cut
+// out) above.  On a full sphere or disk u = phi / 2 pi, so the half with y < 0
+// is cut away.
+int half_cut_alpha(Scene& sc) {
+  Texture t;
+  t.kind = TextureKind::Checkerboard;
+  t.is_float = true;
+  t.mapping = {2.0f, 1.0f, 0.0f, 0.0f};
+  sc.textures.push_back(t);
+  return int(sc.textures.size()) - 1;
+}
+int constant_alpha(Scene& sc, float a) {
+  Texture t;
+  t.is_float = true;
+  t.value = RGB(a);
+  sc.textures.push_back(t);
+  return int(sc.textures.size()) - 1;
+}
+// The plane x = x0, |y|, |z| <= 10.
+TriangleMesh wall_at_x(float x0) {
+  TriangleMesh m;
+  m.p = {vec3(x0, -10, -10), vec3(x0, 10, -10), vec3(x0, 10, 10), vec3(x0, -10, 10)};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  return m;
+}
+Ray ray_to(vec3 o, vec3 d, float tmax) { return Ray{o, 0.0f, d, tmax}; }
+
+// The sphere's front half (y < 0, seen from -y) is cut away, its back is not.
 TEST(AccelAlpha, CutOutSphereShowsItsFarSideAndWhatLiesBehind) {
   for (bool is_virtual : {false, true}) {
     Scene sc;

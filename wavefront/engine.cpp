@@ -25,6 +25,12 @@ int direction_bin(const vec3& d) {
 }
 
 
+// Shading order: (instance, geometry, primitive); misses last.
+uint64_t hit_sort_key(const Hit& h) {
+  return h.geom == kInvalidId ? ~uint64_t(0)
+                              : (uint64_t(h.inst + 1) << 48) | (uint64_t(h.geom & 0xffff) << 32) | h.prim;
+}
+
 }  // namespace
 
 EngineSizes engine_sizes(const EngineOptions& o, uint64_t pixels, int threads) {
@@ -208,8 +214,7 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   trace_closest(b);
   if (!pool.medium.empty()) handle_medium_interactions(b);
   sort_hits(b);
-  handle_escaped_rays();
-  shade_surface_hits(b);
+  shade_batch(b);
   merge_outputs();
 }
 
@@ -310,12 +315,18 @@ void WavefrontEngine::Impl::trace_closest(const Batch& b) {
   batch_skips.clear();
   if (!pool.curve_skip.empty())
     for (uint32_t slot : b.paths) batch_skips.push_back(pool.curve_skip[slot]);
+  // Without media the hits are final once traced: their shading keys are
+  // made in the same loop, a stage boundary fewer per batch.
+  const bool keys_here = pool.medium.empty();
+  if (keys_here) keys.resize(n);
   ScopedTimer timer(stats.phases[Phase::Trace]);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
     std::span<const PrimRef> skips;
     if (!batch_skips.empty()) skips = std::span<const PrimRef>(batch_skips.data() + r.begin(), r.size());
     accel.intersect(std::span<const Ray>(b.rays.data() + r.begin(), r.size()),
                     std::span<Hit>(hits.data() + r.begin(), r.size()), b.camera, skips);
+    if (keys_here)
+      for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
   });
 }
 
@@ -327,55 +338,66 @@ void WavefrontEngine::Impl::trace_closest(const Batch& b) {
 void WavefrontEngine::Impl::sort_hits(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Sort]);
   const size_t n = b.size();
-  keys.resize(n);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      const Hit& h = hits[i];
-      uint64_t key = h.geom == kInvalidId
-                         ? ~uint64_t(0)
-                         : (uint64_t(h.inst + 1) << 48) | (uint64_t(h.geom & 0xffff) << 32) | h.prim;
-      keys[i] = SortPair{key, uint32_t(i)};
-    }
-  });
-  // Misses leave first (stable), so that the sort sees only hits: their
-  // keys share high bits, whose passes the radix sort then skips.
-  auto first_miss = std::stable_partition(keys.begin(), keys.end(), [](const SortPair& p) { return p.key != ~uint64_t(0); });
-  queue_clear(escaped);
-  for (auto it = first_miss; it != keys.end(); ++it) {
-    escaped.rays.push_back(b.rays[it->index]);
-    escaped.paths.push_back(b.paths[it->index]);
+  if (!pool.medium.empty()) {  // else trace_closest made them
+    keys.resize(n);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
+    });
   }
-  keys.erase(first_miss, keys.end());
+  // Misses leave first, in order, so that the sort sees only hits: their
+  // keys share high bits, whose passes the radix sort then skips.  (In
+  // place: std::stable_partition takes a temporary buffer per batch.)
+  queue_clear(escaped);
+  size_t kept = 0;
+  for (size_t k = 0; k < keys.size(); ++k) {
+    const SortPair p = keys[k];
+    if (p.key != ~uint64_t(0)) {
+      keys[kept++] = p;
+    } else {
+      escaped.rays.push_back(b.rays[p.index]);
+      escaped.paths.push_back(b.paths[p.index]);
+    }
+  }
+  keys.resize(kept);
   if (opt.sort) radix_sort(keys, scratch, 64);
 }
 
-// ---------------------------------------------------------------- shade surface hits
+// ---------------------------------------------------------------- shade
 
-void WavefrontEngine::Impl::shade_surface_hits(const Batch& b) {
+// The batch's escaped rays and surface hits in one parallel loop, escapes
+// first: a stage boundary fewer per batch (each costs both threads a wait),
+// and at one thread the order of two loops.
+void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
-  const size_t n = keys.size();
+  const size_t n_escaped = escaped.size(), n = n_escaped + keys.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    for (size_t k = r.begin(); k < r.end(); ++k) {
-      // Hits arrive in (geometry, primitive) order, which scatters their
-      // rays and path records: fetch a few iterations ahead.
-      if (k + kPrefetchDistance < n) {
-        uint32_t j = keys[k + kPrefetchDistance].index;
-        __builtin_prefetch(&b.rays[j]);
-        __builtin_prefetch(&hits[j]);
-        __builtin_prefetch(&pool[b.paths[j]]);
-        pool.prefetch_cold(b.paths[j]);
-      }
-      // The path record fetched above names the observer's vertex: fetch that too.
-      if (observer && k + kPrefetchDistance / 2 < n)
-        observer->prefetch(pool[b.paths[keys[k + kPrefetchDistance / 2].index]].vertex);
-      uint32_t i = keys[k].index;
-      if (observer)
-        shade_surface<true>(b.rays[i], hits[i], b.paths[i], out);
-      else
-        shade_surface<false>(b.rays[i], hits[i], b.paths[i], out);
-    }
+    size_t k = r.begin();
+    for (; k < std::min(r.end(), n_escaped); ++k) handle_escaped_ray(k, out);
+    for (; k < r.end(); ++k) shade_surface_hit(b, k - n_escaped, out);
   });
+}
+
+// Surface hit k in shading order.
+void WavefrontEngine::Impl::shade_surface_hit(const Batch& b, size_t k, ShadeOutput& out) {
+  const size_t n = keys.size();
+  // Hits arrive in (geometry, primitive) order, which scatters their rays
+  // and path records: fetch a few iterations ahead.
+  if (k + kPrefetchDistance < n) {
+    uint32_t j = keys[k + kPrefetchDistance].index;
+    __builtin_prefetch(&b.rays[j]);
+    __builtin_prefetch(&hits[j]);
+    __builtin_prefetch(&pool[b.paths[j]]);
+    pool.prefetch_cold(b.paths[j]);
+  }
+  // The path record fetched above names the observer's vertex: fetch that too.
+  if (observer && k + kPrefetchDistance / 2 < n)
+    observer->prefetch(pool[b.paths[keys[k + kPrefetchDistance / 2].index]].vertex);
+  uint32_t i = keys[k].index;
+  if (observer)
+    shade_surface<true>(b.rays[i], hits[i], b.paths[i], out);
+  else
+    shade_surface<false>(b.rays[i], hits[i], b.paths[i], out);
 }
 
 size_t WavefrontEngine::Impl::memory_bytes() const {

@@ -186,8 +186,9 @@ struct WavefrontEngine::Impl {
   void sort_rays(Batch& b);
   void trace_closest(const Batch& b);
   void sort_hits(const Batch& b);           // shading order into `keys`, misses into `escaped`
-  void handle_escaped_rays();               // escaped_rays.cpp
-  void shade_surface_hits(const Batch& b);  // surface.cpp
+  void shade_batch(const Batch& b);         // escaped rays, then surface hits
+  void handle_escaped_ray(size_t i, ShadeOutput& out);                  // escaped_rays.cpp
+  void shade_surface_hit(const Batch& b, size_t k, ShadeOutput& out);  // in `keys` order
   void merge_outputs();
   void check_media_hooks() const;
   void trace_shadow_rays();                 // shadow_rays.cpp

@@ -2,8 +2,6 @@
 // against light sampling, and their paths end.
 #include "wavefront/engine_impl.h"
 
-#include <tbb/parallel_for.h>
-
 namespace theia {
 
 namespace {
@@ -26,23 +24,17 @@ void WavefrontEngine::Impl::handle_escaped(const Ray& ray, uint32_t slot, ShadeO
   finish_path<kObserve>(slot, out);
 }
 
-void WavefrontEngine::Impl::handle_escaped_rays() {
-  const size_t n = escaped.size();
-  if (n == 0) return;
-  ScopedTimer timer(stats.phases[Phase::Shade]);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
-    ShadeOutput& out = outputs.local();
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      // The escaped rays keep their batch's sort order, which scatters the
-      // path records: fetch a few ahead (the first load of each was most
-      // of this stage's cycles).
-      if (i + kEscapedPrefetchDistance < n) __builtin_prefetch(&pool[escaped.paths[i + kEscapedPrefetchDistance]]);
-      if (observer)
-        handle_escaped<true>(escaped.rays[i], escaped.paths[i], out);
-      else
-        handle_escaped<false>(escaped.rays[i], escaped.paths[i], out);
-    }
-  });
+// Escaped ray i of the batch (shade_batch's loop runs them first).
+void WavefrontEngine::Impl::handle_escaped_ray(size_t i, ShadeOutput& out) {
+  // The escaped rays keep their batch's sort order, which scatters the path
+  // records: fetch a few ahead (the first load of each was most of this
+  // stage's cycles).
+  if (i + kEscapedPrefetchDistance < escaped.size())
+    __builtin_prefetch(&pool[escaped.paths[i + kEscapedPrefetchDistance]]);
+  if (observer)
+    handle_escaped<true>(escaped.rays[i], escaped.paths[i], out);
+  else
+    handle_escaped<false>(escaped.rays[i], escaped.paths[i], out);
 }
 
 }  // namespace theia

@@ -15,15 +15,13 @@ namespace theia {
 inline vec2 sample_uniform_disk_concentric(vec2 u) {
   vec2 o = 2.0f * u - vec2(1.0f);
   if (o.x == 0.0f && o.y == 0.0f) return vec2(0.0f);
-  float r, theta;
-  if (std::abs(o.x) > std::abs(o.y)) {
-    r = o.x;
-    theta = (kPi / 4.0f) * (o.y / o.x);
-  } else {
-    r = o.y;
-    theta = (kPi / 2.0f) - (kPi / 4.0f) * (o.x / o.y);
-  }
-  return r * vec2(std::cos(theta), std::sin(theta));
+  // The angle is (pi / 4) (o.y / o.x) where |o.x| is the larger, else pi / 2
+  // less (pi / 4) (o.x / o.y): an octant's cos and sin, swapped for the
+  // second.  Selects, not branches: the choice is a coin flip.
+  const bool x_major = std::abs(o.x) > std::abs(o.y);
+  const float r = x_major ? o.x : o.y, minor = x_major ? o.y : o.x;
+  const vec2 cs = cos_sin_octant((kPi / 4.0f) * (minor / r));
+  return r * vec2(x_major ? cs.x : cs.y, x_major ? cs.y : cs.x);
 }
 
 inline vec3 sample_cosine_hemisphere(vec2 u) {
@@ -36,16 +34,16 @@ inline float cosine_hemisphere_pdf(float cos_theta) { return std::max(cos_theta,
 inline vec3 sample_uniform_sphere(vec2 u) {
   float z = 1.0f - 2.0f * u.x;
   float r = safe_sqrt(1.0f - z * z);
-  float phi = 2.0f * kPi * u.y;
-  return {r * std::cos(phi), r * std::sin(phi), z};
+  const vec2 cs = cos_sin_turn(u.y);
+  return {r * cs.x, r * cs.y, z};
 }
 inline constexpr float uniform_sphere_pdf() { return kInv4Pi; }
 
 inline vec3 sample_uniform_hemisphere(vec2 u) {
   float z = u.x;
   float r = safe_sqrt(1.0f - z * z);
-  float phi = 2.0f * kPi * u.y;
-  return {r * std::cos(phi), r * std::sin(phi), z};
+  const vec2 cs = cos_sin_turn(u.y);
+  return {r * cs.x, r * cs.y, z};
 }
 inline constexpr float uniform_hemisphere_pdf() { return kInv2Pi; }
 
@@ -53,8 +51,8 @@ inline constexpr float uniform_hemisphere_pdf() { return kInv2Pi; }
 inline vec3 sample_uniform_cone(vec2 u, float cos_theta_max) {
   float cos_theta = (1.0f - u.x) + u.x * cos_theta_max;
   float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
-  float phi = u.y * 2.0f * kPi;
-  return {std::cos(phi) * sin_theta, std::sin(phi) * sin_theta, cos_theta};
+  const vec2 cs = cos_sin_turn(u.y);
+  return {cs.x * sin_theta, cs.y * sin_theta, cos_theta};
 }
 inline float uniform_cone_pdf(float cos_theta_max) { return 1.0f / (2.0f * kPi * (1.0f - cos_theta_max)); }
 
@@ -72,13 +70,12 @@ inline vec2 sample_uniform_triangle(vec2 u) {
 }
 
 // Tent on [-r, r] (the triangle filter's shape).
+// Selects, not branches: which half u falls in is a coin flip (every camera
+// ray draws two).
 inline float sample_tent(float u, float r) {
-  if (u < 0.5f) {
-    float up = u * 2.0f;
-    return -r + r * safe_sqrt(up);
-  }
-  float up = (u - 0.5f) * 2.0f;
-  return r - r * safe_sqrt(1.0f - up);
+  const bool left = u < 0.5f;
+  const float s = r * safe_sqrt(left ? u * 2.0f : 1.0f - (u - 0.5f) * 2.0f);
+  return left ? -r + s : r - s;
 }
 inline float tent_pdf(float x, float r) { return std::abs(x) >= r ? 0.0f : (1.0f / r - std::abs(x) / (r * r)); }
 
@@ -95,10 +92,12 @@ inline vec3 equal_area_square_to_sphere(vec2 p) {
   float up = std::abs(u), vp = std::abs(v);
   float signed_distance = 1.0f - (up + vp);  // > 0 inside the diamond (upper hemisphere)
   float r = 1.0f - std::abs(signed_distance);
-  float phi = (r == 0.0f ? 1.0f : (vp - up) / r + 1.0f) * (kPi / 4.0f);
+  // phi = (pi / 4) turns_8 within the quadrant, turns_8 in [0, 2].
+  float turns_8 = r == 0.0f ? 1.0f : (vp - up) / r + 1.0f;
+  const vec2 cs = cos_sin_turn(turns_8 * 0.125f);
   float z = std::copysign(1.0f - r * r, signed_distance);
   float s = r * safe_sqrt(2.0f - r * r);
-  return {std::copysign(std::cos(phi), u) * s, std::copysign(std::sin(phi), v) * s, z};
+  return {std::copysign(cs.x, u) * s, std::copysign(cs.y, v) * s, z};
 }
 
 // The square's point for a unit vector d, from r = sqrt(1 - |d.z|) and phi,

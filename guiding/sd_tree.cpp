@@ -61,8 +61,8 @@ vec2 sd_direction_to_square(const vec3& wi) {
 vec3 sd_square_to_direction(vec2 c) {
   float cos_theta = 2.0f * c.x - 1.0f;
   float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
-  float phi = 2.0f * kPi * c.y;
-  return {sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta};
+  const vec2 cs = cos_sin_turn(c.y);
+  return {sin_theta * cs.x, sin_theta * cs.y, cos_theta};
 }
 
 namespace {

@@ -16,9 +16,10 @@ namespace {
 // pbrt-v4's Image::LookupNearest: uv in [0,1]^2 with (0, 0) the top-left
 // corner, clamped; negative values clamped to zero.
 RGB nearest_texel(const Image& img, vec2 uv) {
+  if (img.pixels.empty() || img.width <= 0 || img.height <= 0) return RGB(0.0f);
   ivec2 p(std::clamp(int(uv.x * float(img.width)), 0, img.width - 1),
           std::clamp(int(uv.y * float(img.height)), 0, img.height - 1));
-  return glm::max(image_texel(img, p, WrapMode::Clamp), RGB(0.0f));
+  return glm::max(texel_value(img, p), RGB(0.0f));
 }
 
 RGB environment_texel(const EnvironmentMap& env, vec2 uv) { return nearest_texel(*env.image, uv); }

@@ -113,8 +113,7 @@ struct TrowbridgeReitz {
     if (wh.z < 0.0f) wh = -wh;
     vec3 t1 = wh.z < 0.99999f ? glm::normalize(glm::cross(vec3(0, 0, 1), wh)) : vec3(1, 0, 0);
     vec3 t2 = glm::cross(wh, t1);
-    float r = std::sqrt(u.x), phi = 2.0f * kPi * u.y;
-    vec2 p(r * std::cos(phi), r * std::sin(phi));
+    vec2 p = std::sqrt(u.x) * cos_sin_turn(u.y);
     float h = std::sqrt(1.0f - p.x * p.x);
     float s = (1.0f + wh.z) * 0.5f;
     p.y = (1.0f - s) * h + s * p.y;
@@ -137,10 +136,11 @@ inline vec3 sample_henyey_greenstein(const vec3& wo, float g, vec2 u, float* pdf
   if (std::abs(g) < 1e-3f) cos_theta = 1.0f - 2.0f * u.x;
   else cos_theta = -1.0f / (2.0f * g) * (1.0f + g * g - sqr((1.0f - g * g) / (1.0f + g - 2.0f * g * u.x)));
   cos_theta = std::clamp(cos_theta, -1.0f, 1.0f);
-  float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta), phi = 2.0f * kPi * u.y;
+  float sin_theta = safe_sqrt(1.0f - cos_theta * cos_theta);
+  const vec2 cs = cos_sin_turn(u.y);
   Frame f = Frame::from_z(wo);
   *pdf = henyey_greenstein(cos_theta, g);
-  return f.from_local(vec3(sin_theta * std::cos(phi), sin_theta * std::sin(phi), cos_theta));
+  return f.from_local(vec3(sin_theta * cs.x, sin_theta * cs.y, cos_theta));
 }
 
 }  // namespace theia

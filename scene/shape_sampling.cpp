@@ -221,8 +221,8 @@ std::optional<ShapeSample> ShapeSampling::sample(int shape, const ShapeSampleCon
       }
       float cos_alpha = sin2_theta / sin_theta_max + cos_theta * safe_sqrt(1.0f - sin2_theta / sin2_theta_max);
       float sin_alpha = safe_sqrt(1.0f - sqr(cos_alpha));
-      float phi = u.y * 2.0f * kPi;
-      vec3 w(sin_alpha * std::cos(phi), sin_alpha * std::sin(phi), cos_alpha);
+      const vec2 cs = cos_sin_turn(u.y);
+      vec3 w(sin_alpha * cs.x, sin_alpha * cs.y, cos_alpha);
       Frame frame = Frame::from_z(to_center / dc);
       vec3 n_out = glm::normalize(frame.from_local(-w));
       ShapeSample ss;

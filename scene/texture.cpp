@@ -287,11 +287,6 @@ inline bool remap_texel(ivec2& p, int w, int h, WrapMode wrap) {
   }
 }
 
-inline RGB texel_value(const Image& img, ivec2 p) {
-  const float* v = &img.pixels[(size_t(p.y) * size_t(img.width) + size_t(p.x)) * size_t(img.channels)];
-  return img.channels >= 3 ? RGB(v[0], v[1], v[2]) : RGB(v[0]);
-}
-
 // Keeps float-to-int conversion defined for huge or NaN coordinates.
 inline float sane_coord(float x) { return std::fmin(std::fmax(x, -1e8f), 1e8f); }
 

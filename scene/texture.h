@@ -90,5 +90,10 @@ RGB image_bilerp(const Image& image, vec2 p, WrapMode wrap);
 // One texel, integer raster coordinates remapped by `wrap`; black outside
 // the image for WrapMode::Black.
 RGB image_texel(const Image& image, ivec2 p, WrapMode wrap);
+// The texel at p, which must lie in the (non-empty) image.
+inline RGB texel_value(const Image& img, ivec2 p) {
+  const float* v = &img.pixels[(size_t(p.y) * size_t(img.width) + size_t(p.x)) * size_t(img.channels)];
+  return img.channels >= 3 ? RGB(v[0], v[1], v[2]) : RGB(v[0]);
+}
 
 }  // namespace theia

@@ -114,13 +114,13 @@ RGB walk_f(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
   for (int s = 0; s < n_samples; ++s) {
     // Into the layers through the top, and a presampled way out towards wi.
     const auto d_wos = r.draw_no_choice();
-    auto wos = bxdf_sample(L.top, wo, d_wos.uc, d_wos.u, mode, kSampleTransmission);
-    if (!usable(wos)) continue;
+    auto wos = bxdf_kinds::sample_one_half(L.top, wo, d_wos.u, mode, kSampleTransmission);
+    if (!wos) continue;
     const auto d_wis = r.draw_no_choice();
     auto wis = bxdf_sample(exit, wi, d_wis.uc, d_wis.u, !mode, kSampleTransmission);
     if (!usable(wis)) continue;
     const float tr_wis = transmittance(thickness, wis->wi);
-    RGB beta = wos->f * std::abs(wos->wi.z) / wos->pdf;
+    RGB beta = wos->weight;
     float z = thickness;
     vec3 w = wos->wi;
     // Every contribution made at step `depth` leaves through the exit at the
@@ -168,9 +168,9 @@ RGB walk_f(const Coated& b, vec3 wo, vec3 wi, TransportMode mode) {
       if (z == exit_z) {
         // Reflection back down at the top.
         const auto d = r.draw_no_choice();
-        auto bs = bxdf_sample(exit, -w, d.uc, d.u, mode, kSampleReflection);
-        if (!usable(bs)) break;
-        beta *= bs->f * std::abs(bs->wi.z) / bs->pdf;
+        auto bs = bxdf_kinds::sample_one_half(exit, -w, d.u, mode, kSampleReflection);
+        if (!bs) break;
+        beta *= bs->weight;
         w = bs->wi;
       } else {
         // At the base: NEE along wis, then sample the base.

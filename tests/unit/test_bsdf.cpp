@@ -3,6 +3,7 @@
 // normalisation, and the layered BxDFs' sampling against their evaluation.
 // The chi-square sweep is in test_bsdf_chi2.cpp.
 #include "scene/bsdf.h"
+#include "scene/bxdf_kinds.h"
 #include "tests/unit/bxdf_test_util.h"
 
 #include <fmt/format.h>
@@ -262,6 +263,39 @@ TEST(BxDFReciprocity, ReflectionIsSymmetricAndRefractionScalesByEtaSquared) {
 // Instead: the albedo from their sampling weights agrees with the albedo
 // integrated from their f (this caught MIS weights in f's random walk that did
 // not sum to one), energy is bounded, and the pdf is positive wherever f is and roughly normalised.
+// The layered walk's shortcut: a dielectric's one-half sample with its weight
+// alone must be bxdf_sample's sample (same direction, same refusals) with its
+// f |cos| / pdf, for every roughness (smooth included), index, side and mode.
+TEST(DielectricHalfSample, IsTheFullSampleWithItsWeight) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> u01(0.0f, 0.99999994f);
+  int compared = 0, refused = 0;
+  for (float alpha : {0.0f, 0.001f, 0.05f, 0.3f, 1.0f})
+    for (float eta : {1.0f, 1.05f, 1.5f, 4.0f})
+      for (uint8_t half : {uint8_t(kSampleReflection), uint8_t(kSampleTransmission)})
+        for (TransportMode mode : {TransportMode::Radiance, TransportMode::Importance})
+          for (int k = 0; k < 400; ++k) {
+            const DielectricBxDF b{{alpha, alpha}, eta};
+            const float cos_o = 2.0f * u01(rng) - 1.0f, phi = 6.2831853f * u01(rng);
+            const float sin_o = std::sqrt(std::max(0.0f, 1.0f - cos_o * cos_o));
+            const vec3 wo(sin_o * std::cos(phi), sin_o * std::sin(phi), cos_o);
+            const vec2 u(u01(rng), u01(rng));
+            const auto full = bxdf_sample(b, wo, 0.5f, u, mode, half);
+            const auto one = bxdf_kinds::sample_one_half(b, wo, u, mode, half);
+            ASSERT_EQ(bool(full), bool(one)) << "alpha " << alpha << " eta " << eta << " wo.z " << wo.z;
+            if (!full) {
+              ++refused;
+              continue;
+            }
+            EXPECT_EQ(full->wi, one->wi);
+            const RGB w = full->f * std::abs(full->wi.z) / full->pdf;
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(one->weight[c], w[c], 2e-5f * std::max(1.0f, w[c]));
+            ++compared;
+          }
+  EXPECT_GT(compared, 10000);
+  EXPECT_GT(refused, 100);  // total internal reflection, eta 1 reflections: the refusals were exercised
+}
+
 TEST(LayeredBxDF, SamplingWeightsAgreeWithEvaluationAndConserveEnergy) {
   struct L {
     std::string name;

@@ -27,31 +27,6 @@ std::vector<float> random_table(size_t n, uint64_t seed, float zero_fraction) {
 
 }  // namespace
 
-// The warps' angles go through these polynomials rather than libm: they
-// must agree with the exact functions to float precision everywhere, and
-// give quarter turns exactly.
-TEST(CosSin, TurnAndOctantAgreeWithTheExactFunctions) {
-  double worst_turn = 0.0, worst_octant = 0.0;
-  for (int i = -(1 << 21); i <= (1 << 21); ++i) {
-    const float u = float(i) / float(1 << 20);  // [-2, 2] turns, quarter turns included
-    const vec2 cs = cos_sin_turn(u);
-    const double phi = 2.0 * 3.14159265358979323846 * double(u);
-    worst_turn = std::max({worst_turn, std::abs(double(cs.x) - std::cos(phi)), std::abs(double(cs.y) - std::sin(phi))});
-    const float a = float(i) / float(1 << 21) * (kPi / 4.0f);  // [-pi/4, pi/4]
-    const vec2 co = cos_sin_octant(a);
-    worst_octant = std::max({worst_octant, std::abs(double(co.x) - std::cos(double(a))),
-                             std::abs(double(co.y) - std::sin(double(a)))});
-  }
-  // A float ulp near 1 is 6e-8 (libm's sincosf is within one): two or three.
-  EXPECT_LT(worst_turn, 1.8e-7);
-  EXPECT_LT(worst_octant, 1.2e-7);
-  EXPECT_EQ(cos_sin_turn(0.0f), vec2(1.0f, 0.0f));
-  EXPECT_EQ(cos_sin_turn(0.25f), vec2(0.0f, 1.0f));
-  EXPECT_EQ(cos_sin_turn(0.5f), vec2(-1.0f, 0.0f));
-  EXPECT_EQ(cos_sin_turn(0.75f), vec2(0.0f, -1.0f));
-  EXPECT_EQ(cos_sin_turn(-0.25f), vec2(0.0f, -1.0f));
-}
-
 TEST(Chi2Warps, CosineHemisphere) {
   auto r = chi2_test_sphere([](vec2 u, float) { return std::optional(sample_cosine_hemisphere(u)); },
                             [](vec3 w) { return cosine_hemisphere_pdf(w.z); }, kSamples, 32, 64, kSignificance, 1,

@@ -201,7 +201,8 @@ inline std::optional<BxDFSample> usable_or_none(const std::optional<BxDFSample>&
 // the weight is F G(wo, wi) / G1(wo) by reflection, (1 - F) G / G1 (over
 // eta^2 for radiance) through, where f and pdf apart cost five divisions
 // more.  The same directions and refusals as bxdf_sample's (and for a
-// smooth interface, its very sample).
+// smooth interface, its very sample), but one: at a grazing wi whose f or
+// pdf alone would overflow, the weight (G -> 0 there) is finite and kept.
 struct DirectionWeight {
   vec3 wi;
   RGB weight;

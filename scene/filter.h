@@ -23,6 +23,7 @@ struct Filter {
   vec2 radius{1.5f};
   float sigma = 0.5f;
   vec2 gaussian_offset{0.0f};  // g(radius) per axis, subtracted so f reaches 0 at the radius
+  float gaussian_scale = 0.0f, gaussian_falloff = 0.0f;  // g(x) = scale exp(-x^2 falloff)
   float b = 1.0f / 3.0f, c = 1.0f / 3.0f;  // Mitchell
   float tau = 3.0f;                        // Lanczos
   float integral = 0.0f;                   // of f over its support

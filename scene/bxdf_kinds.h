@@ -238,7 +238,6 @@ inline std::optional<DirectionWeight> sample_one_half(const DielectricBxDF& b, c
   return d;
 }
 
-
 }  // namespace bxdf_kinds
 
 // The same for one known kind, without the dispatch.  bxdf_sample rejects

@@ -425,6 +425,39 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
   return si;
 }
 
+namespace {
+// The mesh behind a triangle hit, or nullptr.
+const TriangleMesh* hit_mesh(const Scene& scene, const Accel& accel, const Hit& hit) {
+  const int shape = accel.shape_index(hit);
+  if (shape < 0) return nullptr;
+  const Shape& s = scene.shapes[size_t(shape)];
+  return s.kind == ShapeKind::TriangleMesh ? &scene.meshes[size_t(s.mesh)] : nullptr;
+}
+}  // namespace
+
+void prefetch_triangle_indices(const Scene& scene, const Accel& accel, const Hit& hit) {
+  if (const TriangleMesh* m = hit_mesh(scene, accel, hit)) __builtin_prefetch(&m->indices[3 * size_t(hit.prim)]);
+}
+
+void prefetch_triangle_vertices(const Scene& scene, const Accel& accel, const Hit& hit) {
+  const TriangleMesh* m = hit_mesh(scene, accel, hit);
+  if (!m) return;
+  const uint32_t* v = &m->indices[3 * size_t(hit.prim)];
+  for (int c = 0; c < 3; ++c) {
+    __builtin_prefetch(&m->p[v[c]]);
+    if (!m->n.empty()) __builtin_prefetch(&m->n[v[c]]);
+    if (!m->uv.empty()) __builtin_prefetch(&m->uv[v[c]]);
+  }
+}
+
+size_t triangle_mesh_bytes(const Scene& scene) {
+  size_t bytes = 0;
+  for (const TriangleMesh& m : scene.meshes)
+    bytes += m.indices.size() * sizeof(uint32_t) + m.p.size() * sizeof(vec3) + m.n.size() * sizeof(vec3) +
+             m.uv.size() * sizeof(vec2);
+  return bytes;
+}
+
 // Out of line, so that every caller (and the accel's table of them) gets the
 // same rounding.
 [[gnu::noinline]] vec3 triangle_unit_normal(const TriangleMesh& m, size_t tri) {

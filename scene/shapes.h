@@ -89,6 +89,18 @@ double triangle_area(const TriangleMesh& m, size_t tri);
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]);
 
 SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit);
+// Shading visits a batch's hits in (geometry, primitive) order, yet on a mesh
+// larger than the cache neighbouring hits still land on distant triangles:
+// compute_interaction then waits on the triangle's indices and again on its
+// vertices.  Ask for them ahead, the indices first and, once they have
+// arrived, the vertices they name.  No-ops for other shapes.
+// Worth it only where the meshes outgrow the cache (triangle_mesh_bytes):
+// below that they cost two calls per hit and fetch nothing.
+void prefetch_triangle_indices(const Scene& scene, const Accel& accel, const Hit& hit);
+void prefetch_triangle_vertices(const Scene& scene, const Accel& accel, const Hit& hit);
+// Bytes of every triangle mesh's indices, positions, normals and uvs: what
+// compute_interaction reads from.
+size_t triangle_mesh_bytes(const Scene& scene);
 
 // pbrt-v4 OffsetRayOrigin: p pushed along ng past its error box, to w's side.
 vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const vec3& w);

@@ -82,9 +82,14 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   const uint32_t width = uint32_t(film.width);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
-      // The free slots' path records were last written by whichever thread
-      // ended their paths: fetch them for writing a few samples ahead.
-      if (i + kSlotPrefetchDistance < r.end()) __builtin_prefetch(&pool[slots[i + kSlotPrefetchDistance]], 1);
+      // The free slots' path records, and their cold tables that start_path
+      // resets, were last written by whichever thread ended their paths:
+      // fetch them a few samples ahead (the cold tables, left to wait, were
+      // most of this loop's time at two threads on smoke-grid).
+      if (i + kSlotPrefetchDistance < r.end()) {
+        __builtin_prefetch(&pool[slots[i + kSlotPrefetchDistance]], 1);
+        pool.prefetch_cold(slots[i + kSlotPrefetchDistance]);
+      }
       const PixelSample s = camera_sample(first + i, ranges, sample_begin, sample_count);
       const SamplerKey key{opt.seed, s.pixel, s.sample};
       FilterSample fs = camera_filter_sample(filter, opt.seed, s.pixel, s.sample);

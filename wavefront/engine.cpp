@@ -383,10 +383,15 @@ void WavefrontEngine::Impl::shade_surface_hit(const Batch& b, size_t k, ShadeOut
   const size_t n = keys.size();
   // Hits arrive in (geometry, primitive) order, which scatters their rays
   // and path records: fetch a few iterations ahead.
+  if (prefetch_triangles && k + 2 * kPrefetchDistance < n)
+    prefetch_triangle_indices(scene, accel, hits[keys[k + 2 * kPrefetchDistance].index]);
   if (k + kPrefetchDistance < n) {
     uint32_t j = keys[k + kPrefetchDistance].index;
     __builtin_prefetch(&b.rays[j]);
-    __builtin_prefetch(&hits[j]);
+    if (prefetch_triangles)
+      prefetch_triangle_vertices(scene, accel, hits[j]);
+    else
+      __builtin_prefetch(&hits[j]);
     __builtin_prefetch(&pool[b.paths[j]]);
     pool.prefetch_cold(b.paths[j]);
   }

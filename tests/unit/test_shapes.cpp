@@ -364,3 +364,33 @@ TEST(ShapeSampling, NonEmissiveShapesAreNotSampled) {
   EXPECT_EQ(ss.area(0), 0.0f);
   EXPECT_EQ(ss.area(7), 0.0f);
 }
+
+// The triangle data shading reads per hit, which decides whether the engine
+// fetches it ahead; and the fetches themselves, which must accept a hit of
+// any kind (a mesh at top level or instanced, a quadric, a miss).
+TEST(TriangleMeshes, BytesCountEveryArrayAndPrefetchAcceptsEveryHit) {
+  Scene sc;
+  TriangleMesh m = quad(-1, 1, -1, 1, 0);
+  m.n.assign(m.p.size(), vec3(0, 0, 1));
+  m.uv.assign(m.p.size(), vec2(0.5f));
+  const int mesh_shape = add_mesh(sc, m);
+  add_mesh(sc, quad(-1, 1, -1, 1, 2));
+  EXPECT_EQ(triangle_mesh_bytes(sc), 2 * 6 * sizeof(uint32_t) + 2 * 4 * sizeof(vec3) + 4 * sizeof(vec3) +
+                                         4 * sizeof(vec2));
+  add_sphere(sc, SphereParams{}, translate(vec3(0, 0, -5)));
+  sc.prototypes.push_back({"quad", {add_mesh(sc, quad(-1, 1, -1, 1, 0), false, false, false)}});
+  sc.instances.push_back({0, translate(vec3(5, 0, 0))});
+  const Accel accel(sc);
+  int kinds = 0;
+  for (vec3 o : {vec3(0, 0, 1), vec3(0, 0, -2), vec3(5, 0, 1), vec3(9, 9, 9)}) {
+    Ray ray{o, 0.0f, vec3(0, 0, -1), kInfinity};
+    const Hit hit = accel.intersect1(ray, PrimRef{});
+    prefetch_triangle_indices(sc, accel, hit);
+    prefetch_triangle_vertices(sc, accel, hit);
+    kinds += hit.geom != kInvalidId;
+    if (o == vec3(0, 0, 1)) {
+      EXPECT_EQ(accel.shape_index(hit), mesh_shape);
+    }
+  }
+  EXPECT_EQ(kinds, 3);  // the mesh, the sphere, the instance; the last ray misses
+}

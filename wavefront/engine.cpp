@@ -211,8 +211,7 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   ++stats.batches;
   if (!b.camera) stats.continuation_rays += b.size();
   if (opt.sort && !b.camera) sort_rays(b);
-  trace_closest(b);
-  if (!pool.medium.empty()) handle_medium_interactions(b);
+  trace_closest(b);  // and, in media, each ray's medium interaction
   sort_hits(b);
   shade_batch(b);
   merge_outputs();
@@ -308,25 +307,28 @@ void sort_by_ray_key(std::span<const Ray> rays, const vec3& bounds_min, const ve
 
 // ---------------------------------------------------------------- trace closest
 
-void WavefrontEngine::Impl::trace_closest(const Batch& b) {
+// In scenes with media each traced ray's medium interaction follows at
+// once, in the same loop, on the core whose cache holds its ray and hit:
+// its hit is then final, and the shading keys are made there too.  Each
+// stage boundary saved is a wait of one thread on the other per batch.
+void WavefrontEngine::Impl::trace_closest(Batch& b) {
   const size_t n = b.size();
   if (opt.capture_rays) opt.capture_rays->insert(opt.capture_rays->end(), b.rays.begin(), b.rays.end());
   hits.resize(n);
+  keys.resize(n);
   batch_skips.clear();
   if (!pool.curve_skip.empty())
     for (uint32_t slot : b.paths) batch_skips.push_back(pool.curve_skip[slot]);
-  // Without media the hits are final once traced: their shading keys are
-  // made in the same loop, a stage boundary fewer per batch.
-  const bool keys_here = pool.medium.empty();
-  if (keys_here) keys.resize(n);
+  const bool media = !pool.medium.empty();
+  if (media) blocked.assign(n, 0);
   ScopedTimer timer(stats.phases[Phase::Trace]);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
     std::span<const PrimRef> skips;
     if (!batch_skips.empty()) skips = std::span<const PrimRef>(batch_skips.data() + r.begin(), r.size());
     accel.intersect(std::span<const Ray>(b.rays.data() + r.begin(), r.size()),
                     std::span<Hit>(hits.data() + r.begin(), r.size()), b.camera, skips);
-    if (keys_here)
-      for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
+    if (media) handle_medium_interactions(b, r.begin(), r.end(), outputs.local());
+    for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
   });
 }
 
@@ -337,20 +339,16 @@ void WavefrontEngine::Impl::trace_closest(const Batch& b) {
 // list for the escaped-ray stage.
 void WavefrontEngine::Impl::sort_hits(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Sort]);
-  const size_t n = b.size();
-  if (!pool.medium.empty()) {  // else trace_closest made them
-    keys.resize(n);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
-    });
-  }
   // Misses leave first, in order, so that the sort sees only hits: their
   // keys share high bits, whose passes the radix sort then skips.  (In
   // place: std::stable_partition takes a temporary buffer per batch.)
+  // Paths that left the batch in a medium leave the list.
+  const bool media = !pool.medium.empty();
   queue_clear(escaped);
   size_t kept = 0;
   for (size_t k = 0; k < keys.size(); ++k) {
     const SortPair p = keys[k];
+    if (media && blocked[p.index]) continue;
     if (p.key != ~uint64_t(0)) {
       keys[kept++] = p;
     } else {

@@ -36,9 +36,9 @@ struct Batch : RayQueue {
   bool camera = false;
 };
 
-// Triangle data that outgrows a core's L2 cache (512 KiB on the EPYC this
-// was measured on) several times over: shading then waits on memory for
-// neighbouring hits (scene/shapes.h prefetch_triangle_indices).
+// Triangle data larger than a core's L2 cache (2 MiB on the EPYC this was
+// measured on): beyond it shading waits on memory for neighbouring hits
+// (scene/shapes.h prefetch_triangle_indices).
 inline constexpr size_t kPrefetchTrianglesAbove = size_t(2) << 20;
 
 // What one thread's shading produced, merged into the queues after the stage.
@@ -192,7 +192,7 @@ struct WavefrontEngine::Impl {
   void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
                   const vec3& origin);
   void sort_rays(Batch& b);
-  void trace_closest(const Batch& b);
+  void trace_closest(Batch& b);
   void sort_hits(const Batch& b);           // shading order into `keys`, misses into `escaped`
   void shade_batch(const Batch& b);         // escaped rays, then surface hits
   void handle_escaped_ray(size_t i, ShadeOutput& out);                  // escaped_rays.cpp
@@ -201,7 +201,9 @@ struct WavefrontEngine::Impl {
   void check_media_hooks() const;
   void trace_shadow_rays();                 // shadow_rays.cpp
   // ---- media (media.cpp): only called when the pool has the medium table
-  void handle_medium_interactions(Batch& b);  // free flight; scattered and absorbed paths leave the batch
+  // Rays [begin, end) of a batch just traced: free flight; scattered and
+  // absorbed paths leave the batch (blocked[i] = 1).
+  void handle_medium_interactions(Batch& b, size_t begin, size_t end, ShadeOutput& out);
   void end_path(uint32_t slot, ShadeOutput& out);  // finish_path, observed if there is an observer
   bool interact_in_medium(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
   bool track_through_interfaces(Ray& ray, Hit& hit, uint32_t slot, ShadeOutput& out);

@@ -1,5 +1,6 @@
 // Stage: medium interactions, between tracing and surface shading, only in
-// scenes with media.  Each ray of a path inside a medium is tracked to its
+// scenes with media, run in the trace loop on each chunk of rays as soon as
+// it is traced (engine.cpp trace_closest).  Each ray of a path inside a medium is tracked to its
 // hit (or to infinity): it passes with its throughput reweighted and goes on
 // to the surface or escaped-ray stage, or it is absorbed, or it scatters at
 // a medium vertex (NEE through the media, a phase-function sample, roulette)
@@ -53,35 +54,17 @@ void WavefrontEngine::Impl::end_path(uint32_t slot, ShadeOutput& out) {
     finish_path<false>(slot, out);
 }
 
-void WavefrontEngine::Impl::handle_medium_interactions(Batch& b) {
-  ScopedTimer timer(stats.phases[Phase::Shade]);
-  const size_t n = b.size();
-  blocked.assign(n, 0);  // here: 1 = the path left the batch in the medium
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
-    ShadeOutput& out = outputs.local();
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      // The rays are in their sort order, which scatters the path records
-      // (and the medium and flight-depth tables): fetch a few paths ahead.
-      if (i + kMediumPrefetchDistance < n) {
-        const uint32_t ahead = b.paths[i + kMediumPrefetchDistance];
-        __builtin_prefetch(&pool[ahead]);
-        pool.prefetch_cold(ahead);
-      }
-      blocked[i] = track_through_interfaces(b.rays[i], hits[i], b.paths[i], out);
+void WavefrontEngine::Impl::handle_medium_interactions(Batch& b, size_t begin, size_t end, ShadeOutput& out) {
+  for (size_t i = begin; i < end; ++i) {
+    // The rays are in their sort order, which scatters the path records
+    // (and the medium and flight-depth tables): fetch a few paths ahead.
+    if (i + kMediumPrefetchDistance < end) {
+      const uint32_t ahead = b.paths[i + kMediumPrefetchDistance];
+      __builtin_prefetch(&pool[ahead]);
+      pool.prefetch_cold(ahead);
     }
-  });
-  // The passing rays keep their order; surface shading and escaped rays see only them.
-  size_t kept = 0;
-  for (size_t i = 0; i < n; ++i) {
-    if (blocked[i]) continue;
-    b.rays[kept] = b.rays[i];
-    b.paths[kept] = b.paths[i];
-    hits[kept] = hits[i];
-    ++kept;
+    blocked[i] = track_through_interfaces(b.rays[i], hits[i], b.paths[i], out);
   }
-  b.rays.resize(kept);
-  b.paths.resize(kept);
-  hits.resize(kept);
 }
 
 // Free flight to the hit, and on through every interface the path's ray

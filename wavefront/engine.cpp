@@ -18,13 +18,6 @@ constexpr size_t kTraceGrain = 256;
 constexpr size_t kShadeGrain = 64;
 constexpr size_t kPrefetchDistance = 8;
 
-int direction_bin(const vec3& d) {
-  vec3 a = glm::abs(d);
-  int axis = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
-  return 2 * axis + (d[axis] < 0.0f ? 1 : 0);
-}
-
-
 // Shading order: (instance, geometry, primitive); misses last.
 uint64_t hit_sort_key(const Hit& h) {
   return h.geom == kInvalidId ? ~uint64_t(0)
@@ -241,29 +234,34 @@ Batch WavefrontEngine::Impl::take_spare() {
   return b;
 }
 
-void WavefrontEngine::Impl::enqueue(const Ray& ray, uint32_t path) {
-  Batch& b = filling[direction_bin(ray.d)];
-  b.rays.push_back(ray);
-  b.paths.push_back(path);
-  ++queued_rays;
-  if (b.size() >= sizes.batch_size) {
-    full.push_back(std::move(b));
-    b = take_spare();
+// One thread's rays of one direction bin into the bin's filling batch, in
+// order, a full batch at a time.
+void WavefrontEngine::Impl::enqueue(size_t bin, const RayQueue& q) {
+  for (size_t i = 0; i < q.size();) {
+    Batch& b = filling[bin];
+    const size_t take = std::min(q.size() - i, sizes.batch_size > b.size() ? sizes.batch_size - b.size() : 0);
+    queue_append(static_cast<RayQueue&>(b), q, i, i + take);
+    i += take;
+    if (b.size() >= sizes.batch_size) {
+      full.push_back(std::move(b));
+      b = take_spare();
+    }
   }
+  queued_rays += q.size();
 }
 
 // The threads' outputs into the queues, in a fixed order (the threads' own).
 void WavefrontEngine::Impl::merge_outputs() {
   ScopedTimer timer(stats.phases[Phase::Queue]);
   for (ShadeOutput& out : outputs) {
-    for (size_t i = 0; i < out.rays.size(); ++i) enqueue(out.rays.rays[i], out.rays.paths[i]);
+    for (size_t bin = 0; bin < kDirectionBins; ++bin) enqueue(bin, out.rays[bin]);
     queue_append(shadows, out.shadows);
     pool.free_slots.insert(pool.free_slots.end(), out.freed.begin(), out.freed.end());
     stats.path_vertices += out.vertices;
     stats.continuation_rays += out.retraced;
     if (opt.capture_rays)
       opt.capture_rays->insert(opt.capture_rays->end(), out.retraced_rays.begin(), out.retraced_rays.end());
-    queue_clear(out.rays);
+    for (RayQueue& q : out.rays) queue_clear(q);
     queue_clear(out.shadows);
     out.freed.clear();
     out.vertices = 0;
@@ -410,7 +408,10 @@ size_t WavefrontEngine::Impl::memory_bytes() const {
   for (const Batch& b : filling) bytes += queue_bytes(b);
   for (const Batch& b : full) bytes += queue_bytes(b);
   for (const Batch& b : spare) bytes += queue_bytes(b);
-  for (const ShadeOutput& out : outputs) bytes += queue_bytes(out.rays) + queue_bytes(out.shadows);
+  for (const ShadeOutput& out : outputs) {
+    bytes += queue_bytes(out.shadows);
+    for (const RayQueue& q : out.rays) bytes += queue_bytes(q);
+  }
   return bytes;
 }
 

@@ -36,6 +36,15 @@ struct Batch : RayQueue {
   bool camera = false;
 };
 
+// Continuation rays are batched by the axis and sign of their direction's
+// largest component: rays of one bin walk the BVH alike.
+inline constexpr size_t kDirectionBins = 6;
+inline int direction_bin(const vec3& d) {
+  vec3 a = glm::abs(d);
+  int axis = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+  return 2 * axis + (d[axis] < 0.0f ? 1 : 0);
+}
+
 // Triangle data larger than a core's L2 cache (2 MiB on the EPYC this was
 // measured on): beyond it shading waits on memory for neighbouring hits
 // (scene/shapes.h prefetch_triangle_indices).
@@ -43,7 +52,10 @@ inline constexpr size_t kPrefetchTrianglesAbove = size_t(2) << 20;
 
 // What one thread's shading produced, merged into the queues after the stage.
 struct ShadeOutput {
-  RayQueue rays;
+  // Continuation rays, already in their direction bins: the serial merge
+  // after each batch (the other thread waits on it) is then a bulk copy per
+  // bin, not a pass over every ray.
+  std::array<RayQueue, kDirectionBins> rays;
   ShadowQueue shadows;
   std::vector<uint32_t> freed;
   uint64_t vertices = 0;
@@ -135,7 +147,7 @@ struct WavefrontEngine::Impl {
 
   EngineSizes sizes;  // the pool's and batches' (engine_sizes)
   PathStatePool pool;
-  std::array<Batch, 6> filling;  // the batch being filled, per direction bin
+  std::array<Batch, kDirectionBins> filling;  // the batch being filled, per direction bin
   std::vector<Batch> full;       // filled batches, processed last-in first-out
   std::vector<Batch> spare;      // emptied batches, reused to keep allocations flat
   ShadowQueue shadows;
@@ -267,8 +279,9 @@ struct WavefrontEngine::Impl {
   // Queues the path's next ray, leaving the surface `si` (an interaction or a crossing).
   template <class Surface>
   void queue_ray(uint32_t slot, const Surface& si, const Ray& ray, ShadeOutput& out) {
-    out.rays.rays.push_back(ray);
-    out.rays.paths.push_back(slot);
+    RayQueue& q = out.rays[size_t(direction_bin(ray.d))];
+    q.rays.push_back(ray);
+    q.paths.push_back(slot);
     if (!pool.curve_skip.empty()) pool.curve_skip[slot] = si.skip;
     if (!pool.medium.empty()) pool.medium[slot] = medium_after(scene, si.shape, si.ng, ray.d, pool.medium[slot]);
   }
@@ -294,7 +307,7 @@ struct WavefrontEngine::Impl {
   // medium stage).
   bool defers_nee_mis() const { return hooks.guide != nullptr && observer == nullptr && pool.medium.empty(); }
   void apply_deferred_nee_mis();  // on `shadows`, after `blocked` is known
-  void enqueue(const Ray& ray, uint32_t path);
+  void enqueue(size_t bin, const RayQueue& q);
   Batch take_spare();
 
   UVFootprint footprint(const SurfaceInteraction& si) const {

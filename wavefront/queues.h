@@ -99,6 +99,14 @@ void queue_append(Q& q, const Q& o) {
   Q::zip(q, o, [](auto& to, const auto& from) { to.insert(to.end(), from.begin(), from.end()); });
 }
 
+// Appends items [begin, end) of `o`.
+template <class Q>
+void queue_append(Q& q, const Q& o, size_t begin, size_t end) {
+  Q::zip(q, o, [&](auto& to, const auto& from) {
+    if (!from.empty()) to.insert(to.end(), from.begin() + ptrdiff_t(begin), from.begin() + ptrdiff_t(end));
+  });
+}
+
 // q[i] = q[order[i]] for every present field, gathered in parallel through
 // `scratch` (whose vectors are reused from call to call).
 template <class Q>

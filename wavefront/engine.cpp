@@ -205,7 +205,7 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   if (!b.camera) stats.continuation_rays += b.size();
   if (opt.sort && !b.camera) sort_rays(b);
   trace_closest(b);  // and, in media, each ray's medium interaction
-  sort_hits(b);
+  if (opt.sort) sort_hits(b);
   shade_batch(b);
   merge_outputs();
 }
@@ -307,13 +307,14 @@ void sort_by_ray_key(std::span<const Ray> rays, const vec3& bounds_min, const ve
 
 // In scenes with media each traced ray's medium interaction follows at
 // once, in the same loop, on the core whose cache holds its ray and hit:
-// its hit is then final, and the shading keys are made there too.  Each
-// stage boundary saved is a wait of one thread on the other per batch.
+// its hit is then final, and the shading keys (when hits are sorted) are
+// made there too.  Each stage boundary saved is a wait of one thread on the
+// other per batch.
 void WavefrontEngine::Impl::trace_closest(Batch& b) {
   const size_t n = b.size();
   if (opt.capture_rays) opt.capture_rays->insert(opt.capture_rays->end(), b.rays.begin(), b.rays.end());
   hits.resize(n);
-  keys.resize(n);
+  if (opt.sort) keys.resize(n);
   batch_skips.clear();
   if (!pool.curve_skip.empty())
     for (uint32_t slot : b.paths) batch_skips.push_back(pool.curve_skip[slot]);
@@ -326,7 +327,8 @@ void WavefrontEngine::Impl::trace_closest(Batch& b) {
     accel.intersect(std::span<const Ray>(b.rays.data() + r.begin(), r.size()),
                     std::span<Hit>(hits.data() + r.begin(), r.size()), b.camera, skips);
     if (media) handle_medium_interactions(b, r.begin(), r.end(), outputs.local());
-    for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
+    if (opt.sort)
+      for (size_t i = r.begin(); i < r.end(); ++i) keys[i] = SortPair{hit_sort_key(hits[i]), uint32_t(i)};
   });
 }
 
@@ -355,34 +357,55 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
     }
   }
   keys.resize(kept);
-  if (opt.sort) radix_sort(keys, scratch, 64);
+  radix_sort(keys, scratch, 64);
 }
 
 // ---------------------------------------------------------------- shade
 
-// The batch's escaped rays and surface hits in one parallel loop, escapes
-// first: a stage boundary fewer per batch (each costs both threads a wait),
-// and at one thread the order of two loops.
+// The batch's escaped rays and surface hits in one parallel loop: a stage
+// boundary fewer per batch (each costs both threads a wait).  Unsorted, in
+// the order they were traced; sorted, the escaped rays first, then the hits
+// in `keys` order.
 void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
-  const size_t n_escaped = escaped.size(), n = n_escaped + keys.size();
+  const size_t n_escaped = opt.sort ? escaped.size() : 0, n = opt.sort ? n_escaped + keys.size() : b.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    size_t k = r.begin();
-    for (; k < std::min(r.end(), n_escaped); ++k) handle_escaped_ray(k, out);
-    for (; k < r.end(); ++k) shade_surface_hit(b, k - n_escaped, out);
+    for (size_t k = r.begin(); k < r.end(); ++k) {
+      if (k >= n_escaped) {
+        shade_traced_ray(b, k - n_escaped, out);
+        continue;
+      }
+      // In the batch's sort order their path records are scattered: fetch a few ahead.
+      if (k + kPrefetchDistance < n_escaped) __builtin_prefetch(&pool[escaped.paths[k + kPrefetchDistance]]);
+      handle_escaped_ray(escaped.rays[k], escaped.paths[k], out);
+    }
   });
 }
 
-// Surface hit k in shading order.
-void WavefrontEngine::Impl::shade_surface_hit(const Batch& b, size_t k, ShadeOutput& out) {
-  const size_t n = keys.size();
-  // Hits arrive in (geometry, primitive) order, which scatters their rays
-  // and path records: fetch a few iterations ahead.
+// The k-th traced ray to shade, batch index hit_index(k): sorted, a hit
+// (sort_hits left no other); unsorted, a hit, an escaped ray, or a path that
+// already left the batch in a medium.
+void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, ShadeOutput& out) {
+  prefetch_for_shading(b, k);
+  const uint32_t i = hit_index(k);
+  if (!opt.sort && !pool.medium.empty() && blocked[i]) return;
+  if (!opt.sort && hits[i].geom == kInvalidId) return handle_escaped_ray(b.rays[i], b.paths[i], out);
+  if (observer)
+    shade_surface<true>(b.rays[i], hits[i], b.paths[i], out);
+  else
+    shade_surface<false>(b.rays[i], hits[i], b.paths[i], out);
+}
+
+// What shading hit k (in shading order: hit_index) reads, fetched a few hits
+// ahead: sorted by (geometry, primitive) or not, hits scatter their path
+// records, and on meshes larger than the cache their triangles.
+void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
+  const size_t n = opt.sort ? keys.size() : b.size();
   if (prefetch_triangles && k + 2 * kPrefetchDistance < n)
-    prefetch_triangle_indices(scene, accel, hits[keys[k + 2 * kPrefetchDistance].index]);
+    prefetch_triangle_indices(scene, accel, hits[hit_index(k + 2 * kPrefetchDistance)]);
   if (k + kPrefetchDistance < n) {
-    uint32_t j = keys[k + kPrefetchDistance].index;
+    const uint32_t j = hit_index(k + kPrefetchDistance);
     __builtin_prefetch(&b.rays[j]);
     if (prefetch_triangles)
       prefetch_triangle_vertices(scene, accel, hits[j]);
@@ -393,12 +416,7 @@ void WavefrontEngine::Impl::shade_surface_hit(const Batch& b, size_t k, ShadeOut
   }
   // The path record fetched above names the observer's vertex: fetch that too.
   if (observer && k + kPrefetchDistance / 2 < n)
-    observer->prefetch(pool[b.paths[keys[k + kPrefetchDistance / 2].index]].vertex);
-  uint32_t i = keys[k].index;
-  if (observer)
-    shade_surface<true>(b.rays[i], hits[i], b.paths[i], out);
-  else
-    shade_surface<false>(b.rays[i], hits[i], b.paths[i], out);
+    observer->prefetch(pool[b.paths[hit_index(k + kPrefetchDistance / 2)]].vertex);
 }
 
 size_t WavefrontEngine::Impl::memory_bytes() const {

@@ -205,10 +205,13 @@ struct WavefrontEngine::Impl {
                   const vec3& origin);
   void sort_rays(Batch& b);
   void trace_closest(Batch& b);
-  void sort_hits(const Batch& b);           // shading order into `keys`, misses into `escaped`
-  void shade_batch(const Batch& b);         // escaped rays, then surface hits
-  void handle_escaped_ray(size_t i, ShadeOutput& out);                  // escaped_rays.cpp
-  void shade_surface_hit(const Batch& b, size_t k, ShadeOutput& out);  // in `keys` order
+  void sort_hits(const Batch& b);           // with sorting: shading order into `keys`, misses into `escaped`
+  void shade_batch(const Batch& b);         // escaped rays and surface hits
+  // The batch index of the k-th hit to shade: in `keys` order when sorted, else k.
+  uint32_t hit_index(size_t k) const { return opt.sort ? keys[k].index : uint32_t(k); }
+  void prefetch_for_shading(const Batch& b, size_t k);
+  void handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out);  // escaped_rays.cpp
+  void shade_traced_ray(const Batch& b, size_t k, ShadeOutput& out);
   void merge_outputs();
   void check_media_hooks() const;
   void trace_shadow_rays();                 // shadow_rays.cpp

@@ -4,13 +4,6 @@
 
 namespace theia {
 
-namespace {
-
-// How many rays ahead the stage fetches their path records.
-constexpr size_t kEscapedPrefetchDistance = 8;
-
-}  // namespace
-
 template <bool kObserve>
 void WavefrontEngine::Impl::handle_escaped(const Ray& ray, uint32_t slot, ShadeOutput& out) {
   const PathState& ps = pool[slot];
@@ -24,17 +17,11 @@ void WavefrontEngine::Impl::handle_escaped(const Ray& ray, uint32_t slot, ShadeO
   finish_path<kObserve>(slot, out);
 }
 
-// Escaped ray i of the batch (shade_batch's loop runs them first).
-void WavefrontEngine::Impl::handle_escaped_ray(size_t i, ShadeOutput& out) {
-  // The escaped rays keep their batch's sort order, which scatters the path
-  // records: fetch a few ahead (the first load of each was most of this
-  // stage's cycles).
-  if (i + kEscapedPrefetchDistance < escaped.size())
-    __builtin_prefetch(&pool[escaped.paths[i + kEscapedPrefetchDistance]]);
+void WavefrontEngine::Impl::handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out) {
   if (observer)
-    handle_escaped<true>(escaped.rays[i], escaped.paths[i], out);
+    handle_escaped<true>(ray, slot, out);
   else
-    handle_escaped<false>(escaped.rays[i], escaped.paths[i], out);
+    handle_escaped<false>(ray, slot, out);
 }
 
 }  // namespace theia

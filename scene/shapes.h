@@ -89,10 +89,10 @@ double triangle_area(const TriangleMesh& m, size_t tri);
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]);
 
 SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit);
-// Shading visits a batch's hits in (geometry, primitive) order, yet on a mesh
-// larger than the cache neighbouring hits still land on distant triangles:
-// compute_interaction then waits on the triangle's indices and again on its
-// vertices.  Ask for them ahead, the indices first and, once they have
+// Shading visits a batch's hits in traced order (or, sorted, in (geometry,
+// primitive) order), and on a mesh larger than the cache neighbouring hits
+// land on distant triangles: compute_interaction then waits on the
+// triangle's indices and again on its vertices.  Ask for them ahead, the indices first and, once they have
 // arrived, the vertices they name.  No-ops for other shapes.
 // Worth it only where the meshes outgrow the cache (triangle_mesh_bytes):
 // below that they cost two calls per hit and fetch nothing.

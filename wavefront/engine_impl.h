@@ -148,8 +148,8 @@ struct WavefrontEngine::Impl {
   EngineSizes sizes;  // the pool's and batches' (engine_sizes)
   PathStatePool pool;
   std::array<Batch, kDirectionBins> filling;  // the batch being filled, per direction bin
-  std::vector<Batch> full;       // filled batches, processed last-in first-out
-  std::vector<Batch> spare;      // emptied batches, reused to keep allocations flat
+  std::vector<Batch> full;                    // filled batches, processed last-in first-out
+  std::vector<Batch> spare;                   // emptied batches, reused to keep allocations flat
   ShadowQueue shadows;
   size_t queued_rays = 0;
 

@@ -158,6 +158,9 @@ struct WavefrontEngine::Impl {
   std::vector<uint32_t> order;
   std::vector<Hit> hits;
   std::vector<PrimRef> batch_skips;  // the curve skips gathered in a batch's ray order
+  // Per shadow ray while trace_shadow_rays runs; in scenes with media, per
+  // ray of the batch from the trace loop (the path left the batch in a
+  // medium) to shading.  Shadow rays are never traced within a batch.
   std::vector<uint8_t> blocked;
   Batch sorted;
   ShadowQueue shadows_sorted;

@@ -78,6 +78,20 @@ TEST(Hash, ToUnitFloatIsExactAndBelowOne) {
   EXPECT_LT(to_unit_float(0x7fffffffu), 0.5f);
 }
 
+// reverse_bits at run time (one GF(2) affine transform where the CPU has
+// GFNI) against its definition, bit by bit, and against its compile-time self.
+TEST(Sobol, ReverseBitsReversesEveryBit) {
+  static_assert(reverse_bits(1u) == 0x80000000u && reverse_bits(0x12345678u) == 0x1e6a2c48u);
+  uint64_t state = 1;
+  for (int i = 0; i < 100000; ++i) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    const uint32_t x = uint32_t(state >> 32);
+    uint32_t expected = 0;
+    for (int b = 0; b < 32; ++b) expected |= ((x >> b) & 1u) << (31 - b);
+    ASSERT_EQ(reverse_bits(x), expected) << x;
+  }
+}
+
 TEST(Sobol, DirectionNumbersGiveKnownPoints) {
   // First points of each dimension, from the recurrences of Joe & Kuo's polynomials by hand.
   const float expect[4][8] = {{0, .5f, .25f, .75f, .125f, .625f, .375f, .875f},

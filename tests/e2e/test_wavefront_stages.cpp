@@ -1,6 +1,9 @@
 // The engine's stages on closed forms: the escaped-ray stage alone (a scene
 // of infinite lights and nothing else), and the escaped-ray stage behind the
-// surface stage (a sphere that hides part of the sky).
+// surface stage (a sphere that hides part of the sky), with hits sorted and
+// in traced order (two paths through shading); and the two orders against
+// each other where every kind of traced ray meets: escapes, hits, and paths
+// that leave the batch in a medium.
 #include "render_helpers.h"
 #include "cachepoints/light_sampler.h"
 #include "wavefront/engine.h"
@@ -12,11 +15,12 @@ namespace {
 
 using test::load_test_scene;
 
-ImageBuffer render_engine(const Scene& scene, int spp) {
+ImageBuffer render_engine(const Scene& scene, int spp, bool sort = false, int max_depth = 5) {
   RenderableScene rs(scene);
   Film film(scene.film.width, scene.film.height);
   EngineOptions opt;
-  opt.max_depth = 5;
+  opt.max_depth = max_depth;
+  opt.sort = sort;
   WavefrontEngine engine(rs, film, opt);
   engine.render(0, uint32_t(spp));
   EXPECT_EQ(film.dropped.load(), 0u);
@@ -35,14 +39,16 @@ TEST(EscapedRays, EveryCameraRayThatLeavesSeesTheSumOfTheInfiniteLights) {
     LightSource "infinite" "rgb L" [0.25 0.5 1]
     LightSource "infinite" "rgb L" [0.25 0.25 0.25]
   )");
-  ImageBuffer img = render_engine(scene, 4);
-  // The two radiances, 0.5 0.75 1.25 in linear sRGB: the same in the output.
-  const float expected[3] = {0.5f, 0.75f, 1.25f};
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x) {
-      for (int c = 0; c < 3; ++c) ASSERT_NEAR(img.at(x, y, c), expected[c], 1e-5f) << x << "," << y;
-      ASSERT_EQ(img.at(x, y, 3), 0.0f);  // alpha
-    }
+  for (bool sort : {false, true}) {
+    ImageBuffer img = render_engine(scene, 4, sort);
+    // The two radiances, 0.5 0.75 1.25 in linear sRGB: the same in the output.
+    const float expected[3] = {0.5f, 0.75f, 1.25f};
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        for (int c = 0; c < 3; ++c) ASSERT_NEAR(img.at(x, y, c), expected[c], 1e-5f) << x << "," << y << " sort " << sort;
+        ASSERT_EQ(img.at(x, y, 3), 0.0f);  // alpha
+      }
+  }
 }
 
 TEST(EscapedRays, BehindASurfaceTheSkyIsWhatTheBlackSphereDoesNotHide) {
@@ -60,25 +66,61 @@ TEST(EscapedRays, BehindASurfaceTheSkyIsWhatTheBlackSphereDoesNotHide) {
     Material "diffuse" "rgb reflectance" [0 0 0]
     Shape "sphere" "float radius" [1]
   )");
-  ImageBuffer img = render_engine(scene, 4);
   // The sphere's angular radius is asin(1/5); the image's half-width tan(20 deg).
   const float disk = std::tan(std::asin(0.2f)) / std::tan(glm::radians(20.0f)) * 16.0f;  // pixels
-  int sky = 0, sphere = 0;
-  for (int y = 0; y < 32; ++y)
-    for (int x = 0; x < 32; ++x) {
-      const float r = std::hypot(float(x) + 0.5f - 16.0f, float(y) + 0.5f - 16.0f);
-      if (r > disk + 1.5f) {
-        ++sky;
-        for (int c = 0; c < 3; ++c) ASSERT_NEAR(img.at(x, y, c), 2.0f, 1e-5f);
-        ASSERT_EQ(img.at(x, y, 3), 0.0f);
-      } else if (r < disk - 1.5f) {
-        ++sphere;
-        for (int c = 0; c < 3; ++c) ASSERT_EQ(img.at(x, y, c), 0.0f);
-        ASSERT_EQ(img.at(x, y, 3), 1.0f);
+  for (bool sort : {false, true}) {
+    ImageBuffer img = render_engine(scene, 4, sort);
+    int sky = 0, sphere = 0;
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x) {
+        const float r = std::hypot(float(x) + 0.5f - 16.0f, float(y) + 0.5f - 16.0f);
+        if (r > disk + 1.5f) {
+          ++sky;
+          for (int c = 0; c < 3; ++c) ASSERT_NEAR(img.at(x, y, c), 2.0f, 1e-5f) << "sort " << sort;
+          ASSERT_EQ(img.at(x, y, 3), 0.0f);
+        } else if (r < disk - 1.5f) {
+          ++sphere;
+          for (int c = 0; c < 3; ++c) ASSERT_EQ(img.at(x, y, c), 0.0f) << "sort " << sort;
+          ASSERT_EQ(img.at(x, y, 3), 1.0f);
+        }
       }
-    }
-  EXPECT_GT(sky, 400);
-  EXPECT_GT(sphere, 100);
+    EXPECT_GT(sky, 400);
+    EXPECT_GT(sphere, 100);
+  }
+}
+
+// Sorting changes only the order in which paths are traced and shaded:
+// every path draws the same numbers either way, so the images agree to the
+// film's summation order.  The scene has every kind of traced ray: escapes
+// into the sky, hits on a floor, and, inside an interface sphere of
+// scattering smoke, paths that scatter or end in the medium and leave their
+// batch there (which unsorted shading must pass by, and sorting drop).
+TEST(ShadingOrder, SortedAndTracedOrdersGiveTheSameImage) {
+  Scene scene = load_test_scene(R"(
+    Film "rgb" "integer xresolution" [24] "integer yresolution" [24]
+    LookAt 0 1 -5  0 0 0  0 1 0
+    Camera "perspective" "float fov" [40]
+    WorldBegin
+    LightSource "infinite" "rgb L" [1 1 1]
+    AttributeBegin
+      Material "diffuse" "rgb reflectance" [0.5 0.5 0.5]
+      Shape "trianglemesh" "point3 P" [-4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4] "integer indices" [0 2 1 0 3 2]
+    AttributeEnd
+    MakeNamedMedium "m" "string type" "homogeneous" "rgb sigma_a" [0.5 0.5 0.5] "rgb sigma_s" [2 2 2]
+    MediumInterface "m" ""
+    Material "interface"
+    Shape "sphere" "float radius" [1]
+  )");
+  const ImageBuffer traced = render_engine(scene, 8, false, 8), sorted = render_engine(scene, 8, true, 8);
+  double total = 0.0;
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 24; ++x)
+      for (int c = 0; c < 4; ++c) {
+        const float a = traced.at(x, y, c), b = sorted.at(x, y, c);
+        ASSERT_NEAR(a, b, 1e-5f * std::max(1.0f, std::abs(a))) << x << "," << y << " channel " << c;
+        total += a;
+      }
+  EXPECT_GT(total, 100.0);  // not a black image agreeing with itself
 }
 
 }  // namespace

@@ -93,18 +93,18 @@ void queue_clear(Q& q) {
   q.for_each_field([](auto& v) { v.clear(); });
 }
 
-// Appends every item of `o` (a field empty in `o` stays as it is in `q`).
-template <class Q>
-void queue_append(Q& q, const Q& o) {
-  Q::zip(q, o, [](auto& to, const auto& from) { to.insert(to.end(), from.begin(), from.end()); });
-}
-
-// Appends items [begin, end) of `o`.
+// Appends items [begin, end) of `o` (a field empty in `o` stays as it is in `q`).
 template <class Q>
 void queue_append(Q& q, const Q& o, size_t begin, size_t end) {
   Q::zip(q, o, [&](auto& to, const auto& from) {
     if (!from.empty()) to.insert(to.end(), from.begin() + ptrdiff_t(begin), from.begin() + ptrdiff_t(end));
   });
+}
+
+// Appends every item of `o`.
+template <class Q>
+void queue_append(Q& q, const Q& o) {
+  queue_append(q, o, 0, o.size());
 }
 
 // q[i] = q[order[i]] for every present field, gathered in parallel through

@@ -95,6 +95,19 @@ TEST(Queues, AppendGatherAndClearEveryFieldThatIsPresent) {
     EXPECT_EQ(a.pixel[k], 10 + i);
   }
   EXPECT_TRUE(a.mis_weight.empty());
+
+  // A range [1, 3) of b: its items in order, every present field alike.
+  ShadowQueue c;
+  queue_append(c, b, 1, 3);
+  ASSERT_EQ(c.size(), 2u);
+  for (uint32_t k = 0; k < 2; ++k) {
+    EXPECT_EQ(c.rays[k].o.x, float(k + 1));
+    EXPECT_EQ(c.contribution[k].y, float(k + 1));
+    EXPECT_EQ(c.pixel[k], 11 + k);
+    EXPECT_EQ(c.vertex[k], kNoVertex);
+  }
+  EXPECT_TRUE(c.mis_weight.empty());
+
   queue_clear(a);
   EXPECT_EQ(a.size(), 0u);
   EXPECT_TRUE(a.pixel.empty());

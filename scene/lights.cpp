@@ -4,6 +4,7 @@
 #include "core/log.h"
 #include "core/sampling.h"
 #include "scene/emission_side.h"
+#include "scene/surface_crossing.h"
 #include "scene/texture.h"
 #include "scene/tokenizer.h"
 
@@ -226,6 +227,46 @@ double point_image_power(const Light& light, const Image& img) {
   return double(f.area) * sum / (double(img.width) * double(img.height));
 }
 
+// The plane of a one-sided area light on a triangle mesh whose triangles,
+// oriented as sample_li orients them (shape_geometry::triangle_normal), all
+// face within a small angle of one normal; not planar otherwise.
+EmitterPlane emitter_plane(const Scene& s, const Light& l) {
+  EmitterPlane e;
+  if (l.kind != LightKind::Area || l.two_sided || l.shape < 0) return e;
+  const Shape& shape = s.shapes[size_t(l.shape)];
+  if (shape.kind != ShapeKind::TriangleMesh) return e;
+  const TriangleMesh& m = s.meshes[size_t(shape.mesh)];
+  const bool flip = shape.reverse_orientation != shape.transform_swaps_handedness;
+  // The largest triangle's normal is the plane's (the best conditioned).
+  size_t largest = 0;
+  double largest_area = -1.0;
+  for (size_t t = 0; t < m.triangle_count(); ++t)
+    if (double a = triangle_area(m, t); a > largest_area) largest = t, largest_area = a;
+  if (!(largest_area > 0.0)) return e;
+  const vec3 n = (flip ? -1.0f : 1.0f) * triangle_unit_normal(m, largest);
+  // Interpolated vertex normals decide which way a triangle faces; all on
+  // the plane's side keep every triangle facing as its geometric normal.
+  for (const vec3& vn : m.n)
+    if (!(glm::dot(vn, n) > 0.0f)) return e;
+  Bounds3 b;
+  for (uint32_t i : m.indices) b = union_bounds(b, m.p[i]);
+  e.center = 0.5f * (b.min + b.max);
+  e.radius = 0.5f * glm::length(b.max - b.min);
+  e.n = n;
+  e.offset = glm::dot(n, e.center);
+  float tilt = 0.0f;
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    if (!(triangle_area(m, t) > 0.0)) continue;  // sample_li never draws it
+    const vec3 nt = (flip ? -1.0f : 1.0f) * triangle_unit_normal(m, t);
+    if (!(glm::dot(nt, n) > 0.999f)) return EmitterPlane{};
+    tilt = std::max(tilt, glm::length(nt - n));
+  }
+  for (uint32_t i : m.indices) e.deviation = std::max(e.deviation, std::abs(glm::dot(n, m.p[i]) - e.offset));
+  e.slack = tilt + 1e-5f;
+  e.planar = std::isfinite(e.offset) && std::isfinite(e.radius) && std::isfinite(e.deviation);
+  return e;
+}
+
 }  // namespace
 
 vec3 environment_direction(const EnvironmentMap& env, vec2 uv) {
@@ -301,6 +342,8 @@ LightSet::LightSet(const Scene& s, const Accel& accel) : scene(&s) {
     // L is grey whenever there is an image, so luminance factors out of the texel.
     area_luminance[i] = integral * double(luminance(l.L * image_scale[i]));
   }
+
+  for (const Light& l : s.lights) emitter_planes.push_back(emitter_plane(s, l));
 
   Bounds3 b = accel.bounds();
   if (b.min.x <= b.max.x) {

@@ -55,6 +55,21 @@ struct EnvironmentMap {
   float luminance_integral = 0.0f;  // integral of luminance(scale * texel) over the sphere
 };
 
+// A one-sided planar area light's plane: n its emitting side (unit), offset
+// = dot(n, any point on it); the light is planar and one-sided when
+// `planar`.  slack bounds, per unit distance from `center`, how far a
+// triangle's own normal (which decides emission) may tilt from n, and
+// `deviation` how far a vertex may lie off the plane.
+struct EmitterPlane {
+  bool planar = false;
+  vec3 n{0.0f};
+  float offset = 0.0f;
+  vec3 center{0.0f};
+  float radius = 0.0f;     // of a sphere about center holding the light
+  float deviation = 0.0f;
+  float slack = 0.0f;
+};
+
 // Everything light sampling needs that is built once per scene.
 struct LightSet {
   const Scene* scene = nullptr;
@@ -73,6 +88,9 @@ struct LightSet {
   // Per light (area lights): the emitted luminance integrated over the shape's
   // area, for light_power (luminance(L) * area for a uniform emitter).
   std::vector<double> area_luminance;
+  // Per light: the plane of a one-sided area light that lies in one plane
+  // and faces one way (a quad, a panel), for light_faces_away.
+  std::vector<EmitterPlane> emitter_planes;
 
   // Images must be loaded (scene/texture.h's load_images); throws
   // theia::Error for an environment image that is neither square nor 2:1 or
@@ -96,6 +114,18 @@ float environment_pdf(const EnvironmentMap& env, const vec3& w_light, bool compe
 // semantics, SampledLight::primitive); the pdf is then that triangle's alone.
 std::optional<LightLiSample> sample_li(const LightSet& lights, int light, const LightSampleContext& ctx, vec2 u,
                                        float u_prim, bool allow_incomplete_pdf = true, int primitive = -1);
+// True when p lies behind one-sided planar area light `light`: every point
+// sample_li() could draw on it faces away from p and would be refused.
+// Next-event estimation asks this before it spends a light sample.  Margins
+// cover rounding: a point within them of the plane is never called behind.
+inline bool light_faces_away(const LightSet& lights, int light, const vec3& p) {
+  const EmitterPlane& e = lights.emitter_planes[size_t(light)];
+  if (!e.planar) return false;
+  const float height = glm::dot(e.n, p) - e.offset;
+  if (height >= 0.0f) return false;
+  const float reach = glm::length(p - e.center) + e.radius;
+  return height < -(e.deviation + e.slack * reach + 1e-5f * (reach + glm::length(e.center)));
+}
 // Solid-angle pdf that sample_li() on `light` produces the point `hit` seen
 // along wi (area lights); `given_primitive`: sample_li() was given hit.prim.
 float area_light_pdf(const LightSet& lights, int light, const LightSampleContext& ctx, const vec3& wi,

@@ -226,7 +226,7 @@ void WavefrontEngine::Impl::sample_direct_light_in_medium(const MediumVertex& v,
   // One draw of the light_choice/light_prim pair, as sample_direct_light does.
   const vec2 u_light = sample2(ps, v.dims.light_choice);
   auto sl = light_sampler.sample(ctx, u_light.x);
-  if (!sl) return;
+  if (!sl || light_faces_away(lights, sl->light, v.si.p)) return;
   auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), u_light.y);
   const float light_pdf = ls ? sl->pmf * ls->pdf : 0.0f;
   if (!ls || !(light_pdf > 0.0f) || !std::isfinite(light_pdf)) return;

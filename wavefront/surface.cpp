@@ -200,7 +200,7 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
   static_assert(bounce_dims(0).light_prim == bounce_dims(0).light_choice + 1 && bounce_dims(0).light_choice % 2 == 0);
   const vec2 u_light = light_choice_fixed ? vec2(0.5f) : sample2(ps, v.dims.light_choice);
   auto sl = light_sampler.sample(ctx, u_light.x);
-  if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light)) return;
+  if (!sl || left_to_caustic_pass(v.caustic_flags, sl->light) || light_faces_away(lights, sl->light, v.si.p)) return;
   auto ls = sample_li(lights, sl->light, ctx, sample2(ps, v.dims.light_point), u_light.y, true, sl->primitive);
   // pdf guard: the product of selection and sampling pdfs can underflow to 0
   // (a light of 1e-3 beside one of 1e9); such a sample is dropped, never divided by.

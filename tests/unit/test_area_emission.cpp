@@ -13,7 +13,10 @@
 #include "tests/test_util.h"
 
 #include <fmt/format.h>
+#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
+
+#include <random>
 
 using namespace theia;
 
@@ -289,4 +292,74 @@ Shape "disk" "float radius" 1 "texture alpha" "a")",
   // and the other half of the inner disk (1/8).
   EXPECT_NEAR(double(emitting) / n, 0.5, 0.05);
   EXPECT_GT(masked, 0);
+}
+
+// light_faces_away, the shortcut next-event estimation takes before drawing a
+// point on a light, against sample_li itself: wherever it calls a point
+// behind a light, no sample from there reaches it, and on the one-sided
+// planar lights it does call the points clearly behind them.  Light 0 is a
+// tilted quad, 1 the same reversed, 2 two-sided, 3 a quad folded along its
+// diagonal, 4 a planar quad whose vertex normals point against its winding
+// (so it emits the other way).
+TEST(AreaEmission, LightFacesAwayOnlyWhereEverySampleIsRefused) {
+  Lit lit(parse_scene_string(R"(WorldBegin
+AttributeBegin
+  Translate 0 1 0
+  Rotate 30 1 0.5 0
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "trianglemesh" "point3 P" [-1 0 -1  1 0 -1  1 0 1  -1 0 1] "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+AttributeBegin
+  Translate 0 1 0
+  Rotate 30 1 0.5 0
+  ReverseOrientation
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "trianglemesh" "point3 P" [-1 0 -1  1 0 -1  1 0 1  -1 0 1] "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1] "bool twosided" true
+  Shape "trianglemesh" "point3 P" [-1 0 -1  1 0 -1  1 0 1  -1 0 1] "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "trianglemesh" "point3 P" [-1 0 -1  1 0 -1  1 0.5 1  -1 0 1] "integer indices" [0 1 2 0 2 3]
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "trianglemesh" "point3 P" [-1 0 -1  1 0 -1  1 0 1  -1 0 1] "integer indices" [0 1 2 0 2 3]
+      "normal N" [0 1 0  0 1 0  0 1 0  0 1 0]
+AttributeEnd
+)",
+                             "t.pbrt"));
+  ASSERT_EQ(lit.scene.lights.size(), 5u);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> box(-3.0f, 3.0f), unit(0.0f, 1.0f);
+  int away[5] = {}, behind_0[2][2] = {};  // behind_0[side of the plane][light 0 behind]
+  for (int k = 0; k < 4000; ++k) {
+    const vec3 p(box(rng), box(rng), box(rng));
+    for (int light = 0; light < 5; ++light) {
+      if (!light_faces_away(*lit.lights, light, p)) continue;
+      ++away[light];
+      for (int i = 0; i < 64; ++i)
+        EXPECT_FALSE(sample_li(*lit.lights, light, LightSampleContext{p}, vec2(unit(rng), unit(rng)), unit(rng)))
+            << "light " << light << " at " << p.x << " " << p.y << " " << p.z;
+    }
+    // Lights 0 and 1 share one plane (from the parser's transform) and emit
+    // to opposite sides: off the plane, exactly one of them is behind p.
+    const mat4 m = glm::rotate(glm::translate(mat4(1.0f), vec3(0, 1, 0)), glm::radians(30.0f), vec3(1, 0.5f, 0));
+    const vec3 normal = glm::normalize(vec3(m * vec4(0, 1, 0, 0)));
+    const float height = glm::dot(normal, p - vec3(0, 1, 0));
+    if (std::abs(height) > 0.01f) {
+      const bool a0 = light_faces_away(*lit.lights, 0, p), a1 = light_faces_away(*lit.lights, 1, p);
+      EXPECT_NE(a0, a1) << "height " << height;
+      ++behind_0[height > 0.0f ? 1 : 0][a0 ? 1 : 0];
+    }
+  }
+  // Light 0 is behind every point on one side of the plane and none on the other.
+  EXPECT_TRUE((behind_0[0][1] == 0 && behind_0[1][0] == 0) || (behind_0[0][0] == 0 && behind_0[1][1] == 0));
+  EXPECT_GT(away[0], 1000);
+  EXPECT_GT(away[1], 1000);
+  EXPECT_EQ(away[2], 0);  // two-sided
+  EXPECT_EQ(away[3], 0);  // not planar
+  EXPECT_EQ(away[4], 0);  // its normals decide its side: not taken as planar
 }

@@ -189,9 +189,11 @@ inline std::optional<BxDFSample> sample_of(const DielectricBxDF& b, const vec3& 
 }
 
 // A sample the path can use: the same test for every entry point.
+inline bool usable(const std::optional<BxDFSample>& s) {
+  return s && s->pdf != 0.0f && !is_black(s->f) && s->wi.z != 0.0f && is_finite(s->f) && std::isfinite(s->pdf);
+}
 inline std::optional<BxDFSample> usable_or_none(const std::optional<BxDFSample>& s) {
-  if (!s || s->pdf == 0.0f || is_black(s->f) || s->wi.z == 0.0f || !is_finite(s->f) || !std::isfinite(s->pdf))
-    return std::nullopt;
+  if (!usable(s)) return std::nullopt;
   return s;
 }
 

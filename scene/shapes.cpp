@@ -188,11 +188,7 @@ std::optional<Bounds3> top_level_shape_bounds(const Scene& scene, const Shape& s
 }
 
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]) {
-  if (m.uv.empty()) {
-    uv[0] = vec2(0, 0), uv[1] = vec2(1, 0), uv[2] = vec2(1, 1);
-    return;
-  }
-  for (int k = 0; k < 3; ++k) uv[k] = m.uv[m.indices[3 * tri + size_t(k)]];
+  for (int k = 0; k < 3; ++k) uv[k] = corner_uv(m, m.indices[3 * tri + size_t(k)], k);
 }
 
 namespace {
@@ -227,9 +223,8 @@ void coordinate_system(const vec3& n, vec3* a, vec3* b) {
 
 // pbrt-v4's dndu, dndv of a triangle's interpolated vertex normals: the normals'
 // differences over the uv differences (any orthogonal pair when the uvs are degenerate).
-void triangle_normal_derivatives(const TriangleMesh& m, size_t tri, const vec2 uv[3], vec3* dndu, vec3* dndv) {
+void triangle_normal_derivatives(const TriangleMesh& m, size_t tri, vec2 duv02, vec2 duv12, vec3* dndu, vec3* dndv) {
   uint32_t i0 = m.indices[3 * tri], i1 = m.indices[3 * tri + 1], i2 = m.indices[3 * tri + 2];
-  vec2 duv02 = uv[0] - uv[2], duv12 = uv[1] - uv[2];
   vec3 dn1 = m.n[i0] - m.n[i2], dn2 = m.n[i1] - m.n[i2];
   float det = duv02.x * duv12.y - duv02.y * duv12.x;
   if (std::abs(det) >= 1e-9f) {
@@ -259,10 +254,13 @@ SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, s
   const vec3 &p0 = m.p[i0], &p1 = m.p[i1], &p2 = m.p[i2];
   SurfaceInteraction si;
   triangle_point(m, tri, b0, b1, b2, si.p, si.p_error);
-  vec2 uv[3];
-  triangle_uvs(m, tri, uv);
-  si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
-  vec2 duv02 = uv[0] - uv[2], duv12 = uv[1] - uv[2];
+  // Corner by corner, not through triangle_uvs' array: GCC kept the array on
+  // the stack, stored each corner as one 8-byte integer and read two back as
+  // one vector, which store forwarding cannot serve (a third of this
+  // function's time on the Cornell box).
+  const vec2 uv0 = corner_uv(m, i0, 0), uv1 = corner_uv(m, i1, 1), uv2 = corner_uv(m, i2, 2);
+  si.uv = b0 * uv0 + b1 * uv1 + b2 * uv2;
+  vec2 duv02 = uv0 - uv2, duv12 = uv1 - uv2;
   vec3 dp02 = p0 - p2, dp12 = p1 - p2;
   float det = duv02.x * duv12.y - duv02.y * duv12.x;
   bool degenerate = std::abs(det) < 1e-9f;
@@ -274,7 +272,7 @@ SurfaceInteraction triangle_interaction(const TriangleMesh& m, const Shape& s, s
   si.ng = triangle_normal(m, s.reverse_orientation != s.transform_swaps_handedness, tri, b0, b1, b2, &si.ns);
   if (degenerate || glm::dot(glm::cross(si.dpdu, si.dpdv), glm::cross(si.dpdu, si.dpdv)) == 0.0f)
     coordinate_system(si.ng, &si.dpdu, &si.dpdv);
-  if (normal_derivatives && !m.n.empty()) triangle_normal_derivatives(m, tri, uv, &si.dndu, &si.dndv);
+  if (normal_derivatives && !m.n.empty()) triangle_normal_derivatives(m, tri, duv02, duv12, &si.dndu, &si.dndv);
   return si;
 }
 
@@ -366,24 +364,29 @@ vec3 shape_geometry::triangle_normal(const TriangleMesh& m, bool flip, size_t tr
   return orient_triangle_normal(m, triangle_unit_normal(m, tri), flip, tri, b0, b1, b2, ns);
 }
 
-SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit) {
-  int shape = accel.shape_index(hit);
-  if (shape < 0) throw_error("compute_interaction: hit names no shape (geometry {})", hit.geom);
-  const Shape& s = scene.shapes[size_t(shape)];
-  SurfaceInteraction si;
+namespace {
+
+// The interaction on the hit's own shape, before any instance transform.
+// Each kind's is returned as it is made, so that it is built in
+// compute_interaction's result: assigned from a temporary, the copy read
+// back the temporary's narrow stores as wide loads, which store forwarding
+// cannot serve (a third of compute_interaction's time on the Cornell box).
+[[gnu::always_inline]] inline SurfaceInteraction shape_interaction(const Scene& scene, const Accel& accel,
+                                                                   const Ray& ray, const Hit& hit, const Shape& s) {
   if (s.kind == ShapeKind::TriangleMesh) {
     // A bump map (bsdf.cpp's shading_frame) is the only reader of dndu and
     // dndv: a shape whose material has none, and cannot pick one by a mix,
     // leaves them 0.
     const Material* mat = s.material >= 0 ? &scene.materials[size_t(s.material)] : nullptr;
     const bool bump = !mat || mat->displacement >= 0 || mat->kind == MaterialKind::Mix;
-    si = triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v, bump);
-    si.prim = int(hit.prim);
-  } else if (s.kind == ShapeKind::Sphere || s.kind == ShapeKind::Cylinder) {
+    return triangle_interaction(scene.meshes[size_t(s.mesh)], s, hit.prim, hit.u, hit.v, bump);
+  }
+  if (s.kind == ShapeKind::Sphere || s.kind == ShapeKind::Cylinder) {
     const vec2 uv = std::isnan(hit.u) ? accel.quadric_uv(ray, hit) : vec2(hit.u, hit.v);
-    si = quadric_interaction(s, s.kind == ShapeKind::Sphere ? sphere_local(make_sphere_shape(s.sphere), uv.x, uv.y)
-                                                            : cylinder_local(make_cylinder_shape(s.cylinder), uv.x, uv.y));
-  } else if (s.kind == ShapeKind::Curve) {
+    return quadric_interaction(s, s.kind == ShapeKind::Sphere ? sphere_local(make_sphere_shape(s.sphere), uv.x, uv.y)
+                                                              : cylinder_local(make_cylinder_shape(s.cylinder), uv.x, uv.y));
+  }
+  if (s.kind == ShapeKind::Curve) {
     vec3 o = ray.o, d = ray.d;
     if (int inst = accel.instance_index(hit); inst >= 0) {
       // Embree found the hit with the ray in instance space, where t is the same.
@@ -391,12 +394,20 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
       o = vec3(dvec3(inv * dvec4(dvec3(ray.o), 1.0)));
       d = vec3(dmat3(inv) * dvec3(ray.d));
     }
-    si = curve_interaction(scene.curves[size_t(s.curves)], s, o, d, hit);
-    si.prim = int(hit.prim);
-    si.skip = PrimRef{hit.inst, hit.geom, hit.prim};
-  } else {
-    si = quadric_interaction(s, disk_local(make_disk_shape(s.disk), hit.u, hit.v));
+    return curve_interaction(scene.curves[size_t(s.curves)], s, o, d, hit);
   }
+  return quadric_interaction(s, disk_local(make_disk_shape(s.disk), hit.u, hit.v));
+}
+
+}  // namespace
+
+SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit) {
+  int shape = accel.shape_index(hit);
+  if (shape < 0) throw_error("compute_interaction: hit names no shape (geometry {})", hit.geom);
+  const Shape& s = scene.shapes[size_t(shape)];
+  SurfaceInteraction si = shape_interaction(scene, accel, ray, hit, s);
+  if (s.kind == ShapeKind::TriangleMesh || s.kind == ShapeKind::Curve) si.prim = int(hit.prim);
+  if (s.kind == ShapeKind::Curve) si.skip = PrimRef{hit.inst, hit.geom, hit.prim};
   int inst = accel.instance_index(hit);
   if (inst >= 0) {
     const Transform& t = scene.instances[size_t(inst)].render_from_instance;

@@ -87,6 +87,11 @@ double triangle_area(const TriangleMesh& m, size_t tri);
 
 // The (u, v) of triangle `tri`'s corners: the mesh's, or pbrt-v4's default (0,0) (1,0) (1,1).
 void triangle_uvs(const TriangleMesh& m, size_t tri, vec2 uv[3]);
+// One corner's: `vertex` the mesh vertex at corner 0, 1 or 2.
+inline vec2 corner_uv(const TriangleMesh& m, uint32_t vertex, int corner) {
+  if (m.uv.empty()) return vec2(corner == 0 ? 0.0f : 1.0f, corner == 2 ? 1.0f : 0.0f);
+  return m.uv[vertex];
+}
 
 SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, const Ray& ray, const Hit& hit);
 // Shading visits a batch's hits in traced order (or, sorted, in (geometry,

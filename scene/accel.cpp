@@ -561,7 +561,13 @@ static void fill_ray(const Ray& r, uint32_t index, RTCRay& out) {
   out.flags = 0;
 }
 
-static Hit to_hit(const RTCRayHit& rh) {
+// Field by field, through a volatile view: Embree stores each field on its
+// own, and read as they are declared, u and v (primID and geomID) became one
+// 8-byte load, which waits for both stores to reach the cache (a load is
+// forwarded from one store only): two thirds of Accel::intersect's time on
+// smoke-grid.
+static Hit to_hit(const RTCRayHit& hit) {
+  const volatile RTCRayHit& rh = hit;
   Hit h;
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return h;
   h.t = rh.ray.tfar;

@@ -251,19 +251,25 @@ EmitterPlane emitter_plane(const Scene& s, const Light& l) {
   Bounds3 b;
   for (uint32_t i : m.indices) b = union_bounds(b, m.p[i]);
   e.center = 0.5f * (b.min + b.max);
-  e.radius = 0.5f * glm::length(b.max - b.min);
   e.n = n;
   e.offset = glm::dot(n, e.center);
-  float tilt = 0.0f;
+  float tilt = 0.0f, deviation = 0.0f;
   for (size_t t = 0; t < m.triangle_count(); ++t) {
     if (!(triangle_area(m, t) > 0.0)) continue;  // sample_li never draws it
     const vec3 nt = (flip ? -1.0f : 1.0f) * triangle_unit_normal(m, t);
     if (!(glm::dot(nt, n) > 0.999f)) return EmitterPlane{};
     tilt = std::max(tilt, glm::length(nt - n));
   }
-  for (uint32_t i : m.indices) e.deviation = std::max(e.deviation, std::abs(glm::dot(n, m.p[i]) - e.offset));
-  e.slack = tilt + 1e-5f;
-  e.planar = std::isfinite(e.offset) && std::isfinite(e.radius) && std::isfinite(e.deviation);
+  for (uint32_t i : m.indices) deviation = std::max(deviation, std::abs(glm::dot(n, m.p[i]) - e.offset));
+  // From a point p at distance d from the centre, a point q on the light is
+  // at most d + radius away; q's triangle faces away from p when p is below
+  // q's plane by more than deviation + tilt |p - q|.  1e-5 of the distances
+  // covers the rounding of q, p - q and the dot products.
+  const float radius = 0.5f * glm::length(b.max - b.min);
+  const float per_distance = tilt + 2e-5f;
+  e.margin = deviation + per_distance * radius + 1e-5f * glm::length(e.center);
+  e.margin_per_distance = per_distance;
+  e.planar = std::isfinite(e.offset) && std::isfinite(e.margin) && std::isfinite(e.margin_per_distance);
   return e;
 }
 

@@ -57,17 +57,17 @@ struct EnvironmentMap {
 
 // A one-sided planar area light's plane: n its emitting side (unit), offset
 // = dot(n, any point on it); the light is planar and one-sided when
-// `planar`.  slack bounds, per unit distance from `center`, how far a
-// triangle's own normal (which decides emission) may tilt from n, and
-// `deviation` how far a vertex may lie off the plane.
+// `planar`.  A point counts as behind it only below the plane by more than
+// margin + margin_per_distance * |p - center|: the margins bound how far a
+// vertex lies off the plane, how far a triangle's own normal (which decides
+// emission) tilts from n, and rounding.
 struct EmitterPlane {
   bool planar = false;
   vec3 n{0.0f};
   float offset = 0.0f;
   vec3 center{0.0f};
-  float radius = 0.0f;     // of a sphere about center holding the light
-  float deviation = 0.0f;
-  float slack = 0.0f;
+  float margin = 0.0f;
+  float margin_per_distance = 0.0f;
 };
 
 // Everything light sampling needs that is built once per scene.
@@ -122,9 +122,7 @@ inline bool light_faces_away(const LightSet& lights, int light, const vec3& p) {
   const EmitterPlane& e = lights.emitter_planes[size_t(light)];
   if (!e.planar) return false;
   const float height = glm::dot(e.n, p) - e.offset;
-  if (height >= 0.0f) return false;
-  const float reach = glm::length(p - e.center) + e.radius;
-  return height < -(e.deviation + e.slack * reach + 1e-5f * (reach + glm::length(e.center)));
+  return height < 0.0f && height < -(e.margin + e.margin_per_distance * glm::length(p - e.center));
 }
 // Solid-angle pdf that sample_li() on `light` produces the point `hit` seen
 // along wi (area lights); `given_primitive`: sample_li() was given hit.prim.

@@ -275,7 +275,8 @@ static void write_engine_log(nlohmann::json& log, const WavefrontEngine& engine,
                   {"average_length", st.paths ? double(st.path_vertices) / double(st.paths) : 0.0},
                   {"peak_live", st.peak_live_paths},
                   {"pool", engine.sizes().max_paths},
-                  {"batch_size", engine.sizes().batch_size}};
+                  {"batch_size", engine.sizes().batch_size},
+                  {"lanes", engine.sizes().lanes}};
   log["memory"] = {{"peak_rss", peak_rss_bytes()},
                    {"accel", rs.accel.memory_bytes()},
                    {"film", film.memory_bytes()},

@@ -62,7 +62,7 @@ struct IterationConfig {
   double time_limit = 0.0;
   std::chrono::steady_clock::time_point clock_start = std::chrono::steady_clock::now();
   // (iteration index, fraction of its camera samples generated, fraction of
-  // the render's samples), from the driving thread.
+  // the render's samples), from the engine's lanes, one call at a time.
   std::function<void(int, double, double)> progress;
   // Asked after each iteration's end hooks until it answers: options whose
   // schedule renders the rest of the samples from the next iteration on

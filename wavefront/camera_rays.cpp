@@ -8,6 +8,7 @@ namespace theia {
 namespace {
 
 constexpr size_t kSlotPrefetchDistance = 8;
+constexpr uint64_t kMinCameraClaim = 1024;
 
 struct PixelSample {
   uint32_t pixel = 0, sample = 0;
@@ -56,9 +57,25 @@ void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t s
   if (!pool.roughness.empty()) pool.roughness[slot] = 0.0f;
 }
 
+// The next run of camera samples for this lane: at most `count` (fewer as
+// the iteration's end nears, so that the lanes finish together); sets
+// `count` to the run's length, 0 when none is left.
+uint64_t WavefrontEngine::Impl::claim_camera_samples(size_t& count) {
+  count = std::min(count, pool.free_slots.size());
+  if (!camera_claims) {
+    count = size_t(std::min<uint64_t>(count, camera_end - next_camera));
+    return next_camera;
+  }
+  const uint64_t left = camera_end - cameras_claimed();
+  count = size_t(std::min<uint64_t>(count, std::max<uint64_t>(left / (2 * lane_count), kMinCameraClaim)));
+  const uint64_t first = camera_claims->fetch_add(count, std::memory_order_relaxed);
+  count = first < camera_end ? size_t(std::min<uint64_t>(count, camera_end - first)) : 0;
+  return first;
+}
+
 void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   ScopedTimer timer(stats.phases[Phase::Generate]);
-  count = std::min<uint64_t>({count, camera_end - next_camera, pool.free_slots.size()});
+  const uint64_t first = claim_camera_samples(count);
   if (count == 0) return;
   std::vector<uint32_t> slots(pool.free_slots.end() - count, pool.free_slots.end());
   pool.free_slots.resize(pool.free_slots.size() - count);
@@ -78,7 +95,6 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     full.push_back(std::move(b));
   }
   auto batch_of = [&](size_t i) -> Batch& { return full[first_batch + n_batches - 1 - i / batch]; };
-  const uint64_t first = next_camera;
   const uint32_t width = uint32_t(film.width);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
@@ -106,7 +122,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
       batch_of(i).rays[i % batch] = ray;
     }
   });
-  next_camera += count;
+  next_camera = first + count;
   stats.camera_rays += count;
   stats.paths += count;
   queued_rays += count;

@@ -5,8 +5,10 @@
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <chrono>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 
@@ -28,15 +30,16 @@ uint64_t hit_sort_key(const Hit& h) {
 
 EngineSizes engine_sizes(const EngineOptions& o, uint64_t pixels, int threads) {
   // A pool of 2^19 paths keeps both cores of a production frame busy; a
-  // small frame's whole iteration fits in far fewer.  Below 2^14 paths per
-  // thread the parallel stages run out of work.
+  // small frame's whole iteration fits in far fewer.  Below 2^14 paths a
+  // lane's batches are too small to sort.
   const uint64_t floor = uint64_t(1) << 14;
   uint64_t paths = std::clamp<uint64_t>(pixels * 4, floor * uint64_t(std::max(threads, 1)), uint64_t(1) << 19);
   EngineSizes s;
   s.max_paths = o.max_paths > 0 ? o.max_paths : size_t(paths);
+  s.lanes = std::clamp<size_t>(size_t(std::max(threads, 1)), 1, s.max_paths);
   // Continuation rays spread over six direction bins: a batch of an eighth
-  // of the pool fills.
-  s.batch_size = o.batch_size > 0 ? o.batch_size : std::max<size_t>(s.max_paths / 8, 1024);
+  // of a lane's pool fills.
+  s.batch_size = o.batch_size > 0 ? o.batch_size : std::max<size_t>(s.lane_paths() / 8, 1024);
   return s;
 }
 
@@ -46,11 +49,10 @@ static bool has_layered_material(const Scene& scene) {
   });
 }
 
-WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOptions& o, const EngineHooks& h)
+WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOptions& o, const EngineHooks& h,
+                            const EngineSizes& lane)
     : scene(rs.scene), accel(rs.accel), lights(rs.lights), light_sampler(*rs.light_sampler), camera(rs.camera),
-      filter(rs.filter), film(f), opt(o), hooks(h), observer(h.observer),
-      sizes(engine_sizes(o, uint64_t(f.pixel_count()),
-                         int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)))),
+      filter(rs.filter), film(f), opt(o), hooks(h), observer(h.observer), sizes(lane),
       pool(sizes.max_paths, PathFeatures{.curves = !rs.scene.curves.empty(),
                                          .guiding = h.guide != nullptr && o.guiding.roulette_correction,
                                          .adjoint_roulette = h.guide != nullptr && o.guiding.adjoint_roulette,
@@ -68,7 +70,6 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
   for (size_t m = 0; m < scene.materials.size(); ++m) material_footprint[m] = material_reads_footprint(scene, int(m));
   check_media_hooks();
   if (rs.scene.has_media()) sealed_media = theia::sealed_media(scene);
-  film.use_thread_sums(int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
   light_sampler_learns = light_sampler.wants_feedback();
   light_sampler_primitives = light_sampler.chooses_primitives();
   footprint_scale = footprint_spp_scale(opt.footprint_spp);
@@ -76,25 +77,106 @@ WavefrontEngine::Impl::Impl(const RenderableScene& rs, Film& f, const EngineOpti
 
 // ---------------------------------------------------------------- the loop
 
-uint64_t WavefrontEngine::Impl::render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera,
-                                       const std::function<void(double)>& on_progress) {
+// One iteration: the lanes render camera samples [first_camera, end) (or
+// until stopped), the lead lane on the calling thread; then the caustic pass
+// and the film's flush.
+uint64_t WavefrontEngine::iterate(uint32_t s_begin, uint32_t s_end, const SampleRanges* ranges, uint64_t first_camera,
+                                  const std::function<void(double)>& on_progress) {
   auto t0 = std::chrono::steady_clock::now();
-  progress = &on_progress;
-  film.continue_in_thread_sums();
-  begin_iteration(s_begin, s_end, first_camera);
-  while (advance()) {
-  }
+  Impl& lead = *lanes_.front();
+  lead.film.continue_in_thread_sums();
+  std::atomic<uint64_t> claims{0};
+  for (auto& lane : lanes_)
+    lane->begin_iteration(s_begin, s_end, first_camera, ranges, lanes_.size() > 1 ? &claims : nullptr);
+  claims = lead.next_camera;
+  // Each lane reports as it claims camera samples, one lane at a time.
+  std::mutex progress_lock;
+  double reported = 0.0;
+  const std::function<void(double)> report = [&](double fraction) {
+    const std::lock_guard<std::mutex> hold(progress_lock);
+    reported = std::max(reported, fraction);
+    if (on_progress) on_progress(reported);
+  };
+  for (auto& lane : lanes_) lane->progress = &report;
+  run_lanes();
+  lead.next_camera = lead.cameras_claimed();
+  for (auto& lane : lanes_) lane->camera_claims = nullptr, lane->ranges = nullptr, lane->progress = nullptr;
+  lead.progress = &report;
   // The iteration's camera samples are all in: the caustic pass adds its
   // estimate for the same samples (an interrupted iteration runs it when resumed).
-  if (next_camera == camera_end && !abandoned) trace_caustics();
-  film.flush();
-  report_progress();
-  progress = nullptr;
-  stats.render_seconds += seconds_since(t0);
-  return next_camera;
+  if (lead.next_camera == lead.camera_end && !abandoned()) lead.trace_caustics();
+  lead.film.flush();
+  lead.report_progress();
+  lead.progress = nullptr;
+  end_iteration();
+  stats_.render_seconds += seconds_since(t0);
+  return lead.next_camera;
 }
 
-void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera) {
+// Each lane on its own thread; the lead on the calling one.
+void WavefrontEngine::run_lanes() {
+  tbb::task_group others;
+  for (size_t i = 1; i < lanes_.size(); ++i) others.run([lane = lanes_[i].get()] { lane->run(); });
+  try {
+    lanes_.front()->run();
+  } catch (...) {
+    others.wait();
+    throw;
+  }
+  others.wait();
+}
+
+void WavefrontEngine::Impl::run() {
+  auto loop = [this] {
+    while (advance()) {
+    }
+  };
+  if (arena)
+    arena->execute(loop);
+  else
+    loop();
+}
+
+// The lanes' counts into the engine's: sums, but the phases' mean (the
+// lanes ran at once) and the sum of each lane's peak; the captured rays in
+// lane order.  The caustic pass runs after the lanes, on every thread, timed
+// by the lead: its seconds are wall seconds already.
+void WavefrontEngine::end_iteration() {
+  const double share = 1.0 / double(lanes_.size());
+  size_t live = 0, queued = 0, queued_shadows = 0;
+  for (auto& lane : lanes_) {
+    EngineStats& s = lane->stats;
+    for (size_t p = 0; p < size_t(Phase::Count); ++p)
+      stats_.phases[Phase(p)] += s.phases[Phase(p)] * (Phase(p) == Phase::Caustics ? 1.0 : share);
+    stats_.camera_rays += s.camera_rays;
+    stats_.continuation_rays += s.continuation_rays;
+    stats_.shadow_rays += s.shadow_rays;
+    stats_.paths += s.paths;
+    stats_.path_vertices += s.path_vertices;
+    stats_.batches += s.batches;
+    stats_.shadow_batches += s.shadow_batches;
+    live += s.peak_live_paths;
+    queued += s.peak_queued_rays;
+    queued_shadows += s.peak_queued_shadow_rays;
+    s = EngineStats{};
+    if (lane.get() == lanes_.front().get()) continue;
+    const EngineOptions& o = lanes_.front()->opt;
+    if (o.capture_rays) o.capture_rays->insert(o.capture_rays->end(), lane->captured_rays.begin(), lane->captured_rays.end());
+    if (o.capture_shadow_rays)
+      o.capture_shadow_rays->insert(o.capture_shadow_rays->end(), lane->captured_shadow_rays.begin(),
+                                    lane->captured_shadow_rays.end());
+    lane->captured_rays.clear();
+    lane->captured_shadow_rays.clear();
+  }
+  stats_.peak_live_paths = std::max(stats_.peak_live_paths, live);
+  stats_.peak_queued_rays = std::max(stats_.peak_queued_rays, queued);
+  stats_.peak_queued_shadow_rays = std::max(stats_.peak_queued_shadow_rays, queued_shadows);
+}
+
+void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera,
+                                            const SampleRanges* sample_ranges, std::atomic<uint64_t>* claims) {
+  ranges = sample_ranges;
+  camera_claims = claims;
   sample_begin = s_begin;
   sample_count = s_end > s_begin ? s_end - s_begin : 0;
   // Per iteration: the caustic pass may have switched itself off after the last one.
@@ -112,14 +194,15 @@ void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, ui
 
 // EngineHooks::observed_pool_share: batches sized for the paths that live
 // (an eighth, as engine_sizes does for the pool), the refill at the same
-// occupancy of them.  Unobserved, the pool's own sizes.
+// occupancy of them.  Unobserved, the pool's own sizes.  The floor is the
+// engine's, shared by its lanes.
 void WavefrontEngine::Impl::cap_live_paths() {
-  constexpr size_t kMinCappedPaths = size_t(1) << 14;
+  const size_t min_live = (size_t(1) << 14) / lane_count;
   live_cap = pool.capacity();
   sizes.batch_size = full_batch_size;
   if (observer && hooks.observed_pool_share > 0.0f) {
     const size_t share = size_t(double(hooks.observed_pool_share) * double(pool.capacity()));
-    live_cap = std::clamp(share, std::min(kMinCappedPaths, pool.capacity()), pool.capacity());
+    live_cap = std::clamp(share, std::min(min_live, pool.capacity()), pool.capacity());
     if (opt.batch_size == 0 && live_cap < pool.capacity()) sizes.batch_size = std::max<size_t>(live_cap / 8, 1024);
   }
   refill_below = size_t(opt.occupancy_threshold * float(live_cap));
@@ -166,7 +249,7 @@ bool WavefrontEngine::Impl::advance() {
 // Once stopped, no camera ray is generated: the paths in flight finish,
 // so exactly the pixel-samples [first_camera, next_camera) are complete.
 bool WavefrontEngine::Impl::can_generate() const {
-  return next_camera < camera_end && pool.live() < live_cap && !(opt.stop && opt.stop->raised()) &&
+  return cameras_claimed() < camera_end && pool.live() < live_cap && !(opt.stop && opt.stop->raised()) &&
          !(camera_deadline && std::chrono::steady_clock::now() >= *camera_deadline);
 }
 
@@ -183,7 +266,12 @@ void WavefrontEngine::Impl::generate_camera_rays_and_report() {
 }
 
 void WavefrontEngine::Impl::report_progress() const {
-  if (progress && *progress) (*progress)(camera_end ? double(next_camera) / double(camera_end) : 1.0);
+  if (progress && *progress) (*progress)(camera_end ? double(cameras_claimed()) / double(camera_end) : 1.0);
+}
+
+// The camera samples this lane (or, with lanes, any lane) has taken on.
+uint64_t WavefrontEngine::Impl::cameras_claimed() const {
+  return camera_claims ? std::min(camera_claims->load(std::memory_order_relaxed), camera_end) : next_camera;
 }
 
 void WavefrontEngine::Impl::process_and_recycle(Batch& b) {
@@ -444,29 +532,40 @@ RenderableScene::RenderableScene(const Scene& s, const std::string& sampler_name
       filter(make_filter(s.filter)) {}
 
 WavefrontEngine::WavefrontEngine(const RenderableScene& rs, Film& film, const EngineOptions& options,
-                                 const EngineHooks& hooks)
-    : impl_(new Impl(rs, film, options, hooks)) {}
+                                 const EngineHooks& hooks) {
+  const int threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  sizes_ = engine_sizes(options, uint64_t(film.pixel_count()), threads);
+  const EngineSizes lane{sizes_.lane_paths(), sizes_.batch_size, 1};
+  for (size_t i = 0; i < sizes_.lanes; ++i) {
+    lanes_.push_back(std::make_unique<Impl>(rs, film, options, hooks, lane));
+    Impl& l = *lanes_.back();
+    l.lane_count = sizes_.lanes;
+    if (sizes_.lanes > 1) l.arena = std::make_unique<tbb::task_arena>(1);
+    if (i == 0) continue;
+    if (options.capture_rays) l.opt.capture_rays = &l.captured_rays;
+    if (options.capture_shadow_rays) l.opt.capture_shadow_rays = &l.captured_shadow_rays;
+  }
+  film.use_thread_sums(threads);
+}
 
-WavefrontEngine::~WavefrontEngine() { delete impl_; }
+WavefrontEngine::~WavefrontEngine() = default;
 
 uint64_t WavefrontEngine::render(uint32_t sample_begin, uint32_t sample_end, const std::function<void(double)>& progress,
                                  uint64_t first_camera_sample) {
-  impl_->ranges = nullptr;
-  return impl_->render(sample_begin, sample_end, first_camera_sample, progress);
+  return iterate(sample_begin, sample_end, nullptr, first_camera_sample, progress);
 }
 
 uint64_t WavefrontEngine::render(const SampleRanges& ranges, const std::function<void(double)>& progress,
                                  uint64_t first_camera_sample) {
-  impl_->ranges = &ranges;
-  uint64_t done = impl_->render(0, 0, first_camera_sample, progress);
-  impl_->ranges = nullptr;
-  return done;
+  return iterate(0, 0, &ranges, first_camera_sample, progress);
 }
 
 void WavefrontEngine::set_hooks(const EngineHooks& hooks) {
-  impl_->hooks = hooks;
-  impl_->observer = hooks.observer;
-  impl_->check_media_hooks();
+  for (auto& lane : lanes_) {
+    lane->hooks = hooks;
+    lane->observer = hooks.observer;
+    lane->check_media_hooks();
+  }
 }
 
 // The caustic pass's light paths do not track media: the caller switches it off.
@@ -475,24 +574,34 @@ void WavefrontEngine::Impl::check_media_hooks() const {
     throw std::invalid_argument("a scene with participating media renders without the caustic pass");
 }
 
-const EngineHooks& WavefrontEngine::hooks() const { return impl_->hooks; }
+const EngineHooks& WavefrontEngine::hooks() const { return lanes_.front()->hooks; }
 
-bool WavefrontEngine::abandoned() const { return impl_->abandoned; }
+bool WavefrontEngine::abandoned() const {
+  return std::any_of(lanes_.begin(), lanes_.end(), [](const auto& lane) { return lane->abandoned; });
+}
 
 void WavefrontEngine::finish_stopped_iteration() {
   auto t0 = std::chrono::steady_clock::now();
-  impl_->film.continue_in_thread_sums();
-  impl_->trace_caustics();
-  impl_->film.flush();
-  impl_->stats.render_seconds += seconds_since(t0);
+  Impl& lead = *lanes_.front();
+  lead.film.continue_in_thread_sums();
+  lead.trace_caustics();
+  lead.film.flush();
+  end_iteration();
+  stats_.render_seconds += seconds_since(t0);
 }
 
 void WavefrontEngine::stop_camera_samples_at(std::optional<std::chrono::steady_clock::time_point> at) {
-  impl_->camera_deadline = at;
+  for (auto& lane : lanes_) lane->camera_deadline = at;
 }
 
-const EngineStats& WavefrontEngine::stats() const { return impl_->stats; }
-EngineSizes WavefrontEngine::sizes() const { return impl_->sizes; }
-size_t WavefrontEngine::memory_bytes() const { return impl_->memory_bytes(); }
+const EngineStats& WavefrontEngine::stats() const { return stats_; }
+// The batch size of a lane while observed may be capped (cap_live_paths).
+EngineSizes WavefrontEngine::sizes() const { return {sizes_.max_paths, lanes_.front()->sizes.batch_size, sizes_.lanes}; }
+
+size_t WavefrontEngine::memory_bytes() const {
+  size_t bytes = 0;
+  for (const auto& lane : lanes_) bytes += lane->memory_bytes();
+  return bytes;
+}
 
 }  // namespace theia

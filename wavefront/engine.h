@@ -1,6 +1,8 @@
 // The sorted-deferred (wavefront) path tracer, as Hyperion does it.
 //
-// Paths live in a fixed-capacity pool.  Camera rays are generated in
+// Each thread runs a wavefront of its own (a lane): its pool, batches and
+// queues, every stage on its own core, camera samples claimed from a counter
+// the lanes share.  Within a lane, paths live in a fixed-capacity pool.  Camera rays are generated in
 // pixel-sample order whenever occupancy falls below a threshold; every ray is
 // queued into one of six batches binned by its dominant direction; the most
 // recently filled batch is processed next: its rays are sorted (origin Morton
@@ -29,6 +31,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace theia {
 
@@ -104,7 +107,10 @@ struct EngineHooks {
 // sized from the frame's samples per iteration and the thread count, so that
 // a small image does not hold a production frame's queues.
 struct EngineSizes {
-  size_t max_paths = 0, batch_size = 0;
+  size_t max_paths = 0;   // all lanes' paths
+  size_t batch_size = 0;  // rays per batch of one lane
+  size_t lanes = 1;       // wavefronts, one per thread, of max_paths / lanes paths each
+  size_t lane_paths() const { return max_paths / lanes; }
 };
 EngineSizes engine_sizes(const EngineOptions& options, uint64_t pixels, int threads);
 
@@ -164,7 +170,8 @@ class WavefrontEngine {
 
   // Renders samples [sample_begin, sample_end) of every pixel and returns
   // when no ray is in flight (one scheduler iteration).  `progress` is called
-  // from the driving thread with the fraction of camera samples generated.
+  // with the fraction of camera samples generated, which never decreases,
+  // from the lanes' threads (the calling thread's among them), one call at a time.
   //
   // Camera samples are numbered in pixel-sample order, g = pixel * n + (sample
   // - sample_begin) with n = sample_end - sample_begin; the call renders
@@ -195,6 +202,8 @@ class WavefrontEngine {
   void set_hooks(const EngineHooks& hooks);
   const EngineHooks& hooks() const;
 
+  // The lanes' counts summed; phase seconds are per lane (the lanes run at
+  // once, so a phase's mean over them is its share of the wall time).
   const EngineStats& stats() const;
   // The pool and batch sizes in use (engine_sizes of the options).
   EngineSizes sizes() const;
@@ -202,8 +211,15 @@ class WavefrontEngine {
   size_t memory_bytes() const;
 
  private:
-  struct Impl;
-  Impl* impl_;
+  struct Impl;  // one lane: a wavefront with its own pool, batches and queues
+  uint64_t iterate(uint32_t sample_begin, uint32_t sample_end, const SampleRanges* ranges,
+                   uint64_t first_camera_sample, const std::function<void(double)>& progress);
+  void run_lanes();
+  void end_iteration();
+
+  EngineSizes sizes_;
+  std::vector<std::unique_ptr<Impl>> lanes_;  // the first runs on the calling thread and reports progress
+  EngineStats stats_;
 };
 
 }  // namespace theia

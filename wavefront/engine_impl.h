@@ -22,10 +22,13 @@
 #include "wavefront/sample_dims.h"
 
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/task_arena.h>
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <optional>
 
 namespace theia {
@@ -180,6 +183,15 @@ struct WavefrontEngine::Impl {
   bool abandoned = false;  // the last render() dropped paths in flight (EngineOptions::abandon_after_seconds)
   void abandon_paths_in_flight();
   uint64_t next_camera = 0, camera_end = 0;
+  // With more than one lane: the next camera sample no lane has claimed
+  // (generate_camera_rays claims a run of them), shared by all.
+  std::atomic<uint64_t>* camera_claims = nullptr;
+  size_t lane_count = 1;
+  // With more than one lane: a one-thread arena, so that the stages'
+  // parallel loops run on the lane's own thread, in order, and never take
+  // (or hand over) another lane's work.
+  std::unique_ptr<tbb::task_arena> arena;
+  std::vector<Ray> captured_rays, captured_shadow_rays;  // a lane's own for EngineOptions::capture_rays
   uint32_t sample_begin = 0, sample_count = 0;
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
   const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
@@ -189,12 +201,15 @@ struct WavefrontEngine::Impl {
   std::optional<std::chrono::steady_clock::time_point> signal_seen;
   std::optional<std::chrono::steady_clock::time_point> camera_deadline;  // stop_camera_samples_at
 
-  Impl(const RenderableScene& rs, Film& film, const EngineOptions& options, const EngineHooks& hooks);
+  Impl(const RenderableScene& rs, Film& film, const EngineOptions& options, const EngineHooks& hooks,
+       const EngineSizes& lane);
 
   // ---- the loop and its stages
-  uint64_t render(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const std::function<void(double)>& progress);
-  void begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera);
+  void begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera, const SampleRanges* ranges,
+                       std::atomic<uint64_t>* claims);
+  void run();      // the lane's loop, in its arena: until the iteration is done
   bool advance();  // one turn of the loop; false once the iteration is done
+  uint64_t cameras_claimed() const;
   bool can_generate() const;
   bool out_of_time();
   void generate_camera_rays_and_report();
@@ -203,6 +218,7 @@ struct WavefrontEngine::Impl {
   void process_batch(Batch& b);
   void trace_caustics();                    // the caustic pass over this iteration's samples
   void generate_camera_rays(size_t count);  // camera_rays.cpp
+  uint64_t claim_camera_samples(size_t& count);
   void cap_live_paths();                    // live_cap, sizes.batch_size and refill_below for an iteration
   void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
                   const vec3& origin);

@@ -51,6 +51,8 @@ Scene* Determinism::scene_ = nullptr;
 TEST_F(Determinism, IndependentOfThreadCount) {
   RenderResult a = render(1, 4096, true), b = render(2, 4096, true);
   EXPECT_LT(max_relative_difference(a.image, b.image), 1e-4);
+  EXPECT_EQ(a.log["rays"]["total"], b.log["rays"]["total"]);  // two lanes, the same paths
+  EXPECT_EQ(b.log["paths"]["lanes"].get<size_t>(), 2u);
 }
 
 TEST_F(Determinism, IndependentOfBatchSizeAndPoolSize) {

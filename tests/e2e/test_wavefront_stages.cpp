@@ -3,12 +3,16 @@
 // surface stage (a sphere that hides part of the sky), with hits sorted and
 // in traced order (two paths through shading); and the two orders against
 // each other where every kind of traced ray meets: escapes, hits, and paths
-// that leave the batch in a medium.
+// that leave the batch in a medium; and one wavefront a thread (lanes)
+// against one for both.
 #include "render_helpers.h"
 #include "cachepoints/light_sampler.h"
 #include "wavefront/engine.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
 
 namespace theia {
 namespace {
@@ -89,14 +93,9 @@ TEST(EscapedRays, BehindASurfaceTheSkyIsWhatTheBlackSphereDoesNotHide) {
   }
 }
 
-// Sorting changes only the order in which paths are traced and shaded:
-// every path draws the same numbers either way, so the images agree to the
-// film's summation order.  The scene has every kind of traced ray: escapes
-// into the sky, hits on a floor, and, inside an interface sphere of
-// scattering smoke, paths that scatter or end in the medium and leave their
-// batch there (which unsorted shading must pass by, and sorting drop).
-TEST(ShadingOrder, SortedAndTracedOrdersGiveTheSameImage) {
-  Scene scene = load_test_scene(R"(
+// Floor, sky and a sphere of smoke behind an interface: every kind of traced ray.
+Scene smoke_sphere_scene() {
+  return load_test_scene(R"(
     Film "rgb" "integer xresolution" [24] "integer yresolution" [24]
     LookAt 0 1 -5  0 0 0  0 1 0
     Camera "perspective" "float fov" [40]
@@ -111,6 +110,16 @@ TEST(ShadingOrder, SortedAndTracedOrdersGiveTheSameImage) {
     Material "interface"
     Shape "sphere" "float radius" [1]
   )");
+}
+
+// Sorting changes only the order in which paths are traced and shaded:
+// every path draws the same numbers either way, so the images agree to the
+// film's summation order.  The scene has every kind of traced ray: escapes
+// into the sky, hits on a floor, and, inside an interface sphere of
+// scattering smoke, paths that scatter or end in the medium and leave their
+// batch there (which unsorted shading must pass by, and sorting drop).
+TEST(ShadingOrder, SortedAndTracedOrdersGiveTheSameImage) {
+  const Scene scene = smoke_sphere_scene();
   const ImageBuffer traced = render_engine(scene, 8, false, 8), sorted = render_engine(scene, 8, true, 8);
   double total = 0.0;
   for (int y = 0; y < 24; ++y)
@@ -121,6 +130,87 @@ TEST(ShadingOrder, SortedAndTracedOrdersGiveTheSameImage) {
         total += a;
       }
   EXPECT_GT(total, 100.0);  // not a black image agreeing with itself
+}
+
+// ---------------------------------------------------------------- lanes
+
+struct LaneRender {
+  ImageBuffer image;
+  EngineStats stats;
+  EngineSizes sizes;
+  uint64_t stopped_at = 0;  // where the first render() call returned
+  std::vector<double> progress;
+};
+
+// 8 spp at `threads` threads (one lane each) over a pool of 2048 paths, so
+// that each lane claims camera samples many times.  Stopped as a time limit
+// stops (paths in flight finish) once `stop_at` of the samples are claimed,
+// then continued from where it stopped.
+LaneRender render_in_lanes(const Scene& scene, int threads, double stop_at = 2.0) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  RenderableScene rs(scene);
+  Film film(scene.film.width, scene.film.height);
+  StopRequest stop;
+  EngineOptions opt;
+  opt.max_depth = 8;
+  opt.max_paths = 2048;
+  opt.stop = &stop;
+  WavefrontEngine engine(rs, film, opt);
+  LaneRender r;
+  const auto progress = [&](double f) {
+    r.progress.push_back(f);
+    if (f >= stop_at) stop.raise(StopReason::TimeLimit);
+  };
+  r.stopped_at = engine.render(0, 8, progress);
+  stop.clear();
+  engine.render(0, 8, {}, r.stopped_at);
+  r.image = resolve_film(film);
+  r.stats = engine.stats();
+  r.sizes = engine.sizes();
+  return r;
+}
+
+void expect_same_image(const ImageBuffer& a, const ImageBuffer& b) {
+  ASSERT_EQ(a.data.size(), b.data.size());
+  for (size_t i = 0; i < a.data.size(); ++i)
+    ASSERT_NEAR(a.data[i], b.data[i], 1e-5f * std::max(1.0f, std::abs(a.data[i]))) << "value " << i;
+}
+
+// Each lane claims runs of camera samples from one counter: every sample is
+// rendered once, by whichever lane, along the same path, so two lanes give
+// one lane's image to the film's summation order, and the same rays.
+TEST(Lanes, TwoLanesRenderOneLanesImageAndRays) {
+  const Scene scene = smoke_sphere_scene();
+  const LaneRender one = render_in_lanes(scene, 1), two = render_in_lanes(scene, 2);
+  EXPECT_EQ(one.sizes.lanes, 1u);
+  EXPECT_EQ(two.sizes.lanes, 2u);
+  EXPECT_EQ(two.sizes.lane_paths(), 1024u);
+  expect_same_image(one.image, two.image);
+  EXPECT_EQ(two.stats.camera_rays, 24u * 24u * 8u);
+  EXPECT_EQ(two.stats.total_rays(), one.stats.total_rays());
+  EXPECT_EQ(two.stats.path_vertices, one.stats.path_vertices);
+  EXPECT_LE(two.stats.peak_live_paths, 2048u);
+  // Reported as the lanes claim, one call at a time: never backwards, and
+  // ending at the whole iteration.
+  ASSERT_GT(two.progress.size(), 4u);
+  EXPECT_TRUE(std::is_sorted(two.progress.begin(), two.progress.end()));
+  EXPECT_EQ(two.progress.back(), 1.0);
+}
+
+// A stop leaves the claimed samples one run from the start, all rendered:
+// continuing from where render() returned completes the image exactly.
+// (Whichever lane made the last claim: stopped at several points, the
+// other lane makes it in some.)
+TEST(Lanes, AStoppedIterationContinuesExactlyWhereTheLanesStopped) {
+  const Scene scene = smoke_sphere_scene();
+  const LaneRender whole = render_in_lanes(scene, 1);
+  for (double at : {0.2, 0.35, 0.5, 0.65, 0.8}) {
+    const LaneRender stopped = render_in_lanes(scene, 2, at);
+    EXPECT_GE(double(stopped.stopped_at), at * 24 * 24 * 8);
+    EXPECT_LT(stopped.stopped_at, 24u * 24u * 8u);
+    expect_same_image(whole.image, stopped.image);
+    EXPECT_EQ(stopped.stats.camera_rays, 24u * 24u * 8u);
+  }
 }
 
 }  // namespace

@@ -169,13 +169,20 @@ TEST(EngineSizes, FollowTheFrameUnlessSet) {
   EngineSizes small = engine_sizes(o, 64 * 64, 2), big = engine_sizes(o, 1920 * 1080, 2);
   EXPECT_LT(small.max_paths, big.max_paths);
   EXPECT_EQ(big.max_paths, size_t(1) << 19);
-  EXPECT_GE(small.max_paths, size_t(2) << 14);  // enough work for both threads
-  EXPECT_GE(small.max_paths, small.batch_size * 6);  // continuation rays over six bins fill a batch
+  EXPECT_GE(small.max_paths, size_t(2) << 14);  // 2^14 paths a lane
+  // One lane a thread; continuation rays over a lane's six bins fill a batch.
+  EXPECT_EQ(small.lanes, 2u);
+  EXPECT_EQ(small.lane_paths(), small.max_paths / 2);
+  EXPECT_GE(small.lane_paths(), small.batch_size * 6);
+  EXPECT_EQ(engine_sizes(o, 64 * 64, 1).lanes, 1u);
   o.max_paths = 12345;
   o.batch_size = 77;
   EngineSizes set = engine_sizes(o, 64 * 64, 2);
   EXPECT_EQ(set.max_paths, 12345u);
   EXPECT_EQ(set.batch_size, 77u);
+  // Never a lane without a path.
+  o.max_paths = 1;
+  EXPECT_EQ(engine_sizes(o, 64 * 64, 2).lanes, 1u);
 }
 
 TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {

@@ -247,7 +247,8 @@ bool WavefrontEngine::Impl::advance() {
 }
 
 // Once stopped, no camera ray is generated: the paths in flight finish,
-// so exactly the pixel-samples [first_camera, next_camera) are complete.
+// so exactly the pixel-samples [first_camera, cameras_claimed()) are
+// complete (with lanes, once every lane has finished).
 bool WavefrontEngine::Impl::can_generate() const {
   return cameras_claimed() < camera_end && pool.live() < live_cap && !(opt.stop && opt.stop->raised()) &&
          !(camera_deadline && std::chrono::steady_clock::now() >= *camera_deadline);

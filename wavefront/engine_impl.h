@@ -194,7 +194,7 @@ struct WavefrontEngine::Impl {
   std::vector<Ray> captured_rays, captured_shadow_rays;  // a lane's own for EngineOptions::capture_rays
   uint32_t sample_begin = 0, sample_count = 0;
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
-  const std::function<void(double)>* progress = nullptr;  // render()'s, while it runs
+  const std::function<void(double)>* progress = nullptr;  // render()'s (behind the lanes' lock), while it runs
   size_t refill_below = 0;  // camera rays refill the pool below this many live paths
   size_t live_cap = 0;      // at most this many live paths (the pool, or less while observed)
   size_t full_batch_size = 0;  // sizes.batch_size for the whole pool (sizes' is for live_cap)

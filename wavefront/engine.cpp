@@ -159,18 +159,20 @@ void WavefrontEngine::end_iteration() {
     queued += s.peak_queued_rays;
     queued_shadows += s.peak_queued_shadow_rays;
     s = EngineStats{};
-    if (lane.get() == lanes_.front().get()) continue;
-    const EngineOptions& o = lanes_.front()->opt;
-    if (o.capture_rays) o.capture_rays->insert(o.capture_rays->end(), lane->captured_rays.begin(), lane->captured_rays.end());
-    if (o.capture_shadow_rays)
-      o.capture_shadow_rays->insert(o.capture_shadow_rays->end(), lane->captured_shadow_rays.begin(),
-                                    lane->captured_shadow_rays.end());
-    lane->captured_rays.clear();
-    lane->captured_shadow_rays.clear();
   }
   stats_.peak_live_paths = std::max(stats_.peak_live_paths, live);
   stats_.peak_queued_rays = std::max(stats_.peak_queued_rays, queued);
   stats_.peak_queued_shadow_rays = std::max(stats_.peak_queued_shadow_rays, queued_shadows);
+  // The lead captures into the caller's vectors itself.
+  const EngineOptions& o = lanes_.front()->opt;
+  auto append = [](std::vector<Ray>* to, std::vector<Ray>& from) {
+    if (to) to->insert(to->end(), from.begin(), from.end());
+    from.clear();
+  };
+  for (size_t i = 1; i < lanes_.size(); ++i) {
+    append(o.capture_rays, lanes_[i]->captured_rays);
+    append(o.capture_shadow_rays, lanes_[i]->captured_shadow_rays);
+  }
 }
 
 void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, uint64_t first_camera,

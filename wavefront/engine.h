@@ -2,8 +2,8 @@
 //
 // Each thread runs a wavefront of its own (a lane): its pool, batches and
 // queues, every stage on its own core, camera samples claimed from a counter
-// the lanes share.  Within a lane, paths live in a fixed-capacity pool.  Camera rays are generated in
-// pixel-sample order whenever occupancy falls below a threshold; every ray is
+// the lanes share.  Within a lane, paths live in a fixed-capacity pool.
+// Camera rays are generated in pixel-sample order whenever occupancy falls below a threshold; every ray is
 // queued into one of six batches binned by its dominant direction; the most
 // recently filled batch is processed next: its rays are sorted (origin Morton
 // code, then direction), traced, their hits sorted by (geometry, primitive)
@@ -218,7 +218,7 @@ class WavefrontEngine {
   void end_iteration();
 
   EngineSizes sizes_;
-  std::vector<std::unique_ptr<Impl>> lanes_;  // the first runs on the calling thread and reports progress
+  std::vector<std::unique_ptr<Impl>> lanes_;  // the first (the lead) runs on the calling thread
   EngineStats stats_;
 };
 

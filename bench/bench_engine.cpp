@@ -7,7 +7,7 @@
 // and bench/README.md come from this program.
 //
 //   theia_bench [--large] [--spp N] [--threads N[,N...]] [--runs K] [--json FILE]
-//               [--scene PREFIX] [--phases] [--engine-only]
+//               [--scene PREFIX] [--phases] [--engine-only] [--max-paths N] [--batch-size N]
 #include "app/render.h"
 #include "cachepoints/light_sampler.h"
 #include "core/log.h"
@@ -158,18 +158,26 @@ size_t traced_triangles(const Scene& s) {
 
 struct Measurement {
   double engine_mrays = 0, trace_phase_mrays = 0, raw_mrays = 0, render_seconds = 0, render_cpu_seconds = 0;
+  double raw_cpu_seconds = 0;  // the raw pass's process CPU seconds
   uint64_t rays = 0;
   PhaseTimes<Phase, size_t(Phase::Count)> phases;
+  double wall_overhead() const { return raw_mrays > 0 ? raw_mrays / engine_mrays : 0.0; }
+  // On a shared machine the steadier figure: other processes' load slows
+  // both passes' wall clocks unevenly, their CPU seconds far less.
+  double cpu_overhead() const { return raw_cpu_seconds > 0 ? render_cpu_seconds / raw_cpu_seconds : 0.0; }
 };
 
 // engine_only: the timed render alone, for profiling it (no capturing
 // render, no raw pass: raw_mrays stays 0).
-Measurement measure(const RenderableScene& rs, int spp, bool sort, bool engine_only) {
+Measurement measure(const RenderableScene& rs, int spp, bool sort, bool engine_only, size_t max_paths,
+                    size_t batch_size) {
   const Scene& scene = rs.scene;
   const Accel& accel = rs.accel;
   EngineOptions opt;
   opt.max_depth = scene.settings.max_depth;
   opt.sort = sort;
+  opt.max_paths = max_paths;
+  opt.batch_size = batch_size;
   Measurement m;
   {
     Film film(scene.film.width, scene.film.height);
@@ -207,6 +215,7 @@ Measurement measure(const RenderableScene& rs, int spp, bool sort, bool engine_o
   std::vector<Hit> hits(rays.size());
   std::vector<uint8_t> blocked(shadow_rays.size());
   auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_seconds();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, rays.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
     accel.intersect(std::span<const Ray>(rays.data() + r.begin(), r.size()),
                     std::span<Hit>(hits.data() + r.begin(), r.size()), false);
@@ -217,6 +226,7 @@ Measurement measure(const RenderableScene& rs, int spp, bool sort, bool engine_o
                                      std::span<uint8_t>(blocked.data() + r.begin(), r.size()));
                     });
   m.raw_mrays = double(rays.size() + shadow_rays.size()) / seconds_since(t0) * 1e-6;
+  m.raw_cpu_seconds = process_cpu_seconds() - cpu0;
   return m;
 }
 
@@ -229,6 +239,7 @@ struct BenchOptions {
   std::string scene;           // only the scenes whose name starts with this
   bool phases = false;         // each render's phase seconds (EngineStats::phases) after its row
   bool engine_only = false;    // the timed render alone (for a profiler): no raw Embree pass
+  size_t max_paths = 0, batch_size = 0;  // 0: the engine's own sizes (engine_sizes)
 };
 
 bool parse_threads(const char* list, std::vector<int>& out) {
@@ -244,6 +255,14 @@ bool parse_threads(const char* list, std::vector<int>& out) {
   return !out.empty();
 }
 
+bool parse_size(const char* text, size_t& out) {
+  char* end = nullptr;
+  const long long n = std::strtoll(text, &end, 10);
+  if (end == text || *end || n < 0) return false;
+  out = size_t(n);
+  return true;
+}
+
 bool parse_args(int argc, char** argv, BenchOptions& o) {
   for (int i = 1; i < argc; ++i) {
     bool has_value = i + 1 < argc;
@@ -255,6 +274,8 @@ bool parse_args(int argc, char** argv, BenchOptions& o) {
     else if (!std::strcmp(argv[i], "--large")) o.large = true;
     else if (!std::strcmp(argv[i], "--phases")) o.phases = true;
     else if (!std::strcmp(argv[i], "--engine-only")) o.engine_only = true;
+    else if (!std::strcmp(argv[i], "--max-paths") && has_value) { if (!parse_size(argv[++i], o.max_paths)) return false; }
+    else if (!std::strcmp(argv[i], "--batch-size") && has_value) { if (!parse_size(argv[++i], o.batch_size)) return false; }
     else return false;
   }
   if (o.spp == 0) o.spp = o.large ? 2 : 16;
@@ -283,6 +304,12 @@ void print_summary(const std::vector<Row>& rows, const std::vector<std::string>&
       if (r.scene == scene && r.threads == t && r.sort == sort) v.push_back(r.m.*field);
     return median(v);
   };
+  auto med_of = [&](const std::string& scene, int t, bool sort, double (Measurement::*figure)() const) {
+    std::vector<double> v;
+    for (const Row& r : rows)
+      if (r.scene == scene && r.threads == t && r.sort == sort) v.push_back((r.m.*figure)());
+    return median(v);
+  };
   const auto wall = &Measurement::render_seconds, cpu = &Measurement::render_cpu_seconds;
   std::printf("\nmedians over runs (render only):\n%-22s %7s %12s %12s %8s %12s %12s %8s\n", "scene", "threads",
               "on wall-s", "off wall-s", "off/on", "on cpu-s", "off cpu-s", "off/on");
@@ -293,6 +320,15 @@ void print_summary(const std::vector<Row>& rows, const std::vector<std::string>&
       std::printf("%-22s %7d %12.2f %12.2f %7.3fx %12.2f %12.2f %7.3fx\n", scene.c_str(), t, on, off, off / on, on_cpu,
                   off_cpu, off_cpu / on_cpu);
     }
+  if (rows.front().m.raw_mrays > 0) {
+    std::printf("\nmedian overhead over runs (wall, CPU):\n%-22s %7s %18s %18s\n", "scene", "threads", "sort on",
+                "sort off");
+    for (const std::string& scene : scenes)
+      for (int t : threads)
+        std::printf("%-22s %7d %8.2fx %8.2fx %8.2fx %8.2fx\n", scene.c_str(), t, med_of(scene, t, true, &Measurement::wall_overhead),
+                    med_of(scene, t, true, &Measurement::cpu_overhead), med_of(scene, t, false, &Measurement::wall_overhead),
+                    med_of(scene, t, false, &Measurement::cpu_overhead));
+  }
   if (threads.size() < 2) return;
   std::printf("\nthread scaling (median render wall seconds at %d threads / at N):\n", threads[0]);
   for (const std::string& scene : scenes)
@@ -315,7 +351,7 @@ int main(int argc, char** argv) {
   if (!parse_args(argc, argv, o)) {
     std::fprintf(stderr,
                  "usage: theia_bench [--large] [--spp N] [--threads N[,N...]] [--runs K] [--json FILE]\n"
-                 "                   [--scene PREFIX] [--phases] [--engine-only]\n");
+                 "                   [--scene PREFIX] [--phases] [--engine-only] [--max-paths N] [--batch-size N]\n");
     return 2;
   }
   set_verbosity(Verbosity::Quiet);
@@ -339,8 +375,8 @@ int main(int argc, char** argv) {
 
   std::vector<Row> rows;
   nlohmann::json out = nlohmann::json::array();
-  std::printf("%-22s %-5s %7s %10s %10s %12s %10s %9s %9s %9s\n", "scene", "sort", "threads", "rays(M)", "engine",
-              "trace-phase", "raw", "overhead", "wall-s", "cpu-s");
+  std::printf("%-22s %-5s %7s %10s %10s %12s %10s %9s %9s %9s %9s\n", "scene", "sort", "threads", "rays(M)", "engine",
+              "trace-phase", "raw", "overhead", "cpu-ovh", "wall-s", "cpu-s");
   for (int& threads : o.threads) {  // 0 becomes the count in effect
     std::unique_ptr<tbb::global_control> tc;
     if (threads > 0) tc = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, threads);
@@ -351,10 +387,11 @@ int main(int argc, char** argv) {
       const RenderableScene rs(scene);
       for (int run = 0; run < o.runs; ++run)
         for (bool sort : {true, false}) {
-          Measurement m = measure(rs, o.spp, sort, o.engine_only);
-          std::printf("%-22s %-5s %7d %10.2f %9.2fM %11.2fM %9.2fM %8.2fx %9.2f %9.2f\n", name.c_str(),
+          Measurement m = measure(rs, o.spp, sort, o.engine_only, o.max_paths, o.batch_size);
+          std::printf("%-22s %-5s %7d %10.2f %9.2fM %11.2fM %9.2fM %8.2fx %8.2fx %9.2f %9.2f\n", name.c_str(),
                       sort ? "on" : "off", threads, double(m.rays) * 1e-6, m.engine_mrays, m.trace_phase_mrays,
-                      m.raw_mrays, m.raw_mrays / m.engine_mrays, m.render_seconds, m.render_cpu_seconds);
+                      m.raw_mrays, m.wall_overhead(), m.cpu_overhead(), m.render_seconds,
+                      m.render_cpu_seconds);
           if (o.phases) print_phases(m);
           std::fflush(stdout);
           rows.push_back({name, threads, run, sort, m});
@@ -371,11 +408,14 @@ int main(int argc, char** argv) {
                          {"render_cpu_seconds", m.render_cpu_seconds},
                          {"engine_mrays_per_s", m.engine_mrays},
                          {"trace_phase_mrays_per_s", m.trace_phase_mrays},
-                         {"raw_embree_mrays_per_s", m.raw_mrays}});
+                         {"raw_embree_mrays_per_s", m.raw_mrays},
+                         {"raw_embree_cpu_seconds", m.raw_cpu_seconds}});
         }
     }
   }
-  std::printf("(spp %d; rates in Mrays/s; overhead = raw / engine)\n", o.spp);
+  std::printf("(spp %d; rates in Mrays/s; overhead = raw / engine; cpu-ovh = the render's CPU seconds / the raw "
+              "pass's)\n",
+              o.spp);
   if (o.runs > 1 || o.threads.size() > 1) print_summary(rows, names, o.threads);
   if (!o.json_path.empty()) std::ofstream(o.json_path) << out.dump(2) << "\n";
   return 0;

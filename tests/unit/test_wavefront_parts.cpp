@@ -175,6 +175,13 @@ TEST(EngineSizes, FollowTheFrameUnlessSet) {
   EXPECT_EQ(small.lane_paths(), small.max_paths / 2);
   EXPECT_GE(small.lane_paths(), small.batch_size * 6);
   EXPECT_EQ(engine_sizes(o, 64 * 64, 1).lanes, 1u);
+  // A farm node's 64 threads: the floor of 2^14 paths a lane holds for any
+  // frame (it was clamped past 32 threads, to 2^13 a lane on large frames).
+  for (uint64_t pixels : {uint64_t(64 * 64), uint64_t(1920 * 1080)}) {
+    EngineSizes many = engine_sizes(o, pixels, 64);
+    EXPECT_EQ(many.lanes, 64u);
+    EXPECT_EQ(many.lane_paths(), size_t(1) << 14);
+  }
   o.max_paths = 12345;
   o.batch_size = 77;
   EngineSizes set = engine_sizes(o, 64 * 64, 2);

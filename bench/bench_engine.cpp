@@ -32,6 +32,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -295,19 +296,14 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-// Medians over runs of the render's wall and CPU seconds: sort on against
-// off, and every thread count against the first.
+// Medians over runs of the render's wall and CPU seconds (sort on against
+// off, and every thread count against the first) and of the overheads.
 void print_summary(const std::vector<Row>& rows, const std::vector<std::string>& scenes, const std::vector<int>& threads) {
-  auto med = [&](const std::string& scene, int t, bool sort, double Measurement::*field) {
+  // `figure`: a field of Measurement or one of its figures (wall_overhead).
+  auto med = [&](const std::string& scene, int t, bool sort, auto figure) {
     std::vector<double> v;
     for (const Row& r : rows)
-      if (r.scene == scene && r.threads == t && r.sort == sort) v.push_back(r.m.*field);
-    return median(v);
-  };
-  auto med_of = [&](const std::string& scene, int t, bool sort, double (Measurement::*figure)() const) {
-    std::vector<double> v;
-    for (const Row& r : rows)
-      if (r.scene == scene && r.threads == t && r.sort == sort) v.push_back((r.m.*figure)());
+      if (r.scene == scene && r.threads == t && r.sort == sort) v.push_back(std::invoke(figure, r.m));
     return median(v);
   };
   const auto wall = &Measurement::render_seconds, cpu = &Measurement::render_cpu_seconds;
@@ -325,9 +321,9 @@ void print_summary(const std::vector<Row>& rows, const std::vector<std::string>&
                 "sort off");
     for (const std::string& scene : scenes)
       for (int t : threads)
-        std::printf("%-22s %7d %8.2fx %8.2fx %8.2fx %8.2fx\n", scene.c_str(), t, med_of(scene, t, true, &Measurement::wall_overhead),
-                    med_of(scene, t, true, &Measurement::cpu_overhead), med_of(scene, t, false, &Measurement::wall_overhead),
-                    med_of(scene, t, false, &Measurement::cpu_overhead));
+        std::printf("%-22s %7d %8.2fx %8.2fx %8.2fx %8.2fx\n", scene.c_str(), t,
+                    med(scene, t, true, &Measurement::wall_overhead), med(scene, t, true, &Measurement::cpu_overhead),
+                    med(scene, t, false, &Measurement::wall_overhead), med(scene, t, false, &Measurement::cpu_overhead));
   }
   if (threads.size() < 2) return;
   std::printf("\nthread scaling (median render wall seconds at %d threads / at N):\n", threads[0]);

@@ -3,13 +3,14 @@
 // Each thread runs a wavefront of its own (a lane): its pool, batches and
 // queues, every stage on its own core, camera samples claimed from a counter
 // the lanes share.  Within a lane, paths live in a fixed-capacity pool.
-// Camera rays are generated in pixel-sample order whenever occupancy falls below a threshold; every ray is
-// queued into one of six batches binned by its dominant direction; the most
-// recently filled batch is processed next: its rays are sorted (origin Morton
-// code, then direction), traced, their hits sorted by (geometry, primitive)
-// and shaded in parallel.  Shading splats emission and queues continuation
-// and shadow rays; a shadow ray carries its pixel and its unoccluded,
-// MIS-weighted contribution, so nothing ever waits for a later wave.
+// Camera rays are generated in pixel-sample order whenever occupancy falls
+// below a threshold; every ray is queued into one of six batches binned by
+// its dominant direction; the most recently filled batch is processed next:
+// traced (with sorting on, its rays sorted first by origin Morton code, then
+// direction, and its hits by geometry and primitive) and shaded.  Shading
+// splats emission and queues continuation and shadow rays; a shadow ray
+// carries its pixel and its unoccluded, MIS-weighted contribution, so nothing
+// ever waits for a later wave.
 #pragma once
 
 #include "cachepoints/light_sampler.h"

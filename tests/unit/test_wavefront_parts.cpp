@@ -176,7 +176,7 @@ TEST(EngineSizes, FollowTheFrameUnlessSet) {
   EXPECT_GE(small.lane_paths(), small.batch_size * 6);
   EXPECT_EQ(engine_sizes(o, 64 * 64, 1).lanes, 1u);
   // A farm node's 64 threads: the floor of 2^14 paths a lane holds for any
-  // frame (it was clamped past 32 threads, to 2^13 a lane on large frames).
+  // frame (past 32 threads it was clamped below it: 2^13 a lane at 64).
   for (uint64_t pixels : {uint64_t(64 * 64), uint64_t(1920 * 1080)}) {
     EngineSizes many = engine_sizes(o, pixels, 64);
     EXPECT_EQ(many.lanes, 64u);

@@ -204,12 +204,18 @@ TEST(Lanes, TwoLanesRenderOneLanesImageAndRays) {
 TEST(Lanes, AStoppedIterationContinuesExactlyWhereTheLanesStopped) {
   const Scene scene = smoke_sphere_scene();
   const LaneRender whole = render_in_lanes(scene, 1);
+  const uint64_t samples = 24 * 24 * 8;
   for (double at : {0.2, 0.35, 0.5, 0.65, 0.8}) {
     const LaneRender stopped = render_in_lanes(scene, 2, at);
-    EXPECT_GE(double(stopped.stopped_at), at * 24 * 24 * 8);
-    EXPECT_LT(stopped.stopped_at, 24u * 24u * 8u);
+    EXPECT_GE(double(stopped.stopped_at), at * double(samples));
+    // Past the stop at most two runs are claimed (the one that crossed it,
+    // and one the other lane may be taking), each at most a lane's 1024
+    // paths: the stop is inside the iteration wherever that leaves room; a
+    // later one may end it, as the lanes' timing falls.
+    if (at * double(samples) + 2 * 1024 < double(samples)) EXPECT_LT(stopped.stopped_at, samples);
+    EXPECT_LE(stopped.stopped_at, samples);
     expect_same_image(whole.image, stopped.image);
-    EXPECT_EQ(stopped.stats.camera_rays, 24u * 24u * 8u);
+    EXPECT_EQ(stopped.stats.camera_rays, samples);
   }
 }
 

@@ -212,7 +212,9 @@ TEST(Lanes, AStoppedIterationContinuesExactlyWhereTheLanesStopped) {
     // and one the other lane may be taking), each at most a lane's 1024
     // paths: the stop is inside the iteration wherever that leaves room; a
     // later one may end it, as the lanes' timing falls.
-    if (at * double(samples) + 2 * 1024 < double(samples)) EXPECT_LT(stopped.stopped_at, samples);
+    if (at * double(samples) + 2 * 1024 < double(samples)) {
+      EXPECT_LT(stopped.stopped_at, samples);
+    }
     EXPECT_LE(stopped.stopped_at, samples);
     expect_same_image(whole.image, stopped.image);
     EXPECT_EQ(stopped.stats.camera_rays, samples);

@@ -73,6 +73,11 @@ class Accel {
   Accel& operator=(const Accel&) = delete;
 
   // Closest hits.  Single-threaded over the span; safe to call concurrently.
+  // `coherent`: neighbouring rays share origin and direction closely (a
+  // camera batch), and are traced in Embree's widest native packets.  The
+  // hits are those of one by one, bit for bit, except on curves (to rounding:
+  // Embree's packet curve intersector rounds differently), and never depend
+  // on which rays share a packet.
   // `skips`: empty, or the curve segment each ray left (parallel to rays).
   // `surface` false: the caller needs only t and what was hit, not (u, v):
   // spheres and cylinders whose cuts cannot reject a root then leave u, v at

@@ -82,8 +82,9 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
 
   // Camera rays stay in pixel order rather than entering the direction bins:
   // neighbouring pixels' rays are coherent already, and a batch of them is
-  // traced with Embree's COHERENT flag.  They are written straight into
-  // their batches, pushed last first so that the first pixels are traced first.
+  // traced in Embree's ray packets (Accel::intersect).  They are written
+  // straight into their batches, pushed last first so that the first pixels
+  // are traced first.
   const size_t batch = sizes.batch_size, n_batches = (count + batch - 1) / batch;
   const size_t first_batch = full.size();
   for (size_t k = n_batches; k-- > 0;) {

@@ -172,6 +172,7 @@ void WavefrontEngine::end_iteration() {
   };
   for (size_t i = 1; i < lanes_.size(); ++i) {
     append(o.capture_rays, lanes_[i]->captured_rays);
+    append(o.capture_camera_rays, lanes_[i]->captured_camera_rays);
     append(o.capture_shadow_rays, lanes_[i]->captured_shadow_rays);
   }
 }
@@ -404,7 +405,8 @@ void sort_by_ray_key(std::span<const Ray> rays, const vec3& bounds_min, const ve
 // other per batch.
 void WavefrontEngine::Impl::trace_closest(Batch& b) {
   const size_t n = b.size();
-  if (opt.capture_rays) opt.capture_rays->insert(opt.capture_rays->end(), b.rays.begin(), b.rays.end());
+  if (std::vector<Ray>* to = b.camera && opt.capture_camera_rays ? opt.capture_camera_rays : opt.capture_rays)
+    to->insert(to->end(), b.rays.begin(), b.rays.end());
   hits.resize(n);
   if (opt.sort) keys.resize(n);
   batch_skips.clear();
@@ -547,6 +549,7 @@ WavefrontEngine::WavefrontEngine(const RenderableScene& rs, Film& film, const En
     if (sizes_.lanes > 1) l.arena = std::make_unique<tbb::task_arena>(1);
     if (i == 0) continue;
     if (options.capture_rays) l.opt.capture_rays = &l.captured_rays;
+    if (options.capture_camera_rays) l.opt.capture_camera_rays = &l.captured_camera_rays;
     if (options.capture_shadow_rays) l.opt.capture_shadow_rays = &l.captured_shadow_rays;
   }
   film.use_thread_sums(threads);

@@ -78,8 +78,11 @@ struct EngineOptions {
   GuidedSampling guiding;
   // Benchmarks only: when set, every traced ray is appended here in the order
   // it was traced (the medium stage's re-traces past interfaces after their
-  // batch), so the raw Embree rate can be measured on the same rays.
+  // batch), so the raw Embree rate can be measured on the same rays.  With
+  // capture_camera_rays set too, camera batches go there instead, so that
+  // they can be traced as the engine traces them (in packets).
   std::vector<Ray>* capture_rays = nullptr;
+  std::vector<Ray>* capture_camera_rays = nullptr;
   std::vector<Ray>* capture_shadow_rays = nullptr;
 };
 

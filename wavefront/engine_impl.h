@@ -33,8 +33,8 @@
 
 namespace theia {
 
-// A batch of rays of one direction bin; camera rays are coherent (traced with
-// Embree's COHERENT flag).
+// A batch of rays of one direction bin; camera rays are coherent (traced in
+// Embree's ray packets).
 struct Batch : RayQueue {
   bool camera = false;
 };
@@ -191,7 +191,8 @@ struct WavefrontEngine::Impl {
   // parallel loops run on the lane's own thread, in order, and never take
   // (or hand over) another lane's work.
   std::unique_ptr<tbb::task_arena> arena;
-  std::vector<Ray> captured_rays, captured_shadow_rays;  // a lane's own for EngineOptions::capture_rays
+  // A lane's own for EngineOptions::capture_rays and its kin.
+  std::vector<Ray> captured_rays, captured_camera_rays, captured_shadow_rays;
   uint32_t sample_begin = 0, sample_count = 0;
   const SampleRanges* ranges = nullptr;  // per-pixel samples instead of [sample_begin, + sample_count)
   const std::function<void(double)>* progress = nullptr;  // render()'s (behind the lanes' lock), while it runs

@@ -9,11 +9,13 @@ namespace {
 
 // Largest i in [first, last] with !(u < cdf[i]), clamped to a valid cell:
 // std::upper_bound's answer (NaN included) when it lies in that range.
+// Without a branch on the comparison (a conditional move): u is random, and
+// a branch on it was mispredicted every other step.
 int upper_cell(const std::vector<float>& cdf, size_t first, size_t last, float u) {
-  while (first < last) {
-    const size_t mid = (first + last + 1) / 2;
-    if (u < cdf[mid]) last = mid - 1;
-    else first = mid;
+  for (size_t len = last - first + 1; len > 1;) {
+    const size_t half = len / 2;
+    first = u < cdf[first + half] ? first : first + half;
+    len -= half;
   }
   return std::min(int(first), int(cdf.size()) - 2);
 }

@@ -37,6 +37,7 @@ std::vector<float>* Film::plane(size_t i) {
 }
 
 Film::Film(int w, int h, bool aov_events) : width(w), height(h) {
+  locks_ = std::make_unique<std::atomic<uint8_t>[]>(lock_count());
   // The event planes exist (are non-empty) exactly when enabled.
   if (aov_events)
     for (auto& e : events)
@@ -129,14 +130,35 @@ static_assert(kAlphaWeight + 1 == Film::kPlaneCount);
 
 }  // namespace
 
+// Held for a splat's adds into the planes (Film::kPixelsPerLock).
+class Film::PixelLock {
+ public:
+  PixelLock(const Film& film, uint32_t pixel) : lock_(film.locks_[pixel / kPixelsPerLock]) {
+    while (lock_.exchange(1, std::memory_order_acquire))
+      while (lock_.load(std::memory_order_relaxed)) pause();
+  }
+  ~PixelLock() { lock_.store(0, std::memory_order_release); }
+  PixelLock(const PixelLock&) = delete;
+  PixelLock& operator=(const PixelLock&) = delete;
+
+ private:
+  static void pause() {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+  }
+  std::atomic<uint8_t>& lock_;
+};
+
 void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
   if (float* s = thread_sum(pixel)) {
     s[kWeight] += w;
     if (sample & 1) s[kOddWeight] += w;
     return;
   }
-  atomic_add(weight[pixel], w);
-  if (sample & 1) atomic_add(weight_odd[pixel], w);
+  PixelLock lock(*this, pixel);
+  weight[pixel] += w;
+  if (sample & 1) weight_odd[pixel] += w;
 }
 
 void Film::add_alpha_weight(uint32_t pixel, float w) {
@@ -144,17 +166,14 @@ void Film::add_alpha_weight(uint32_t pixel, float w) {
     s[kAlphaWeight] += w;
     return;
   }
-  atomic_add(alpha_weight[pixel], w);
+  PixelLock lock(*this, pixel);
+  alpha_weight[pixel] += w;
 }
 
 void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L, uint8_t event) {
   if (!is_storable(L)) {
     dropped.fetch_add(1, std::memory_order_relaxed);
     return;
-  }
-  if (aov_events()) {
-    std::vector<float>(&e)[3] = events[event < kEventCount ? event : uint8_t(kEventEmission)];
-    for (int c = 0; c < 3; ++c) atomic_add(e[c][pixel], L[c]);
   }
   if (float* s = thread_sum(pixel)) {
     s[kR] += L.x;
@@ -167,13 +186,18 @@ void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L, uint8_t event) {
     }
     return;
   }
-  atomic_add(r[pixel], L.x);
-  atomic_add(g[pixel], L.y);
-  atomic_add(b[pixel], L.z);
+  PixelLock lock(*this, pixel);  // (with aov_events() there are no per-thread sums)
+  if (aov_events()) {
+    std::vector<float>(&e)[3] = events[event < kEventCount ? event : uint8_t(kEventEmission)];
+    for (int c = 0; c < 3; ++c) e[c][pixel] += L[c];
+  }
+  r[pixel] += L.x;
+  g[pixel] += L.y;
+  b[pixel] += L.z;
   if (sample & 1) {
-    atomic_add(r_odd[pixel], L.x);
-    atomic_add(g_odd[pixel], L.y);
-    atomic_add(b_odd[pixel], L.z);
+    r_odd[pixel] += L.x;
+    g_odd[pixel] += L.y;
+    b_odd[pixel] += L.z;
   }
 }
 
@@ -192,12 +216,13 @@ void Film::splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& a, cons
     s[kDepth] += w * d;
     return;
   }
-  atomic_add(alpha[pixel], w);
+  PixelLock lock(*this, pixel);
+  alpha[pixel] += w;
   for (int c = 0; c < 3; ++c) {
-    atomic_add(albedo[c][pixel], w * a[c]);
-    atomic_add(normal[c][pixel], w * n[c]);
+    albedo[c][pixel] += w * a[c];
+    normal[c][pixel] += w * n[c];
   }
-  atomic_add(depth[pixel], w * d);
+  depth[pixel] += w * d;
 }
 
 void append_film_layers(ImageBuffer& img, const std::vector<FilmLayer>& layers, const std::vector<float>& weight) {

@@ -211,15 +211,52 @@ TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {
   EXPECT_EQ(img.at(1, 0, 0), 0.0f);  // no weight: black, not NaN
 }
 
+// Without per-thread sums (a production frame, or --aov-events) the threads
+// add into the planes under a lock per block of pixels: splats of whole
+// numbers from every thread onto a few pixels, which share their locks, must
+// all arrive, to the exact count (an unguarded += loses some here), and the
+// event layers with them.
+TEST(Film, LockedSplatsFromManyThreadsLoseNothing) {
+  constexpr uint32_t kPixels = 2 * Film::kPixelsPerLock, kSplats = 400000;
+  for (bool events : {false, true}) {
+    Film film(int(kPixels), 1, events);
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, kSplats, 256), [&](const tbb::blocked_range<uint32_t>& r) {
+      for (uint32_t k = r.begin(); k < r.end(); ++k) {
+        const uint32_t px = k % kPixels, sample = k / kPixels;
+        film.add_weight(px, sample, 1.0f);
+        film.add_alpha_weight(px, 1.0f);
+        film.splat(px, sample, RGB(1.0f, 2.0f, 3.0f), kEventGlossy);
+        film.splat_first_hit(px, 1.0f, true, RGB(1.0f), vec3(1.0f), 1.0f);
+      }
+    });
+    const float n = float(kSplats / kPixels), odd = float(kSplats / kPixels / 2);
+    for (uint32_t px = 0; px < kPixels; ++px) {
+      SCOPED_TRACE(events ? "event layers" : "beauty only");
+      ASSERT_EQ(film.weight[px], n) << "pixel " << px;
+      ASSERT_EQ(film.weight_odd[px], odd);
+      ASSERT_EQ(film.alpha_weight[px], n);
+      ASSERT_EQ(film.r[px], n);
+      ASSERT_EQ(film.b[px], 3.0f * n);
+      ASSERT_EQ(film.g_odd[px], 2.0f * odd);
+      ASSERT_EQ(film.alpha[px], n);
+      ASSERT_EQ(film.normal[2][px], n);
+      ASSERT_EQ(film.depth[px], n);
+      if (events) {
+        ASSERT_EQ(film.events[kEventGlossy][1][px], 2.0f * n);
+      }
+    }
+  }
+}
+
 // Splats from many threads into per-thread sums: after flush() every plane
-// holds what atomic adds give (up to summation order), a second flush adds
-// nothing, clear() empties the sums too, and a film too large for them keeps
-// the atomics.
-TEST(Film, PerThreadSumsEqualAtomicAddsAfterFlush) {
+// holds what locked adds into the planes give (up to summation order), a
+// second flush adds nothing, clear() empties the sums too, and a film too
+// large for them keeps the locked adds.
+TEST(Film, PerThreadSumsEqualLockedAddsAfterFlush) {
   constexpr int kW = 40, kH = 30;
-  Film atomic(kW, kH), sharded(kW, kH);
+  Film locked(kW, kH), sharded(kW, kH);
   sharded.use_thread_sums(4);
-  EXPECT_GT(sharded.memory_bytes(), atomic.memory_bytes());
+  EXPECT_GT(sharded.memory_bytes(), locked.memory_bytes());
   auto splat_all = [](Film& f) {
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, 20000, 64), [&](const tbb::blocked_range<uint32_t>& r) {
       for (uint32_t k = r.begin(); k < r.end(); ++k) {
@@ -232,12 +269,12 @@ TEST(Film, PerThreadSumsEqualAtomicAddsAfterFlush) {
       }
     });
   };
-  splat_all(atomic);
+  splat_all(locked);
   splat_all(sharded);
   sharded.flush();
   for (size_t i = 0; i < Film::kPlaneCount; ++i)
-    for (size_t px = 0; px < atomic.pixel_count(); ++px)
-      ASSERT_NEAR((*sharded.plane(i))[px], (*atomic.plane(i))[px], 1e-4f * std::abs((*atomic.plane(i))[px]) + 1e-6f)
+    for (size_t px = 0; px < locked.pixel_count(); ++px)
+      ASSERT_NEAR((*sharded.plane(i))[px], (*locked.plane(i))[px], 1e-4f * std::abs((*locked.plane(i))[px]) + 1e-6f)
           << Film::plane_name(i) << " pixel " << px;
   const std::vector<float> r = sharded.r;
   sharded.flush();
@@ -258,9 +295,10 @@ TEST(Film, PerThreadSumsEqualAtomicAddsAfterFlush) {
 
   Film large(4096, 2048);
   large.use_thread_sums(2);
-  EXPECT_EQ(large.memory_bytes(), large.pixel_count() * Film::kPlaneCount * sizeof(float));
+  const size_t locks = large.pixel_count() / Film::kPixelsPerLock;  // a byte each
+  EXPECT_EQ(large.memory_bytes(), large.pixel_count() * Film::kPlaneCount * sizeof(float) + locks);
   large.splat(5, 0, RGB(1.0f), kEventEmission);
-  EXPECT_EQ(large.r[5], 1.0f);  // atomics: in the plane at once
+  EXPECT_EQ(large.r[5], 1.0f);  // locked adds: in the plane at once
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <thread>
 
 namespace theia {
 
@@ -130,18 +131,23 @@ static_assert(kAlphaWeight + 1 == Film::kPlaneCount);
 
 }  // namespace
 
-// Held for a splat's adds into the planes (Film::kPixelsPerLock).
+// Held for a splat's adds into the planes (Film::kPixelsPerLock).  A waiter
+// that keeps finding it held yields: with more threads than cores (a wrong
+// --threads) the holder may have been preempted inside its few adds.
 class Film::PixelLock {
  public:
   PixelLock(const Film& film, uint32_t pixel) : lock_(film.locks_[pixel / kPixelsPerLock]) {
-    while (lock_.exchange(1, std::memory_order_acquire))
-      while (lock_.load(std::memory_order_relaxed)) pause();
+    for (int spins = 0; lock_.exchange(1, std::memory_order_acquire);)
+      while (lock_.load(std::memory_order_relaxed))
+        if (++spins < kSpinsBeforeYield) pause();
+        else std::this_thread::yield();
   }
   ~PixelLock() { lock_.store(0, std::memory_order_release); }
   PixelLock(const PixelLock&) = delete;
   PixelLock& operator=(const PixelLock&) = delete;
 
  private:
+  static constexpr int kSpinsBeforeYield = 64;
   static void pause() {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();

@@ -99,5 +99,9 @@ inline dvec3 transform_error(const dmat4& m, const dvec3& p, const dvec3& e) {
 // writes the shading normal (interpolated N, or the geometric normal) to
 // *ns when given.  shapes.cpp.
 vec3 triangle_normal(const TriangleMesh& m, bool flip, size_t tri, float b0, float b1, float b2, vec3* ns);
+// The same from the triangle's unit normal as wound (triangle_unit_normal),
+// for a caller that keeps those at hand.
+vec3 triangle_normal(const TriangleMesh& m, const vec3& unit_normal, bool flip, size_t tri, float b0, float b1,
+                     float b2, vec3* ns);
 
 }  // namespace theia::shape_geometry

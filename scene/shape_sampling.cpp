@@ -4,6 +4,7 @@
 
 #include "core/log.h"
 #include "scene/shape_geometry.h"
+#include "scene/surface_crossing.h"
 
 #include <cmath>
 
@@ -84,6 +85,8 @@ ShapeSampling::ShapeSampling(const Scene& scene, const std::vector<std::vector<f
     e.flip = s.reverse_orientation != s.transform_swaps_handedness;
     if (s.kind == ShapeKind::TriangleMesh) {
       e.mesh = &scene.meshes[size_t(s.mesh)];
+      e.unit_normals.resize(e.mesh->triangle_count());
+      for (size_t t = 0; t < e.unit_normals.size(); ++t) e.unit_normals[t] = triangle_unit_normal(*e.mesh, t);
       std::vector<float> areas(e.mesh->triangle_count());
       double total = 0.0;
       for (size_t t = 0; t < areas.size(); ++t) {
@@ -260,7 +263,7 @@ std::optional<ShapeSample> ShapeSampling::sample_area(int shape, vec2 u, float u
     ShapeSample ss;
     ss.p = b0 * p0 + b1 * p1 + b2 * p2;
     ss.p_error = gamma_bound(6) * (glm::abs(b0 * p0) + glm::abs(b1 * p1) + glm::abs(b2 * p2));
-    ss.n = triangle_normal(m, e.flip, t, b0, b1, b2, nullptr);
+    ss.n = triangle_normal(m, e.unit_normals[t], e.flip, t, b0, b1, b2, nullptr);
     vec2 uv[3];
     triangle_uvs(m, t, uv);
     ss.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];

@@ -364,6 +364,11 @@ vec3 shape_geometry::triangle_normal(const TriangleMesh& m, bool flip, size_t tr
   return orient_triangle_normal(m, triangle_unit_normal(m, tri), flip, tri, b0, b1, b2, ns);
 }
 
+vec3 shape_geometry::triangle_normal(const TriangleMesh& m, const vec3& unit_normal, bool flip, size_t tri, float b0,
+                                      float b1, float b2, vec3* ns) {
+  return orient_triangle_normal(m, unit_normal, flip, tri, b0, b1, b2, ns);
+}
+
 namespace {
 
 // The interaction on the hit's own shape, before any instance transform.

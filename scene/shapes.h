@@ -162,6 +162,10 @@ class ShapeSampling {
     float area = 0.0f;
     Distribution1D triangles;  // mesh: proportional to triangle area (times its weight)
     std::vector<float> triangle_pdf;  // weighted mesh: area density on each triangle (pmf / area)
+    // mesh: each triangle's unit normal as wound (triangle_unit_normal), made
+    // once: every light sample needs one, and its square root and division
+    // were a visible share of next-event estimation.
+    std::vector<vec3> unit_normals;
     SphereShape sphere{};
     DiskShape disk{};
     CylinderShape cylinder{};

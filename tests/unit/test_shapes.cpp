@@ -4,10 +4,12 @@
 // sampled distributions live in the statistical suite.)
 #include "scene/accel.h"
 #include "scene/shapes.h"
+#include "scene/surface_crossing.h"
 #include "tests/unit/scene_builders.h"
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <random>
 
 using namespace theia;
@@ -243,6 +245,38 @@ TEST(ShapeSampling, MeshNormalsFollowOrientationRules) {
       ASSERT_TRUE(smp);
       EXPECT_EQ(smp->n, vec3(0, 0, c.nz));
     }
+  }
+}
+
+// A mesh light whose triangles face every way (a tetrahedron): each sampled
+// point carries its own triangle's normal (ShapeSampling keeps the unit
+// normals made once; an entry read for the wrong triangle fails here, which
+// a flat quad's two triangles could not show), the one a ray traced to the
+// point finds, reversed with the shape's orientation.
+TEST(ShapeSampling, EachPointOfAMeshLightHasItsOwnTrianglesNormal) {
+  TriangleMesh m;
+  m.p = {vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0), vec3(0.2f, 0.3f, 1)};
+  m.indices = {0, 2, 1, 0, 1, 3, 1, 2, 3, 2, 0, 3};
+  for (bool reverse : {false, true}) {
+    Scene sc;
+    int s = make_emissive(sc, add_mesh(sc, m, reverse));
+    Accel a(sc);
+    ShapeSampling ss(sc);
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::array<int, 4> per_triangle{};
+    for (int i = 0; i < 4000; ++i) {
+      std::optional<ShapeSample> smp = ss.sample_area(s, vec2(u(rng), u(rng)), u(rng));
+      ASSERT_TRUE(smp);
+      ASSERT_TRUE(smp->prim >= 0 && smp->prim < 4);
+      ++per_triangle[size_t(smp->prim)];
+      const vec3 n = triangle_unit_normal(sc.meshes[0], size_t(smp->prim));
+      ASSERT_EQ(smp->n, reverse ? -n : n) << "triangle " << smp->prim;
+    }
+    for (int k : per_triangle) EXPECT_GT(k, 400);
+    // From outside, the traced normal at each sampled point agrees.
+    Checked k = check_samples(sc, a, ss, s, ShapeSampleContext{vec3(2, 2, 2), vec3(0)}, 3200, false);
+    EXPECT_GT(k.traced, 40);
   }
 }
 

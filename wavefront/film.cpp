@@ -139,7 +139,7 @@ class Film::PixelLock {
   PixelLock(const Film& film, uint32_t pixel) : lock_(film.locks_[pixel / kPixelsPerLock]) {
     for (int spins = 0; lock_.exchange(1, std::memory_order_acquire);)
       while (lock_.load(std::memory_order_relaxed))
-        if (++spins < kSpinsBeforeYield) pause();
+        if (spins < kSpinsBeforeYield) ++spins, pause();
         else std::this_thread::yield();
   }
   ~PixelLock() { lock_.store(0, std::memory_order_release); }

@@ -102,10 +102,10 @@ struct Film {
   // when the copies would exceed kMaxThreadSumBytes (a production frame:
   // 141 MB a thread at 1080p), with aov_events() (the event layers must sum
   // to the beauty), and for threads beyond `threads`: those add into the
-  // planes themselves, under a spin lock per kPixelsPerLock pixels, one
-  // locked instruction a splat (atomic adds, one a value, took 4.5% of a
-  // 1080p render's CPU).  Lanes splat runs of whole pixels far apart, so the
-  // locks are hardly ever contended.
+  // planes themselves, under a spin lock per kPixelsPerLock pixels: one
+  // locked instruction a splat, where atomic adds took one a value.  Lanes
+  // splat runs of whole pixels far apart, so the locks are hardly ever
+  // contended.
   static constexpr size_t kMaxThreadSumBytes = size_t(32) << 20;
   static constexpr size_t kPixelsPerLock = 32;
   void use_thread_sums(int threads);

@@ -44,6 +44,11 @@ inline float sample_1d(const SamplerKey& key, uint32_t dimension);
 // call cost more than the shared hashing saves.
 [[gnu::always_inline]] inline vec2 sample_2d(const SamplerKey& key, uint32_t dimension);
 
+// sample_2d(key, dimension) of one (seed, pixel) and even dimension for any
+// sample index, the pair's seeds hashed once: the camera stage draws a
+// pixel's film offsets, one sample after another, from one pair.
+class PairSampler;
+
 // ---------------------------------------------------------------- building blocks
 
 // Unscrambled Sobol sequence, dimensions 0..3 (Joe & Kuo direction numbers),
@@ -118,8 +123,8 @@ inline float to_sample(uint32_t x) { return std::min(to_unit_float(x), kOneMinus
 // index = reverse(y).  y is what the components need: dimension 0 of Sobol
 // is the reversal of the index, so its scramble is reverse(LK(index)), and
 // dimension 1 reads y through kSobol1Reversed.
-inline uint32_t reversed_index(const SamplerKey& key, uint32_t shuffle) {
-  return laine_karras_permutation(reverse_bits(key.sample), shuffle);
+inline uint32_t reversed_index(uint32_t sample, uint32_t shuffle) {
+  return laine_karras_permutation(reverse_bits(sample), shuffle);
 }
 inline float component0(uint32_t y, uint32_t seed) {
   return to_sample(reverse_bits(laine_karras_permutation(reverse_bits(y), seed)));
@@ -133,16 +138,27 @@ inline float component1(uint32_t y, uint32_t seed) {
 inline float sample_1d(const SamplerKey& key, uint32_t dimension) {
   using namespace sampler_detail;
   PairSeeds s = pair_seeds(key, dimension >> 1);
-  uint32_t y = reversed_index(key, s.shuffle);
+  uint32_t y = reversed_index(key.sample, s.shuffle);
   return (dimension & 1u) ? component1(y, s.scramble[1]) : component0(y, s.scramble[0]);
 }
 
+class PairSampler {
+ public:
+  PairSampler(const SamplerKey& key, uint32_t even_dimension)
+      : seeds_(sampler_detail::pair_seeds(key, even_dimension >> 1)) {}
+  [[gnu::always_inline]] vec2 operator()(uint32_t sample) const {
+    using namespace sampler_detail;
+    const uint32_t y = reversed_index(sample, seeds_.shuffle);
+    return {component0(y, seeds_.scramble[0]), component1(y, seeds_.scramble[1])};
+  }
+
+ private:
+  sampler_detail::PairSeeds seeds_;
+};
+
 inline vec2 sample_2d(const SamplerKey& key, uint32_t dimension) {
-  using namespace sampler_detail;
   if (dimension & 1u) return {sample_1d(key, dimension), sample_1d(key, dimension + 1)};
-  PairSeeds s = pair_seeds(key, dimension >> 1);
-  uint32_t y = reversed_index(key, s.shuffle);
-  return {component0(y, s.scramble[0]), component1(y, s.scramble[1])};
+  return PairSampler(key, dimension)(key.sample);
 }
 
 }  // namespace theia

@@ -1,4 +1,5 @@
 // Stage: generate camera rays, in pixel-sample order, into fresh path slots.
+#include "wavefront/camera_samples.h"
 #include "wavefront/engine_impl.h"
 
 #include <tbb/parallel_for.h>
@@ -9,27 +10,6 @@ namespace {
 
 constexpr size_t kSlotPrefetchDistance = 8;
 constexpr uint64_t kMinCameraClaim = 1024;
-
-struct PixelSample {
-  uint32_t pixel = 0, sample = 0;
-  bool alpha_only = false;  // past the pixel's colour samples: coverage only
-};
-
-// Camera sample g of the iteration: pixel-sample order over the frame, or
-// over the per-pixel ranges of adaptive sampling.
-PixelSample camera_sample(uint64_t g, const SampleRanges* ranges, uint32_t sample_begin, uint32_t sample_count) {
-  PixelSample s;
-  if (ranges) {
-    auto it = std::upper_bound(ranges->offset.begin(), ranges->offset.end(), g);
-    s.pixel = uint32_t(it - ranges->offset.begin()) - 1;
-    s.sample = ranges->begin[s.pixel] + uint32_t(g - ranges->offset[s.pixel]);
-    s.alpha_only = s.sample >= ranges->colour_end[s.pixel];
-  } else {
-    s.pixel = uint32_t(g / sample_count);
-    s.sample = sample_begin + uint32_t(g % sample_count);
-  }
-  return s;
-}
 
 }  // namespace
 
@@ -60,6 +40,24 @@ void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t s
 // The next run of camera samples for this lane: at most `count` (fewer as
 // the iteration's end nears, so that the lanes finish together); sets
 // `count` to the run's length, 0 when none is left.
+// Camera sample s's ray, its filter weights added to the film and its path
+// started in `slot`; `film_pair` draws the film offsets of s's pixel.
+Ray WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s, const PairSampler& film_pair) {
+  const SamplerKey key{opt.seed, s.pixel, s.sample};
+  const FilterSample fs = camera_filter_sample(filter, film_pair, s.sample);
+  const uint32_t width = uint32_t(film.width);
+  vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
+  // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
+  const vec2 u_lens = camera.lens_radius > 0.0f ? sample_2d(key, CameraDims::lens) : vec2(0.5f);
+  auto cam = generate_camera_ray(camera, p_film, u_lens);
+  Ray ray;
+  ray.o = cam.o;
+  ray.d = cam.d;
+  film.add_weights(s.pixel, s.sample, fs.weight, !s.alpha_only, counts_for_alpha(s.sample));
+  start_path(slot, s.pixel, s.sample, s.alpha_only, fs.weight, ray.o);
+  return ray;
+}
+
 uint64_t WavefrontEngine::Impl::claim_camera_samples(size_t& count) {
   count = std::min(count, pool.free_slots.size());
   if (!camera_claims) {
@@ -95,10 +93,13 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     b.paths.assign(slots.begin() + lo, slots.begin() + hi);
     full.push_back(std::move(b));
   }
-  auto batch_of = [&](size_t i) -> Batch& { return full[first_batch + n_batches - 1 - i / batch]; };
-  const uint32_t width = uint32_t(film.width);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i) {
+    CameraSampleWalk s(first + r.begin(), ranges, sample_begin, sample_count);
+    // A pixel's samples are consecutive: its film pair is hashed once for them.
+    PairSampler film_pair(SamplerKey{opt.seed, s->pixel, 0}, CameraDims::film);
+    uint32_t film_pixel = s->pixel;
+    size_t k = r.begin() / batch, j = r.begin() % batch;  // batch k (from the first), ray j
+    for (size_t i = r.begin(); i < r.end(); ++i, s.step()) {
       // The free slots' path records, and their cold tables that start_path
       // resets, were last written by whichever thread ended their paths:
       // fetch them a few samples ahead (the cold tables, left to wait, were
@@ -107,20 +108,12 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
         __builtin_prefetch(&pool[slots[i + kSlotPrefetchDistance]], 1);
         pool.prefetch_cold(slots[i + kSlotPrefetchDistance]);
       }
-      const PixelSample s = camera_sample(first + i, ranges, sample_begin, sample_count);
-      const SamplerKey key{opt.seed, s.pixel, s.sample};
-      FilterSample fs = camera_filter_sample(filter, opt.seed, s.pixel, s.sample);
-      vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
-      // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
-      const vec2 u_lens = camera.lens_radius > 0.0f ? sample_2d(key, CameraDims::lens) : vec2(0.5f);
-      auto cam = generate_camera_ray(camera, p_film, u_lens);
-      Ray ray;
-      ray.o = cam.o;
-      ray.d = cam.d;
-      if (!s.alpha_only) film.add_weight(s.pixel, s.sample, fs.weight);
-      if (counts_for_alpha(s.sample)) film.add_alpha_weight(s.pixel, fs.weight);
-      start_path(slots[i], s.pixel, s.sample, s.alpha_only, fs.weight, ray.o);
-      batch_of(i).rays[i % batch] = ray;
+      if (s->pixel != film_pixel) {
+        film_pair = PairSampler(SamplerKey{opt.seed, s->pixel, 0}, CameraDims::film);
+        film_pixel = s->pixel;
+      }
+      full[first_batch + n_batches - 1 - k].rays[j] = start_camera_path(slots[i], *s, film_pair);
+      if (++j == batch) j = 0, ++k;
     }
   });
   next_camera = first + count;

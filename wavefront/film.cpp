@@ -156,24 +156,18 @@ class Film::PixelLock {
   std::atomic<uint8_t>& lock_;
 };
 
-void Film::add_weight(uint32_t pixel, uint32_t sample, float w) {
+void Film::add_weights(uint32_t pixel, uint32_t sample, float w, bool colour, bool alpha) {
+  if (!colour && !alpha) return;
   if (float* s = thread_sum(pixel)) {
-    s[kWeight] += w;
-    if (sample & 1) s[kOddWeight] += w;
+    if (colour) s[kWeight] += w;
+    if (colour && (sample & 1)) s[kOddWeight] += w;
+    if (alpha) s[kAlphaWeight] += w;
     return;
   }
   PixelLock lock(*this, pixel);
-  weight[pixel] += w;
-  if (sample & 1) weight_odd[pixel] += w;
-}
-
-void Film::add_alpha_weight(uint32_t pixel, float w) {
-  if (float* s = thread_sum(pixel)) {
-    s[kAlphaWeight] += w;
-    return;
-  }
-  PixelLock lock(*this, pixel);
-  alpha_weight[pixel] += w;
+  if (colour) weight[pixel] += w;
+  if (colour && (sample & 1)) weight_odd[pixel] += w;
+  if (alpha) alpha_weight[pixel] += w;
 }
 
 void Film::splat(uint32_t pixel, uint32_t sample, const RGB& L, uint8_t event) {

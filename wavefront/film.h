@@ -89,8 +89,12 @@ struct Film {
   // this += o, plane by plane (o must have the same size).
   void add(const Film& o);
 
-  void add_weight(uint32_t pixel, uint32_t sample, float w);
-  void add_alpha_weight(uint32_t pixel, float w);
+  // A camera sample's filter weight: to the colour weights unless `colour`
+  // is false (a coverage-only sample), to the alpha weight if `alpha`; one
+  // lookup of the thread's sums (or one lock) for both.
+  void add_weights(uint32_t pixel, uint32_t sample, float w, bool colour, bool alpha);
+  void add_weight(uint32_t pixel, uint32_t sample, float w) { add_weights(pixel, sample, w, true, false); }
+  void add_alpha_weight(uint32_t pixel, float w) { add_weights(pixel, 0, w, false, true); }
   // `event`: the path's PathEvent, kept only with aov_events().
   void splat(uint32_t pixel, uint32_t sample, const RGB& weighted_L, uint8_t event);
   void splat_first_hit(uint32_t pixel, float w, bool hit, const RGB& albedo, const vec3& n, float depth);

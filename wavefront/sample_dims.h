@@ -46,6 +46,11 @@ struct CameraDims {
 inline FilterSample camera_filter_sample(const Filter& filter, uint32_t seed, uint32_t pixel, uint32_t sample) {
   return sample_filter(filter, sample_2d(SamplerKey{seed, pixel, sample}, CameraDims::film));
 }
+// The same, with the pixel's film pair made once for its samples
+// (PairSampler(SamplerKey{seed, pixel, any}, CameraDims::film)).
+inline FilterSample camera_filter_sample(const Filter& filter, const PairSampler& film_pair, uint32_t sample) {
+  return sample_filter(filter, film_pair(sample));
+}
 
 // The dimensions of bounce `depth` (the vertex at hit `depth`, 0 = the primary hit).
 struct BounceDims {

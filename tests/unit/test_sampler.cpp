@@ -135,6 +135,21 @@ TEST(Sobol, NestedUniformScrambleIsAnOwenScramble) {
   }
 }
 
+// The camera stage hashes a pixel's film pair once and draws all its samples
+// from it: every draw must be sample_1d's pair, bit for bit, whatever sample
+// the key the pair was made from names.
+TEST(Sampler, APairSamplerDrawsEverySampleOfItsPixel) {
+  for (uint32_t dim : {0u, 2u, 10u}) {
+    const PairSampler pair(SamplerKey{9, 4321, 77}, dim);
+    for (uint32_t i = 0; i < 300; ++i) {
+      const SamplerKey key{9, 4321, i};
+      const vec2 u = pair(i);
+      EXPECT_EQ(std::bit_cast<uint32_t>(u.x), std::bit_cast<uint32_t>(sample_1d(key, dim))) << dim << " " << i;
+      EXPECT_EQ(std::bit_cast<uint32_t>(u.y), std::bit_cast<uint32_t>(sample_1d(key, dim + 1))) << dim << " " << i;
+    }
+  }
+}
+
 TEST(Sampler, IsAPureFunctionOfItsKey) {
   for (uint32_t dim : {0u, 1u, 2u, 7u, 40u}) {
     SamplerKey key{3, 1234, 17};

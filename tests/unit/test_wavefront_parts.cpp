@@ -1,6 +1,8 @@
 // The wavefront's parts on their own: the radix sort, the queue tables, the
-// sample-dimension table, the pool sizes and the film.
+// sample-dimension table, the pool sizes, the camera samples' order and the
+// film.
 #include "core/radix_sort.h"
+#include "wavefront/camera_samples.h"
 #include "wavefront/engine.h"
 #include "wavefront/film.h"
 #include "wavefront/path_state.h"
@@ -190,6 +192,60 @@ TEST(EngineSizes, FollowTheFrameUnlessSet) {
   // Never a lane without a path.
   o.max_paths = 1;
   EXPECT_EQ(engine_sizes(o, 64 * 64, 2).lanes, 1u);
+}
+
+// The camera stage finds its first sample by division (or search) and steps
+// to the next: every step must land where a walk started there would be,
+// across pixels, and over adaptive ranges with pixels that have no samples.
+TEST(CameraSamples, AWalkStepsToWhatEachSampleIsByItself) {
+  auto same = [](const PixelSample& a, const PixelSample& b) {
+    return a.pixel == b.pixel && a.sample == b.sample && a.alpha_only == b.alpha_only;
+  };
+  // The whole frame: pixel-sample order, samples [5, 8) of each pixel.
+  {
+    CameraSampleWalk walk(2, nullptr, 5, 3);
+    for (uint64_t g = 2; g < 12; ++g, walk.step()) {
+      EXPECT_EQ(walk->pixel, uint32_t(g / 3)) << g;
+      EXPECT_EQ(walk->sample, 5 + uint32_t(g % 3)) << g;
+      EXPECT_FALSE(walk->alpha_only);
+    }
+  }
+  // Adaptive ranges: pixel p has samples [begin, begin + count), colour
+  // below colour_end; pixels 1, 2 and 5 have none.
+  SampleRanges ranges;
+  ranges.begin = {4, 0, 0, 1, 7, 0};
+  ranges.colour_end = {5, 0, 0, 3, 9, 0};
+  ranges.offset = {0, 2, 2, 2, 5, 6, 6};
+  const PixelSample expected[] = {{0, 4, false}, {0, 5, true}, {3, 1, false}, {3, 2, false}, {3, 3, true}, {4, 7, false}};
+  for (uint64_t start = 0; start < 6; ++start) {
+    CameraSampleWalk walk(start, &ranges, 0, 0);
+    for (uint64_t g = start; g < 6; ++g, walk.step())
+      EXPECT_TRUE(same(*walk, expected[g])) << "from " << start << " at " << g << ": pixel " << walk->pixel
+                                            << " sample " << walk->sample;
+    EXPECT_LT(walk->pixel, 6u) << "a walk past the last sample stays in the frame";
+  }
+}
+
+// A camera sample's filter weight goes to the colour weights (the odd half
+// only from odd samples) unless the sample is coverage-only, and to the alpha
+// weight where it counts for alpha; the same with per-thread sums and without.
+TEST(Film, ACameraSamplesWeightsGoWhereTheyCount) {
+  for (bool thread_sums : {false, true}) {
+    Film film(4, 1);
+    if (thread_sums) film.use_thread_sums(1);
+    film.add_weights(0, 3, 0.5f, true, true);   // odd, colour and alpha
+    film.add_weights(1, 2, 0.25f, true, false); // even, past the alpha samples
+    film.add_weights(2, 5, 2.0f, false, true);  // coverage only
+    film.add_weights(3, 1, 8.0f, false, false); // neither: nothing
+    if (thread_sums) film.flush();
+    const float weight[] = {0.5f, 0.25f, 0.0f, 0.0f}, odd[] = {0.5f, 0.0f, 0.0f, 0.0f},
+                alpha[] = {0.5f, 0.0f, 2.0f, 0.0f};
+    for (int p = 0; p < 4; ++p) {
+      EXPECT_EQ(film.weight[size_t(p)], weight[p]) << "pixel " << p << ", thread sums " << thread_sums;
+      EXPECT_EQ(film.weight_odd[size_t(p)], odd[p]) << "pixel " << p << ", thread sums " << thread_sums;
+      EXPECT_EQ(film.alpha_weight[size_t(p)], alpha[p]) << "pixel " << p << ", thread sums " << thread_sums;
+    }
+  }
 }
 
 TEST(Film, SplatsSumsHalfBuffersAndDropsNonFiniteSamples) {

@@ -1,0 +1,68 @@
+// Which (pixel, sample) the camera stage's g-th sample of an iteration is:
+// pixel-sample order over the frame, or over the per-pixel ranges of
+// adaptive sampling.
+#pragma once
+
+#include "wavefront/engine.h"
+
+#include <algorithm>
+#include <cstdint>
+
+namespace theia {
+
+struct PixelSample {
+  uint32_t pixel = 0, sample = 0;
+  bool alpha_only = false;  // past the pixel's colour samples: coverage only
+};
+
+// Camera samples g, g + 1, ... in turn: the first found by division (or by a
+// search of the adaptive ranges), each next one by a step, which spares every
+// camera sample a 64-bit division.  Stepping past the iteration's last sample
+// is allowed (the walk stays in bounds); what it then holds is not a sample.
+class CameraSampleWalk {
+ public:
+  CameraSampleWalk(uint64_t g, const SampleRanges* ranges, uint32_t sample_begin, uint32_t sample_count)
+      : g_(g), ranges_(ranges), sample_begin_(sample_begin), sample_count_(sample_count) {
+    if (ranges) {
+      auto it = std::upper_bound(ranges->offset.begin(), ranges->offset.end(), g);
+      s_.pixel = uint32_t(std::min<ptrdiff_t>(it - ranges->offset.begin(), ptrdiff_t(ranges->begin.size())) - 1);
+      s_.sample = ranges->begin[s_.pixel] + uint32_t(g - ranges->offset[s_.pixel]);
+      next_pixel_g_ = ranges->offset[s_.pixel + 1];
+      s_.alpha_only = s_.sample >= ranges->colour_end[s_.pixel];
+    } else {
+      s_.pixel = uint32_t(g / sample_count);
+      s_.sample = sample_begin + uint32_t(g % sample_count);
+      next_pixel_g_ = (g / sample_count + 1) * sample_count;
+    }
+  }
+  const PixelSample& operator*() const { return s_; }
+  const PixelSample* operator->() const { return &s_; }
+
+  void step() {
+    if (++g_ < next_pixel_g_) {
+      ++s_.sample;
+      if (ranges_) s_.alpha_only = s_.sample >= ranges_->colour_end[s_.pixel];
+      return;
+    }
+    if (!ranges_) {
+      ++s_.pixel;
+      s_.sample = sample_begin_;
+      next_pixel_g_ += sample_count_;
+      return;
+    }
+    // The next pixel with samples left (adaptive sampling gives some none).
+    const uint32_t last = uint32_t(ranges_->begin.size()) - 1;
+    while (s_.pixel < last && ranges_->offset[s_.pixel + 1] <= g_) ++s_.pixel;
+    s_.sample = ranges_->begin[s_.pixel] + uint32_t(g_ - std::min(g_, ranges_->offset[s_.pixel]));
+    next_pixel_g_ = ranges_->offset[s_.pixel + 1];
+    s_.alpha_only = s_.sample >= ranges_->colour_end[s_.pixel];
+  }
+
+ private:
+  PixelSample s_;
+  uint64_t g_, next_pixel_g_ = 0;  // next_pixel_g_: the first g of the pixel after s_.pixel
+  const SampleRanges* ranges_;
+  uint32_t sample_begin_, sample_count_;
+};
+
+}  // namespace theia

@@ -144,6 +144,9 @@ struct WavefrontEngine::Impl {
   // NEE's light_choice pair decides nothing (sample_dims.h light_choice_fixed): not drawn.
   bool light_choice_fixed =
       theia::light_choice_fixed(scene, light_sampler.wants_feedback(), light_sampler.chooses_primitives());
+  // The scene's one light, or -1: every sampler would choose it, so NEE can
+  // ask whether it faces away before drawing or choosing anything.
+  int sole_light = scene.lights.size() == 1 ? 0 : -1;
   // Shading fetches each hit's triangle ahead (scene/shapes.h) only where
   // the meshes outgrow the cache.
   bool prefetch_triangles = triangle_mesh_bytes(scene) > kPrefetchTrianglesAbove;

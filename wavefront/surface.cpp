@@ -192,6 +192,7 @@ template <bool kObserve>
 void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& out) {
   const PathState& ps = v.ps;
   if (bsdf_is_specular(v.bsdf) || int(ps.depth) < opt.throughput_reset_bounce) return;
+  if (sole_light >= 0 && light_faces_away(lights, sole_light, v.si.p)) return;
   const LightSampleContext ctx{v.si.p, v.si.p_error, v.si.ng, v.ns};
   // light_choice and light_prim are one pair of slots (sample_dims.h): one
   // draw of the pair gives both numbers, bit for bit the two 1D draws, for

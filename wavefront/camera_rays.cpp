@@ -37,9 +37,6 @@ void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t s
   if (!pool.roughness.empty()) pool.roughness[slot] = 0.0f;
 }
 
-// The next run of camera samples for this lane: at most `count` (fewer as
-// the iteration's end nears, so that the lanes finish together); sets
-// `count` to the run's length, 0 when none is left.
 // Camera sample s's ray, its filter weights added to the film and its path
 // started in `slot`; `film_pair` draws the film offsets of s's pixel.
 Ray WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s, const PairSampler& film_pair) {
@@ -58,6 +55,9 @@ Ray WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s
   return ray;
 }
 
+// The next run of camera samples for this lane: at most `count` (fewer as
+// the iteration's end nears, so that the lanes finish together); sets
+// `count` to the run's length, 0 when none is left.
 uint64_t WavefrontEngine::Impl::claim_camera_samples(size_t& count) {
   count = std::min(count, pool.free_slots.size());
   if (!camera_claims) {

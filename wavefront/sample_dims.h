@@ -43,13 +43,13 @@ struct CameraDims {
 // Camera sample (pixel, sample)'s point on the pixel and filter weight: the
 // camera rays draw it, and the caustic pass weights its splats into that
 // sample by the same weight (wavefront/caustics.h).
-inline FilterSample camera_filter_sample(const Filter& filter, uint32_t seed, uint32_t pixel, uint32_t sample) {
-  return sample_filter(filter, sample_2d(SamplerKey{seed, pixel, sample}, CameraDims::film));
-}
-// The same, with the pixel's film pair made once for its samples
-// (PairSampler(SamplerKey{seed, pixel, any}, CameraDims::film)).
+// `film_pair`: PairSampler(SamplerKey{seed, pixel, any}, CameraDims::film),
+// made once for the pixel's samples.
 inline FilterSample camera_filter_sample(const Filter& filter, const PairSampler& film_pair, uint32_t sample) {
   return sample_filter(filter, film_pair(sample));
+}
+inline FilterSample camera_filter_sample(const Filter& filter, uint32_t seed, uint32_t pixel, uint32_t sample) {
+  return camera_filter_sample(filter, PairSampler(SamplerKey{seed, pixel, sample}, CameraDims::film), sample);
 }
 
 // The dimensions of bounce `depth` (the vertex at hit `depth`, 0 = the primary hit).

@@ -5,9 +5,30 @@
 #include "core/sampling.h"
 
 #include <algorithm>
+#include <span>
 #include <vector>
 
 namespace theia {
+
+// The sample of EqualMass1D below, over its n segments' bounds and values.
+// Both cases are computed and one is chosen, with no branch: so written, a
+// loop of calls vectorizes, and the values are the same as with branches.
+inline float equal_mass_sample(const float* bounds, const float* value, int n, float u, float& inv_pdf) {
+  const float t = u * float(n);
+  const int k = std::min(int(t), n - 1);
+  const float a = bounds[size_t(k)], b = bounds[size_t(k) + 1];
+  const float fa = value[size_t(k)], fb = value[size_t(k) + 1];
+  const float v = std::min(t - float(k), kOneMinusEpsilon);
+  // A segment where the function is 0 at both ends: uniform.
+  const bool flat = !(fa + fb > 0.0f);
+  // Otherwise the inverse of the linear density's cdf, in the form that stays finite as fa -> 0.
+  const float s =
+      v > 0.0f ? std::min(v * (fa + fb) / (fa + std::sqrt(fa * fa + v * (fb * fb - fa * fa))), 1.0f) : 0.0f;
+  const float density = fa + s * (fb - fa);
+  const float linear_inv_pdf = density > 0.0f ? float(n) * (b - a) * 0.5f * (fa + fb) / density : 0.0f;
+  inv_pdf = flat ? float(n) * (b - a) : linear_inv_pdf;
+  return flat ? std::min(a + v * (b - a), b) : std::min(a + s * (b - a), b);
+}
 
 // n segments of probability 1/n each (the quantiles of a tabulated
 // distribution), and within each a density linear between the function's
@@ -28,22 +49,15 @@ struct EqualMass1D {
   int size() const { return int(bounds.size()) - 1; }
   // Returns x in [bounds[0], bounds[n]]; writes 1 / pdf(x) (0 where the density is 0).
   float sample(float u, float* inv_pdf) const {
+    return equal_mass_sample(bounds.data(), value.data(), size(), u, *inv_pdf);
+  }
+  // x[i] = sample(u[i], &inv_pdf[i]) for every i, bit for bit, several
+  // lanes at a time: the loop over the inline sample vectorizes.
+  void sample(std::span<const float> u, std::span<float> x, std::span<float> inv_pdf) const {
+    const float* __restrict b = bounds.data();
+    const float* __restrict f = value.data();
     const int n = size();
-    const float t = u * float(n);
-    const int k = std::min(int(t), n - 1);
-    const float a = bounds[size_t(k)], b = bounds[size_t(k) + 1];
-    const float fa = value[size_t(k)], fb = value[size_t(k) + 1];
-    const float v = std::min(t - float(k), kOneMinusEpsilon);
-    if (!(fa + fb > 0.0f)) {
-      *inv_pdf = float(n) * (b - a);
-      return std::min(a + v * (b - a), b);
-    }
-    // The inverse of the linear density's cdf, in the form that stays finite as fa -> 0.
-    const float s =
-        v > 0.0f ? std::min(v * (fa + fb) / (fa + std::sqrt(fa * fa + v * (fb * fb - fa * fa))), 1.0f) : 0.0f;
-    const float density = fa + s * (fb - fa);
-    *inv_pdf = density > 0.0f ? float(n) * (b - a) * 0.5f * (fa + fb) / density : 0.0f;
-    return std::min(a + s * (b - a), b);
+    for (size_t i = 0; i < u.size(); ++i) x[i] = equal_mass_sample(b, f, n, u[i], inv_pdf[i]);
   }
   // Density of sample() at x; 0 outside [bounds[0], bounds[n]].
   float pdf(float x) const;

@@ -11,6 +11,8 @@
 #include "core/math.h"
 #include "scene/scene.h"
 
+#include <span>
+
 namespace theia {
 
 struct FilterSample {
@@ -56,6 +58,10 @@ Filter make_filter(const FilterParams& params);
 // pbrt-v4), never to a sliver that would blow sum(w L) / sum(w) up.  The
 // price is the table's midpoint-rule bias, second order in the cell size.
 FilterSample sample_filter(const Filter& filter, vec2 u);
+// out[i] = sample_filter(filter, u[i]) for every i, bit for bit (the camera
+// stage draws a run of samples at once): the Gaussian's arithmetic runs
+// several samples at a time in vector lanes, its exponentials one by one.
+void sample_filter(const Filter& filter, std::span<const vec2> u, std::span<FilterSample> out);
 // Density of sample_filter()'s offsets.
 float filter_pdf(const Filter& filter, vec2 p);
 float filter_eval(const Filter& filter, vec2 p);

@@ -38,10 +38,9 @@ void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t s
 }
 
 // Camera sample s's ray, its filter weights added to the film and its path
-// started in `slot`; `film_pair` draws the film offsets of s's pixel.
-Ray WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s, const PairSampler& film_pair) {
+// started in `slot`; `fs`: its film offset and weight (camera_filter_sample).
+Ray WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s, const FilterSample& fs) {
   const SamplerKey key{opt.seed, s.pixel, s.sample};
-  const FilterSample fs = camera_filter_sample(filter, film_pair, s.sample);
   const uint32_t width = uint32_t(film.width);
   vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
   // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
@@ -94,12 +93,17 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     full.push_back(std::move(b));
   }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
-    CameraSampleWalk s(first + r.begin(), ranges, sample_begin, sample_count);
-    // A pixel's samples are consecutive: its film pair is hashed once for them.
-    PairSampler film_pair(SamplerKey{opt.seed, s->pixel, 0}, CameraDims::film);
-    uint32_t film_pixel = s->pixel;
+    CameraSampleWalk walk(first + r.begin(), ranges, sample_begin, sample_count);
+    CameraFilmDraws draw_film(filter, opt.seed, walk->pixel);
+    std::array<PixelSample, kFilmBlock> samples;
+    std::array<FilterSample, kFilmBlock> film;
     size_t k = r.begin() / batch, j = r.begin() % batch;  // batch k (from the first), ray j
-    for (size_t i = r.begin(); i < r.end(); ++i, s.step()) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const size_t b = (i - r.begin()) % kFilmBlock;
+      if (b == 0) {
+        const size_t m = std::min(kFilmBlock, r.end() - i);
+        draw_film(walk, std::span(samples.data(), m), std::span(film.data(), m));
+      }
       // The free slots' path records, and their cold tables that start_path
       // resets, were last written by whichever thread ended their paths:
       // fetch them a few samples ahead (the cold tables, left to wait, were
@@ -108,11 +112,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
         __builtin_prefetch(&pool[slots[i + kSlotPrefetchDistance]], 1);
         pool.prefetch_cold(slots[i + kSlotPrefetchDistance]);
       }
-      if (s->pixel != film_pixel) {
-        film_pair = PairSampler(SamplerKey{opt.seed, s->pixel, 0}, CameraDims::film);
-        film_pixel = s->pixel;
-      }
-      full[first_batch + n_batches - 1 - k].rays[j] = start_camera_path(slots[i], *s, film_pair);
+      full[first_batch + n_batches - 1 - k].rays[j] = start_camera_path(slots[i], samples[b], film[b]);
       if (++j == batch) j = 0, ++k;
     }
   });

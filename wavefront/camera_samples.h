@@ -1,12 +1,17 @@
-// Which (pixel, sample) the camera stage's g-th sample of an iteration is:
-// pixel-sample order over the frame, or over the per-pixel ranges of
-// adaptive sampling.
+// Which (pixel, sample) the camera stage's g-th sample of an iteration is
+// (pixel-sample order over the frame, or over the per-pixel ranges of
+// adaptive sampling), and the samples' film draws.
 #pragma once
 
+#include "core/sampler.h"
+#include "scene/filter.h"
 #include "wavefront/engine.h"
+#include "wavefront/sample_dims.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
+#include <span>
 
 namespace theia {
 
@@ -63,6 +68,35 @@ class CameraSampleWalk {
   uint64_t g_, next_pixel_g_ = 0;  // next_pixel_g_: the first g of the pixel after s_.pixel
   const SampleRanges* ranges_;
   uint32_t sample_begin_, sample_count_;
+};
+
+// Camera samples whose film offsets are drawn together (sample_filter's span form).
+inline constexpr size_t kFilmBlock = 64;
+
+// The film offsets and weights of a walk's camera samples, a block at a
+// time: camera_filter_sample's, bit for bit.  A pixel's samples are
+// consecutive, so its film pair is hashed once for them.
+class CameraFilmDraws {
+ public:
+  CameraFilmDraws(const Filter& filter, uint32_t seed, uint32_t pixel)
+      : filter_(filter), seed_(seed), pixel_(pixel), pair_(SamplerKey{seed, pixel, 0}, CameraDims::film) {}
+
+  // The walk's next samples.size() (at most kFilmBlock) samples and their
+  // film draws; the walk steps past them.
+  void operator()(CameraSampleWalk& walk, std::span<PixelSample> samples, std::span<FilterSample> film) {
+    std::array<vec2, kFilmBlock> u;
+    for (size_t i = 0; i < samples.size(); ++i, walk.step()) {
+      if (walk->pixel != pixel_) pixel_ = walk->pixel, pair_ = PairSampler(SamplerKey{seed_, pixel_, 0}, CameraDims::film);
+      samples[i] = *walk;
+      u[i] = pair_(walk->sample);
+    }
+    sample_filter(filter_, std::span<const vec2>(u.data(), samples.size()), film);
+  }
+
+ private:
+  const Filter& filter_;
+  uint32_t seed_, pixel_;
+  PairSampler pair_;
 };
 
 }  // namespace theia

@@ -41,15 +41,12 @@ struct CameraDims {
 };
 
 // Camera sample (pixel, sample)'s point on the pixel and filter weight: the
-// camera rays draw it, and the caustic pass weights its splats into that
-// sample by the same weight (wavefront/caustics.h).
-// `film_pair`: PairSampler(SamplerKey{seed, pixel, any}, CameraDims::film),
-// made once for the pixel's samples.
-inline FilterSample camera_filter_sample(const Filter& filter, const PairSampler& film_pair, uint32_t sample) {
-  return sample_filter(filter, film_pair(sample));
-}
+// camera rays draw it (a block of samples at a time, from a pair made once
+// per pixel, through sample_filter's span form: the same bits), and the
+// caustic pass weights its splats into that sample by the same weight
+// (wavefront/caustics.h).
 inline FilterSample camera_filter_sample(const Filter& filter, uint32_t seed, uint32_t pixel, uint32_t sample) {
-  return camera_filter_sample(filter, PairSampler(SamplerKey{seed, pixel, sample}, CameraDims::film), sample);
+  return sample_filter(filter, PairSampler(SamplerKey{seed, pixel, sample}, CameraDims::film)(sample));
 }
 
 // The dimensions of bounce `depth` (the vertex at hit `depth`, 0 = the primary hit).

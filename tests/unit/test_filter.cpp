@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstring>
 #include <functional>
 #include <numeric>
 #include <string>
@@ -216,6 +218,34 @@ TEST(Filter, GaussianWeightIsFOverPdf) {
 
 // Mitchell and Lanczos weigh as pbrt-v4: the cell's tabulated f over the pdf,
 // +-integral(|table|) everywhere, so weights that cancel sum to exactly 0.
+// The camera stage draws its film offsets a block at a time, and the caustic
+// pass re-draws one sample's weight alone: the two must agree bit for bit.
+// The inputs cover every Gaussian segment's ends and interior, 0, the top of
+// [0, 1), and blocks of every length around the vector width.
+TEST(Filter, ABlockOfSamplesIsEachSampleBitForBit) {
+  std::vector<vec2> u;
+  for (int k = 0; k <= kGaussianSegments; ++k)
+    for (float d : {-1e-6f, 0.0f, 1e-6f, 0.5f / float(kGaussianSegments)})
+      u.push_back(vec2(std::clamp(float(k) / float(kGaussianSegments) + d, 0.0f, kOneMinusEpsilon),
+                       std::clamp(1.0f - float(k) / float(kGaussianSegments) - d, 0.0f, kOneMinusEpsilon)));
+  for (uint32_t i = 0; i < 200000; ++i) u.push_back(sample_2d({5, i / 64, i % 64}, 0));
+  const Filter filters[] = {filter_of(FilterKind::Gaussian, vec2(1.5f)), filter_of(FilterKind::Gaussian, vec2(0.5f, 3.0f), 0.8f),
+                            filter_of(FilterKind::Gaussian, vec2(2.0f), 4.0f), filter_of(FilterKind::Box, vec2(0.5f)),
+                            mitchell(vec2(2.0f)), lanczos(vec2(3.0f))};
+  for (const Filter& f : filters) {
+    std::vector<FilterSample> block(u.size());
+    for (size_t first = 0, len = 1; first < u.size(); first += len, len = len % 67 + 1)
+      sample_filter(f, std::span<const vec2>(u).subspan(first, std::min(len, u.size() - first)),
+                    std::span<FilterSample>(block).subspan(first, std::min(len, u.size() - first)));
+    size_t differ = 0;
+    for (size_t i = 0; i < u.size(); ++i) {
+      const FilterSample one = sample_filter(f, u[i]);
+      differ += std::memcmp(&one.p, &block[i].p, sizeof one.p) != 0 || std::memcmp(&one.weight, &block[i].weight, 4) != 0;
+    }
+    EXPECT_EQ(differ, 0u) << "filter kind " << int(f.kind) << ", " << u.size() << " samples";
+  }
+}
+
 TEST(Filter, SignedFilterWeightsArePlusMinusTheTableIntegral) {
   for (const Filter& f : signed_filters()) {
     const float c = f.distribution.integral() * 4.0f * f.radius.x * f.radius.y;

@@ -226,6 +226,37 @@ TEST(CameraSamples, AWalkStepsToWhatEachSampleIsByItself) {
   }
 }
 
+// The camera stage draws a block of samples' film offsets at once, with one
+// film pair per pixel: each must be what camera_filter_sample (which the
+// caustic pass re-draws) gives that sample alone, across pixels, over
+// adaptive ranges with empty pixels, and in blocks of any length.
+TEST(CameraSamples, ABlockOfFilmDrawsIsEachSamplesOwn) {
+  FilterParams params;  // pbrt-v4's default: a Gaussian of radius 1.5
+  const Filter filter = make_filter(params);
+  SampleRanges ranges;
+  ranges.begin = {4, 0, 0, 1, 7, 0, 2};
+  ranges.colour_end = {5, 0, 0, 3, 9, 0, 90};
+  ranges.offset = {0, 2, 2, 2, 5, 6, 6, 106};
+  for (const SampleRanges* r : {static_cast<const SampleRanges*>(nullptr), static_cast<const SampleRanges*>(&ranges)}) {
+    const uint64_t total = r ? 106 : 300;  // the whole frame: samples [3, 40) of each pixel
+    for (size_t block : {size_t(1), size_t(7), kFilmBlock}) {
+      CameraSampleWalk walk(0, r, 3, 37);
+      CameraFilmDraws draw(filter, 11, walk->pixel);
+      std::array<PixelSample, kFilmBlock> samples;
+      std::array<FilterSample, kFilmBlock> film;
+      for (uint64_t g = 0; g < total; g += block) {
+        const size_t m = size_t(std::min<uint64_t>(block, total - g));
+        draw(walk, std::span(samples.data(), m), std::span(film.data(), m));
+        for (size_t i = 0; i < m; ++i) {
+          const FilterSample own = camera_filter_sample(filter, 11, samples[i].pixel, samples[i].sample);
+          ASSERT_EQ(own.p, film[i].p) << "sample " << g + i << ", blocks of " << block;
+          ASSERT_EQ(own.weight, film[i].weight) << "sample " << g + i << ", blocks of " << block;
+        }
+      }
+    }
+  }
+}
+
 // A camera sample's filter weight goes to the colour weights (the odd half
 // only from odd samples) unless the sample is coverage-only, and to the alpha
 // weight where it counts for alpha; the same with per-thread sums and without.

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <span>
 
 namespace theia {
 
@@ -52,6 +53,11 @@ Camera make_camera(const CameraParams& camera, const FilmParams& film);
 // for a pinhole and the spherical camera).  p_film may lie a filter radius
 // outside the image.
 Ray generate_camera_ray(const Camera& camera, vec2 p_film, vec2 u_lens);
+// out[i] = generate_camera_ray(camera, p_film[i], u_lens[i]) for every i, bit
+// for bit; a pinhole perspective camera's (which reads no u_lens: it may be
+// empty) several rays at a time in vector lanes.
+void generate_camera_rays(const Camera& camera, std::span<const vec2> p_film, std::span<const vec2> u_lens,
+                          std::span<Ray> out);
 
 // The camera seen from a render-space point (pbrt-v4's Camera::SampleWi), for
 // light paths that end on it.  Pinhole perspective cameras with a rigid

@@ -37,21 +37,30 @@ void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t s
   if (!pool.roughness.empty()) pool.roughness[slot] = 0.0f;
 }
 
-// Camera sample s's ray, its filter weights added to the film and its path
-// started in `slot`; `fs`: its film offset and weight (camera_filter_sample).
-Ray WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s, const FilterSample& fs) {
-  const SamplerKey key{opt.seed, s.pixel, s.sample};
+// The rays of a block of camera samples, from their film offsets (and lens
+// draws), several at a time (generate_camera_rays).
+void WavefrontEngine::Impl::camera_rays(std::span<const PixelSample> samples, std::span<const FilterSample> film_draws,
+                                        std::span<Ray> rays) const {
+  std::array<vec2, kFilmBlock> p_film, u_lens;
   const uint32_t width = uint32_t(film.width);
-  vec2 p_film(float(s.pixel % width) + 0.5f + fs.p.x, float(s.pixel / width) + 0.5f + fs.p.y);
-  // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
-  const vec2 u_lens = camera.lens_radius > 0.0f ? sample_2d(key, CameraDims::lens) : vec2(0.5f);
-  auto cam = generate_camera_ray(camera, p_film, u_lens);
-  Ray ray;
-  ray.o = cam.o;
-  ray.d = cam.d;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const PixelSample& s = samples[i];
+    const vec2 offset = film_draws[i].p;
+    p_film[i] = vec2(float(s.pixel % width) + 0.5f + offset.x, float(s.pixel / width) + 0.5f + offset.y);
+    // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
+    const SamplerKey key{opt.seed, s.pixel, s.sample};
+    u_lens[i] = camera.lens_radius > 0.0f ? sample_2d(key, CameraDims::lens) : vec2(0.5f);
+  }
+  theia::generate_camera_rays(camera, std::span<const vec2>(p_film.data(), samples.size()),
+                              std::span<const vec2>(u_lens.data(), samples.size()), rays);
+}
+
+// Camera sample s's filter weights added to the film and its path started in
+// `slot`; `fs`: its film offset and weight (camera_filter_sample).
+void WavefrontEngine::Impl::start_camera_path(uint32_t slot, const PixelSample& s, const FilterSample& fs,
+                                              const vec3& origin) {
   film.add_weights(s.pixel, s.sample, fs.weight, !s.alpha_only, counts_for_alpha(s.sample));
-  start_path(slot, s.pixel, s.sample, s.alpha_only, fs.weight, ray.o);
-  return ray;
+  start_path(slot, s.pixel, s.sample, s.alpha_only, fs.weight, origin);
 }
 
 // The next run of camera samples for this lane: at most `count` (fewer as
@@ -96,24 +105,26 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     CameraSampleWalk walk(first + r.begin(), ranges, sample_begin, sample_count);
     CameraFilmDraws draw_film(filter, opt.seed, walk->pixel);
     std::array<PixelSample, kFilmBlock> samples;
-    std::array<FilterSample, kFilmBlock> film;
+    std::array<FilterSample, kFilmBlock> film_draws;
+    std::array<Ray, kFilmBlock> rays;
     size_t k = r.begin() / batch, j = r.begin() % batch;  // batch k (from the first), ray j
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      const size_t b = (i - r.begin()) % kFilmBlock;
-      if (b == 0) {
-        const size_t m = std::min(kFilmBlock, r.end() - i);
-        draw_film(walk, std::span(samples.data(), m), std::span(film.data(), m));
+    for (size_t i = r.begin(); i < r.end(); i += kFilmBlock) {
+      const size_t m = std::min(kFilmBlock, r.end() - i);
+      draw_film(walk, std::span(samples.data(), m), std::span(film_draws.data(), m));
+      camera_rays(std::span(samples.data(), m), std::span(film_draws.data(), m), std::span(rays.data(), m));
+      for (size_t b = 0; b < m; ++b) {
+        // The free slots' path records, and their cold tables that start_path
+        // resets, were last written by whichever thread ended their paths:
+        // fetch them a few samples ahead (the cold tables, left to wait, were
+        // most of this loop's time at two threads on smoke-grid).
+        if (i + b + kSlotPrefetchDistance < r.end()) {
+          __builtin_prefetch(&pool[slots[i + b + kSlotPrefetchDistance]], 1);
+          pool.prefetch_cold(slots[i + b + kSlotPrefetchDistance]);
+        }
+        start_camera_path(slots[i + b], samples[b], film_draws[b], rays[b].o);
+        full[first_batch + n_batches - 1 - k].rays[j] = rays[b];
+        if (++j == batch) j = 0, ++k;
       }
-      // The free slots' path records, and their cold tables that start_path
-      // resets, were last written by whichever thread ended their paths:
-      // fetch them a few samples ahead (the cold tables, left to wait, were
-      // most of this loop's time at two threads on smoke-grid).
-      if (i + kSlotPrefetchDistance < r.end()) {
-        __builtin_prefetch(&pool[slots[i + kSlotPrefetchDistance]], 1);
-        pool.prefetch_cold(slots[i + kSlotPrefetchDistance]);
-      }
-      full[first_batch + n_batches - 1 - k].rays[j] = start_camera_path(slots[i], samples[b], film[b]);
-      if (++j == batch) j = 0, ++k;
     }
   });
   next_camera = first + count;

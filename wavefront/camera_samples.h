@@ -86,7 +86,8 @@ class CameraFilmDraws {
   void operator()(CameraSampleWalk& walk, std::span<PixelSample> samples, std::span<FilterSample> film) {
     std::array<vec2, kFilmBlock> u;
     for (size_t i = 0; i < samples.size(); ++i, walk.step()) {
-      if (walk->pixel != pixel_) pixel_ = walk->pixel, pair_ = PairSampler(SamplerKey{seed_, pixel_, 0}, CameraDims::film);
+      if (walk->pixel != pixel_)
+        pixel_ = walk->pixel, pair_ = PairSampler(SamplerKey{seed_, pixel_, 0}, CameraDims::film);
       samples[i] = *walk;
       u[i] = pair_(walk->sample);
     }

@@ -225,7 +225,9 @@ struct WavefrontEngine::Impl {
   void trace_caustics();                    // the caustic pass over this iteration's samples
   void generate_camera_rays(size_t count);  // camera_rays.cpp
   uint64_t claim_camera_samples(size_t& count);
-  Ray start_camera_path(uint32_t slot, const PixelSample& s, const FilterSample& fs);
+  void camera_rays(std::span<const PixelSample> samples, std::span<const FilterSample> film_draws,
+                   std::span<Ray> rays) const;
+  void start_camera_path(uint32_t slot, const PixelSample& s, const FilterSample& fs, const vec3& origin);
   void cap_live_paths();                    // live_cap, sizes.batch_size and refill_below for an iteration
   void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
                   const vec3& origin);

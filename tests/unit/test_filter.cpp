@@ -229,9 +229,12 @@ TEST(Filter, ABlockOfSamplesIsEachSampleBitForBit) {
       u.push_back(vec2(std::clamp(float(k) / float(kGaussianSegments) + d, 0.0f, kOneMinusEpsilon),
                        std::clamp(1.0f - float(k) / float(kGaussianSegments) - d, 0.0f, kOneMinusEpsilon)));
   for (uint32_t i = 0; i < 200000; ++i) u.push_back(sample_2d({5, i / 64, i % 64}, 0));
-  const Filter filters[] = {filter_of(FilterKind::Gaussian, vec2(1.5f)), filter_of(FilterKind::Gaussian, vec2(0.5f, 3.0f), 0.8f),
-                            filter_of(FilterKind::Gaussian, vec2(2.0f), 4.0f), filter_of(FilterKind::Box, vec2(0.5f)),
-                            mitchell(vec2(2.0f)), lanczos(vec2(3.0f))};
+  const Filter filters[] = {filter_of(FilterKind::Gaussian, vec2(1.5f)),
+                            filter_of(FilterKind::Gaussian, vec2(0.5f, 3.0f), 0.8f),
+                            filter_of(FilterKind::Gaussian, vec2(2.0f), 4.0f),
+                            filter_of(FilterKind::Box, vec2(0.5f)),
+                            mitchell(vec2(2.0f)),
+                            lanczos(vec2(3.0f))};
   for (const Filter& f : filters) {
     std::vector<FilterSample> block(u.size());
     for (size_t first = 0, len = 1; first < u.size(); first += len, len = len % 67 + 1)
@@ -240,7 +243,8 @@ TEST(Filter, ABlockOfSamplesIsEachSampleBitForBit) {
     size_t differ = 0;
     for (size_t i = 0; i < u.size(); ++i) {
       const FilterSample one = sample_filter(f, u[i]);
-      differ += std::memcmp(&one.p, &block[i].p, sizeof one.p) != 0 || std::memcmp(&one.weight, &block[i].weight, 4) != 0;
+      differ += std::memcmp(&one.p, &block[i].p, sizeof one.p) != 0 ||
+                std::memcmp(&one.weight, &block[i].weight, sizeof one.weight) != 0;
     }
     EXPECT_EQ(differ, 0u) << "filter kind " << int(f.kind) << ", " << u.size() << " samples";
   }

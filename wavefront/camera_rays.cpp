@@ -107,7 +107,6 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     std::array<PixelSample, kFilmBlock> samples;
     std::array<FilterSample, kFilmBlock> film_draws;
     std::array<Ray, kFilmBlock> rays;
-    size_t k = r.begin() / batch, j = r.begin() % batch;  // batch k (from the first), ray j
     for (size_t i = r.begin(); i < r.end(); i += kFilmBlock) {
       const size_t m = std::min(kFilmBlock, r.end() - i);
       draw_film(walk, std::span(samples.data(), m), std::span(film_draws.data(), m));
@@ -122,8 +121,12 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
           pool.prefetch_cold(slots[i + b + kSlotPrefetchDistance]);
         }
         start_camera_path(slots[i + b], samples[b], film_draws[b], rays[b].o);
-        full[first_batch + n_batches - 1 - k].rays[j] = rays[b];
-        if (++j == batch) j = 0, ++k;
+      }
+      // Sample g's ray is ray g % batch of batch g / batch (from the first).
+      for (size_t b = 0; b < m;) {
+        const size_t g = i + b, k = g / batch, j = g % batch, n = std::min(m - b, batch - j);
+        std::copy_n(rays.begin() + ptrdiff_t(b), n, full[first_batch + n_batches - 1 - k].rays.begin() + ptrdiff_t(j));
+        b += n;
       }
     }
   });

@@ -35,6 +35,20 @@ inline constexpr float kOneMinusEpsilon = 0x1.fffffep-1f;
 
 inline float sqr(float x) { return x * x; }
 
+// a * b + c with one rounding where the target has FMA instructions, two
+// where it has none.  GCC fuses such sums where it can, but which of a sum's
+// products it fuses may differ between a function and the same arithmetic
+// in a vectorized loop; code that must give the same bits both ways writes
+// its fusions out with this.  (Without FMA, std::fma would be a slow library
+// call, and GCC fuses nothing either.)
+inline float mul_add(float a, float b, float c) {
+#if defined(__FMA__)
+  return std::fma(a, b, c);
+#else
+  return a * b + c;
+#endif
+}
+
 // cos and sin of an angle within pi / 4 of zero, by their Taylor polynomials
 // (within 2e-9 of the exact values there; float rounding adds an ulp or
 // two).  The sampling warps turn every random angle through these: libm's

@@ -142,20 +142,20 @@ namespace {
 
 // Both forms of the camera ray (generate_camera_ray and its span form)
 // compute these two, so that they give the same bits.  Every multiply-add
-// is written out: left to the compiler, the one-ray and the vector form
-// fused different pairs (a third of a turned camera's rays differed).  The
-// pairs fused are the ones GCC chose for the one-ray code before, so that
-// images stay the same bit for bit.
+// is written out (mul_add): left to the compiler, the one-ray and the
+// vector form fused different pairs (a third of a turned camera's rays
+// differed).  The pairs fused are the ones GCC chose for the one-ray code
+// before, so that images stay the same bit for bit.
 [[gnu::always_inline]] inline vec3 camera_plane_point(const Camera& c, vec2 p) {
-  auto axis = [&](int i) { return std::fma(p.y, c.dy[i], std::fma(p.x, c.dx[i], c.p00[i])); };
+  auto axis = [&](int i) { return mul_add(p.y, c.dy[i], mul_add(p.x, c.dx[i], c.p00[i])); };
   return {axis(0), axis(1), axis(2)};
 }
 [[gnu::always_inline]] inline vec3 render_direction(const Camera& c, const vec3& d) {
   const mat4& m = c.render_from_camera.m;
-  const float x = std::fma(m[2][0], d.z, std::fma(m[1][0], d.y, m[0][0] * d.x));
-  const float y = std::fma(m[2][1], d.z, std::fma(m[1][1], d.y, m[0][1] * d.x));
-  const float z = std::fma(m[2][2], d.z, std::fma(m[0][2], d.x, m[1][2] * d.y));
-  const float inv_length = 1.0f / std::sqrt(std::fma(z, z, std::fma(y, y, x * x)));
+  const float x = mul_add(m[2][0], d.z, mul_add(m[1][0], d.y, m[0][0] * d.x));
+  const float y = mul_add(m[2][1], d.z, mul_add(m[1][1], d.y, m[0][1] * d.x));
+  const float z = mul_add(m[2][2], d.z, mul_add(m[0][2], d.x, m[1][2] * d.y));
+  const float inv_length = 1.0f / std::sqrt(mul_add(z, z, mul_add(y, y, x * x)));
   return {x * inv_length, y * inv_length, z * inv_length};
 }
 

@@ -28,7 +28,7 @@ float gaussian_1d(float x, float sigma, float offset) { return std::max(0.0f, ga
 // exponentials between them are libm's, one by one.  The weight's x factor
 // fuses its product and offset and the y factor does not: what GCC chose
 // for the one-sample code this replaced, kept so that images stay the same
-// bit for bit, and written out (std::fma; a product stored by one loop and
+// bit for bit, and written out (mul_add; a product stored by one loop and
 // offset by the next) so that no compiler's contraction changes it.
 [[gnu::noinline]] void sample_gaussian(const Filter& f, std::span<const vec2> u, std::span<FilterSample> out) {
   constexpr size_t kBlock = 64;
@@ -41,7 +41,7 @@ float gaussian_1d(float x, float sigma, float offset) { return std::max(0.0f, ga
     for (size_t i = 0; i < m; ++i) gx[i] = -x[i] * x[i] * f.gaussian_falloff, gy[i] = -y[i] * y[i] * f.gaussian_falloff;
     for (size_t i = 0; i < m; ++i) gx[i] = std::exp(gx[i]), gy[i] = f.gaussian_scale * std::exp(gy[i]);
     for (size_t i = 0; i < m; ++i) {
-      const float fx = std::max(0.0f, std::fma(f.gaussian_scale, gx[i], -f.gaussian_offset.x));
+      const float fx = std::max(0.0f, mul_add(f.gaussian_scale, gx[i], -f.gaussian_offset.x));
       const float fy = std::max(0.0f, gy[i] - f.gaussian_offset.y);
       out[first + i] = {{x[i], y[i]}, fx * fy * inv_pdf_x[i] * inv_pdf_y[i]};
     }

@@ -11,8 +11,9 @@ namespace theia {
 namespace {
 
 // The unit-area Gaussian of sigma as scale exp(-x^2 falloff): every camera
-// sample evaluates it twice, with the filter's two constants made once
-// (the division and square root they replace were a fifth of the sample).
+// sample's weight evaluates it twice (sample_gaussian), with the filter's
+// two constants made once (the division and square root they replace were
+// a fifth of the sample).
 float gaussian_scale(float sigma) { return 1.0f / std::sqrt(2.0f * kPi * sigma * sigma); }
 float gaussian_falloff(float sigma) { return 1.0f / (2.0f * sigma * sigma); }
 float gaussian(float x, float scale, float falloff) { return scale * std::exp(-x * x * falloff); }

@@ -102,33 +102,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     full.push_back(std::move(b));
   }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
-    CameraSampleWalk walk(first + r.begin(), ranges, sample_begin, sample_count);
-    CameraFilmDraws draw_film(filter, opt.seed, walk->pixel);
-    std::array<PixelSample, kFilmBlock> samples;
-    std::array<FilterSample, kFilmBlock> film_draws;
-    std::array<Ray, kFilmBlock> rays;
-    for (size_t i = r.begin(); i < r.end(); i += kFilmBlock) {
-      const size_t m = std::min(kFilmBlock, r.end() - i);
-      draw_film(walk, std::span(samples.data(), m), std::span(film_draws.data(), m));
-      camera_rays(std::span(samples.data(), m), std::span(film_draws.data(), m), std::span(rays.data(), m));
-      for (size_t b = 0; b < m; ++b) {
-        // The free slots' path records, and their cold tables that start_path
-        // resets, were last written by whichever thread ended their paths:
-        // fetch them a few samples ahead (the cold tables, left to wait, were
-        // most of this loop's time at two threads on smoke-grid).
-        if (i + b + kSlotPrefetchDistance < r.end()) {
-          __builtin_prefetch(&pool[slots[i + b + kSlotPrefetchDistance]], 1);
-          pool.prefetch_cold(slots[i + b + kSlotPrefetchDistance]);
-        }
-        start_camera_path(slots[i + b], samples[b], film_draws[b], rays[b].o);
-      }
-      // Sample g's ray is ray g % batch of batch g / batch (from the first).
-      for (size_t b = 0; b < m;) {
-        const size_t g = i + b, k = g / batch, j = g % batch, n = std::min(m - b, batch - j);
-        std::copy_n(rays.begin() + ptrdiff_t(b), n, full[first_batch + n_batches - 1 - k].rays.begin() + ptrdiff_t(j));
-        b += n;
-      }
-    }
+    start_camera_paths(first, r.begin(), r.end(), slots, first_batch);
   });
   next_camera = first + count;
   stats.camera_rays += count;
@@ -136,6 +110,43 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
   queued_rays += count;
 
   stats.peak_live_paths = std::max(stats.peak_live_paths, pool.live());
+}
+
+// Samples [begin, end) of a run of camera samples (the run's first is
+// camera sample `first`, its path slots `slots`), a block at a time: their
+// paths started, and their rays written into the run's camera batches
+// (full[first_batch] on, pushed last first).
+void WavefrontEngine::Impl::start_camera_paths(uint64_t first, size_t begin, size_t end,
+                                               std::span<const uint32_t> slots, size_t first_batch) {
+  const size_t batch = sizes.batch_size, n_batches = (slots.size() + batch - 1) / batch;
+  CameraSampleWalk walk(first + begin, ranges, sample_begin, sample_count);
+  CameraFilmDraws draw_film(filter, opt.seed, walk->pixel);
+  std::array<PixelSample, kFilmBlock> samples;
+  std::array<FilterSample, kFilmBlock> film_draws;
+  std::array<Ray, kFilmBlock> rays;
+  for (size_t i = begin; i < end; i += kFilmBlock) {
+    const size_t m = std::min(kFilmBlock, end - i);
+    draw_film(walk, std::span(samples.data(), m), std::span(film_draws.data(), m));
+    camera_rays(std::span(samples.data(), m), std::span(film_draws.data(), m), std::span(rays.data(), m));
+    for (size_t b = 0; b < m; ++b) {
+      // The free slots' path records, and their cold tables that start_path
+      // resets, were last written by whichever thread ended their paths:
+      // fetch them a few samples ahead (the cold tables, left to wait, were
+      // most of this loop's time at two threads on smoke-grid).
+      if (i + b + kSlotPrefetchDistance < end) {
+        __builtin_prefetch(&pool[slots[i + b + kSlotPrefetchDistance]], 1);
+        pool.prefetch_cold(slots[i + b + kSlotPrefetchDistance]);
+      }
+      start_camera_path(slots[i + b], samples[b], film_draws[b], rays[b].o);
+    }
+    // Sample g's ray is ray g % batch of batch g / batch (from the run's first batch).
+    for (size_t b = 0; b < m;) {
+      const size_t g = i + b, k = g / batch, j = g % batch, n = std::min(m - b, batch - j);
+      Batch& to = full[first_batch + n_batches - 1 - k];
+      std::copy_n(rays.begin() + ptrdiff_t(b), n, to.rays.begin() + ptrdiff_t(j));
+      b += n;
+    }
+  }
 }
 
 }  // namespace theia

@@ -228,6 +228,8 @@ struct WavefrontEngine::Impl {
   void camera_rays(std::span<const PixelSample> samples, std::span<const FilterSample> film_draws,
                    std::span<Ray> rays) const;
   void start_camera_path(uint32_t slot, const PixelSample& s, const FilterSample& fs, const vec3& origin);
+  void start_camera_paths(uint64_t first, size_t begin, size_t end, std::span<const uint32_t> slots,
+                          size_t first_batch);
   void cap_live_paths();                    // live_cap, sizes.batch_size and refill_below for an iteration
   void start_path(uint32_t slot, uint32_t pixel, uint32_t sample, bool alpha_only, float filter_weight,
                   const vec3& origin);

@@ -46,7 +46,7 @@ struct CameraDims {
 // caustic pass weights its splats into that sample by the same weight
 // (wavefront/caustics.h).
 inline FilterSample camera_filter_sample(const Filter& filter, uint32_t seed, uint32_t pixel, uint32_t sample) {
-  return sample_filter(filter, PairSampler(SamplerKey{seed, pixel, sample}, CameraDims::film)(sample));
+  return sample_filter(filter, sample_2d(SamplerKey{seed, pixel, sample}, CameraDims::film));
 }
 
 // The dimensions of bounce `depth` (the vertex at hit `depth`, 0 = the primary hit).

@@ -22,13 +22,19 @@ constexpr uint64_t mix_bits(uint64_t v) {
   return v;
 }
 
+// hash(args..., next) from h = hash(args...): keys that share a prefix hash
+// it once.
+constexpr uint64_t hash_extend(uint64_t h, uint64_t next) {
+  return mix_bits(h ^ (next * 0xbf58476d1ce4e5b9ull + 0x94d049bb133111ebull));
+}
+
 // Hash of a few integers.  Order matters: hash(a, b) != hash(b, a), and
 // hash(a) != hash(a, 0), because each argument adds a mixing round.
 template <typename... Args>
 constexpr uint64_t hash(Args... args) {
   static_assert(sizeof...(Args) > 0 && (std::is_integral_v<Args> && ...), "hash() takes integers");
   uint64_t h = 0x9e3779b97f4a7c15ull;
-  ((h = mix_bits(h ^ (static_cast<uint64_t>(args) * 0xbf58476d1ce4e5b9ull + 0x94d049bb133111ebull))), ...);
+  ((h = hash_extend(h, static_cast<uint64_t>(args))), ...);
   return h;
 }
 

@@ -1,5 +1,7 @@
 #include "core/sampler.h"
 
+
+
 namespace theia {
 
 namespace {
@@ -74,6 +76,61 @@ constexpr std::array<std::array<uint32_t, 256>, 4> make_sobol1_reversed() {
 constinit const std::array<std::array<uint32_t, 256>, 4> kSobol1Reversed = make_sobol1_reversed();
 
 }  // namespace sampler_detail
+
+namespace {
+
+// A block of keys, one lane each: sample_4d's span form runs every loop over
+// all of them (unused lanes compute on zeros), which lets the compiler
+// vectorize with fixed trip counts.
+constexpr size_t kKeyBlock = 16;
+struct KeyBlock {
+  uint32_t seed[kKeyBlock], pixel[kKeyBlock], sample[kKeyBlock], first[kKeyBlock];
+};
+
+// One pair's two numbers, component0 and component1 of reversed_index
+// (sampler_detail), from h = hash(seed, pixel, pair) and the reversed sample
+// index.  to_sample's clamp is left out: to_unit_float is below 1 already.
+static_assert(to_unit_float(0xffffffffu) == kOneMinusEpsilon);
+[[gnu::always_inline]] inline void pair_in_lanes(uint64_t h, uint32_t reversed_sample, float& u0, float& u1) {
+  using namespace sampler_detail;
+  const PairSeeds s = pair_seeds_of(h);
+  const uint32_t y = laine_karras_permutation(reversed_sample, s.shuffle);
+  const uint32_t x0 = reverse_bits_by_masks(y), x1 = reversed_sobol1_of_reversed_by_masks(y);
+  u0 = to_unit_float(reverse_bits_by_masks(laine_karras_permutation(x0, s.scramble[0])));
+  u1 = to_unit_float(reverse_bits_by_masks(laine_karras_permutation(x1, s.scramble[1])));
+}
+
+void sample_4d_block(const KeyBlock& in, float u[4][kKeyBlock]) {
+  uint64_t h[2][kKeyBlock];
+  uint32_t reversed_sample[kKeyBlock];
+  for (size_t i = 0; i < kKeyBlock; ++i) {
+    // hash(seed, pixel, pair), its first two arguments hashed once for both pairs.
+    const uint64_t prefix = hash_extend(hash(in.seed[i]), in.pixel[i]), pair = in.first[i] >> 1;
+    h[0][i] = hash_extend(prefix, pair);
+    h[1][i] = hash_extend(prefix, pair + 1);
+  }
+  for (size_t i = 0; i < kKeyBlock; ++i) reversed_sample[i] = reverse_bits_by_masks(in.sample[i]);
+  for (size_t i = 0; i < kKeyBlock; ++i) pair_in_lanes(h[0][i], reversed_sample[i], u[0][i], u[1][i]);
+  for (size_t i = 0; i < kKeyBlock; ++i) pair_in_lanes(h[1][i], reversed_sample[i], u[2][i], u[3][i]);
+}
+
+}  // namespace
+
+void sample_4d(std::span<const SamplerKey> keys, std::span<const uint32_t> first, std::span<vec4> out) {
+  for (size_t b = 0; b < keys.size(); b += kKeyBlock) {
+    const size_t m = std::min(kKeyBlock, keys.size() - b);
+    KeyBlock in{};
+    for (size_t i = 0; i < m; ++i) {
+      in.seed[i] = keys[b + i].seed;
+      in.pixel[i] = keys[b + i].pixel;
+      in.sample[i] = keys[b + i].sample;
+      in.first[i] = first[b + i];
+    }
+    float u[4][kKeyBlock];
+    sample_4d_block(in, u);
+    for (size_t i = 0; i < m; ++i) out[b + i] = vec4(u[0][i], u[1][i], u[2][i], u[3][i]);
+  }
+}
 
 uint32_t sobol_sample(uint32_t index, uint32_t dim) {
   if (dim == 0) return reverse_bits(index);

@@ -21,6 +21,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <type_traits>
 #if defined(__GFNI__)
 #include <immintrin.h>
@@ -44,6 +45,16 @@ inline float sample_1d(const SamplerKey& key, uint32_t dimension);
 // call cost more than the shared hashing saves.
 [[gnu::always_inline]] inline vec2 sample_2d(const SamplerKey& key, uint32_t dimension);
 
+// (sample_1d(key, first), ..., sample_1d(key, first + 3)) for an even
+// `first`: two whole pairs, such as a path vertex's continuation
+// (sample_dims.h).
+inline vec4 sample_4d(const SamplerKey& key, uint32_t first);
+// sample_4d(keys[i], first[i]) for a block of keys, bit for bit, in loops
+// across the keys that the compiler vectorizes: the shading stage draws a
+// chunk of hits' numbers before it shades them, so that the draws leave each
+// hit's chain of dependent steps (the hashing is a chain of multiplies).
+void sample_4d(std::span<const SamplerKey> keys, std::span<const uint32_t> first, std::span<vec4> out);
+
 // sample_2d(key, dimension) of one (seed, pixel) and even dimension for any
 // sample index, the pair's seeds hashed once: the camera stage draws a
 // pixel's film offsets, one sample after another, from one pair.
@@ -55,6 +66,16 @@ class PairSampler;
 // as a 32-bit fixed-point fraction.  Dimensions 0 and 1 form a (0,2)-sequence.
 uint32_t sobol_sample(uint32_t index, uint32_t dim);
 inline constexpr uint32_t kSobolDimensions = 4;
+
+// reverse_bits by shifts and masks only (no byte swap): what a loop over many
+// values vectorizes.
+constexpr uint32_t reverse_bits_by_masks(uint32_t x) {
+  x = (x >> 16) | (x << 16);
+  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
+  x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
+  return ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
+}
 
 constexpr uint32_t reverse_bits(uint32_t x) {
 #if defined(__GFNI__)
@@ -103,17 +124,32 @@ inline uint32_t reversed_sobol1_of_reversed(uint32_t y) {
   const auto& t = kSobol1Reversed;
   return t[0][y & 0xffu] ^ t[1][(y >> 8) & 0xffu] ^ t[2][(y >> 16) & 0xffu] ^ t[3][y >> 24];
 }
+// The same without tables, for vector lanes.  Sobol's dimension 1 is the
+// Pascal matrix mod 2: by Lucas' theorem, bit i of zeta(y) is the XOR of the
+// bits j of y whose positions are subsets of i's (as 5-bit numbers), a
+// subset sum over the five bits of the position taken in five steps.
+constexpr uint32_t reversed_sobol1_of_reversed_by_masks(uint32_t y) {
+  y ^= (y << 1) & 0xaaaaaaaau;
+  y ^= (y << 2) & 0xccccccccu;
+  y ^= (y << 4) & 0xf0f0f0f0u;
+  y ^= (y << 8) & 0xff00ff00u;
+  y ^= (y << 16) & 0xffff0000u;
+  return reverse_bits_by_masks(y);
+}
 
 // Per pair k of a pixel: the seeds of the index shuffle and of the two scrambles.
 struct PairSeeds {
   uint32_t shuffle, scramble[2];
 };
 
-inline PairSeeds pair_seeds(const SamplerKey& key, uint32_t pair) {
-  uint64_t h = hash(key.seed, key.pixel, pair);
+// h = hash(seed, pixel, pair).
+inline PairSeeds pair_seeds_of(uint64_t h) {
   // One more cheap multiply-xorshift decorrelates the third seed from the first two.
   uint64_t h2 = (h ^ (h >> 29)) * 0xbf58476d1ce4e5b9ull;
   return {uint32_t(h), {uint32_t(h >> 32), uint32_t(h2 >> 32)}};
+}
+inline PairSeeds pair_seeds(const SamplerKey& key, uint32_t pair) {
+  return pair_seeds_of(hash(key.seed, key.pixel, pair));
 }
 
 inline float to_sample(uint32_t x) { return std::min(to_unit_float(x), kOneMinusEpsilon); }
@@ -159,6 +195,10 @@ class PairSampler {
 inline vec2 sample_2d(const SamplerKey& key, uint32_t dimension) {
   if (dimension & 1u) return {sample_1d(key, dimension), sample_1d(key, dimension + 1)};
   return PairSampler(key, dimension)(key.sample);
+}
+
+inline vec4 sample_4d(const SamplerKey& key, uint32_t first) {
+  return {sample_2d(key, first), sample_2d(key, first + 2)};
 }
 
 }  // namespace theia

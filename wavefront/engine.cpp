@@ -459,36 +459,62 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
 // The batch's escaped rays and surface hits in one parallel loop: a stage
 // boundary fewer per batch (each costs both threads a wait).  Unsorted, in
 // the order they were traced; sorted, the escaped rays first, then the hits
-// in `keys` order.
+// in `keys` order.  Each chunk of hits has its continuations' numbers drawn
+// before it is shaded.
 void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
   const size_t n_escaped = opt.sort ? escaped.size() : 0, n = opt.sort ? n_escaped + keys.size() : b.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    for (size_t k = r.begin(); k < r.end(); ++k) {
-      if (k >= n_escaped) {
-        shade_traced_ray(b, k - n_escaped, out);
-        continue;
+    std::array<vec4, kDrawChunk> u;
+    for (size_t chunk = r.begin(); chunk < r.end(); chunk += kDrawChunk) {
+      const size_t end = std::min(chunk + kDrawChunk, r.end());
+      draw_continuations(b, chunk, end, n_escaped, u);
+      for (size_t k = chunk; k < end; ++k) {
+        if (k >= n_escaped) {
+          shade_traced_ray(b, k - n_escaped, u[k - chunk], out);
+          continue;
+        }
+        // In the batch's sort order their path records are scattered: fetch a few ahead.
+        if (k + kPrefetchDistance < n_escaped) __builtin_prefetch(&pool[escaped.paths[k + kPrefetchDistance]]);
+        handle_escaped_ray(escaped.rays[k], escaped.paths[k], out);
       }
-      // In the batch's sort order their path records are scattered: fetch a few ahead.
-      if (k + kPrefetchDistance < n_escaped) __builtin_prefetch(&pool[escaped.paths[k + kPrefetchDistance]]);
-      handle_escaped_ray(escaped.rays[k], escaped.paths[k], out);
     }
   });
+}
+
+// The continuation's numbers (sample_dims.h) of every surface hit among
+// shading's rays [begin, end), into u[k - begin].  Drawn a chunk at a time,
+// in vector lanes, they are off each hit's chain of dependent steps: drawn
+// in the middle of it, their hashing held the chain up.
+void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped,
+                                               std::span<vec4> u) const {
+  std::array<SamplerKey, kDrawChunk> key{};
+  std::array<uint32_t, kDrawChunk> first{};
+  for (size_t k = begin; k < end; ++k) {
+    if (k < n_escaped) continue;
+    const uint32_t i = hit_index(k - n_escaped);
+    if (hits[i].geom == kInvalidId) continue;
+    const PathState& ps = pool[b.paths[i]];
+    key[k - begin] = sampler_key(ps);
+    first[k - begin] = bounce_dims(ps.depth).bsdf_dir;
+  }
+  const size_t count = end - begin;
+  sample_4d(std::span(key).first(count), std::span(first).first(count), u.first(count));
 }
 
 // The k-th traced ray to shade, batch index hit_index(k): sorted, a hit
 // (sort_hits left no other); unsorted, a hit, an escaped ray, or a path that
 // already left the batch in a medium.
-void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, ShadeOutput& out) {
+void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec4& u_continuation, ShadeOutput& out) {
   prefetch_for_shading(b, k);
   const uint32_t i = hit_index(k);
   if (!opt.sort && !pool.medium.empty() && blocked[i]) return;
   if (!opt.sort && hits[i].geom == kInvalidId) return handle_escaped_ray(b.rays[i], b.paths[i], out);
   if (observer)
-    shade_surface<true>(b.rays[i], hits[i], b.paths[i], out);
+    shade_surface<true>(b.rays[i], hits[i], b.paths[i], u_continuation, out);
   else
-    shade_surface<false>(b.rays[i], hits[i], b.paths[i], out);
+    shade_surface<false>(b.rays[i], hits[i], b.paths[i], u_continuation, out);
 }
 
 // What shading hit k (in shading order: hit_index) reads, fetched a few hits

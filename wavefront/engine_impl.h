@@ -77,6 +77,7 @@ struct ShadingPoint {
   uint32_t slot;
   const SurfaceInteraction& si;
   BSDF bsdf;
+  vec4 u_continuation;        // the continuation's numbers (sample_dims.h): bsdf_dir, bsdf_lobe, roulette
   vec3 ns{0.0f};              // bump- or normal-mapped shading normal
   RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
   BounceDims dims{};
@@ -116,6 +117,7 @@ struct MediumVertex {
   SurfaceInteraction si;  // the point and wo only: no surface
   float g = 0.0f;         // the medium's Henyey-Greenstein asymmetry
   BounceDims dims{};
+  vec4 u_continuation{0.0f};  // as a surface vertex's: the phase sample's direction and roulette
   RGB beta{0.0f};         // throughput at the vertex (reset to 1 at the throughput-reset bounce)
   uint32_t guide_region = kNoGuideRegion;  // != kNoGuideRegion: the vertex is guided
   float guide_fraction = 0.0f;             // one-sample MIS: the guide's selection probability
@@ -241,7 +243,11 @@ struct WavefrontEngine::Impl {
   uint32_t hit_index(size_t k) const { return opt.sort ? keys[k].index : uint32_t(k); }
   void prefetch_for_shading(const Batch& b, size_t k);
   void handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out);  // escaped_rays.cpp
-  void shade_traced_ray(const Batch& b, size_t k, ShadeOutput& out);
+  // Shading draws its hits' continuation numbers this many at a time (the
+  // vector lanes of sample_4d's span form).
+  static constexpr size_t kDrawChunk = 16;
+  void draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped, std::span<vec4> u) const;
+  void shade_traced_ray(const Batch& b, size_t k, const vec4& u_continuation, ShadeOutput& out);
   void merge_outputs();
   void check_media_hooks() const;
   void trace_shadow_rays();                 // shadow_rays.cpp
@@ -268,7 +274,7 @@ struct WavefrontEngine::Impl {
   void handle_escaped(const Ray& ray, uint32_t slot, ShadeOutput& out);
   // ---- the surface stage's steps (surface.cpp)
   template <bool kObserve>
-  void shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out);
+  void shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, const vec4& u_continuation, ShadeOutput& out);
   template <bool kObserve>
   bool add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si, ShadeOutput& out);
   template <bool kObserve>
@@ -278,7 +284,7 @@ struct WavefrontEngine::Impl {
   std::optional<Continuation> sample_continuation(const ShadingPoint& v, DeferredPdf* defer) const;
   template <bool kObserve>
   void continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out);
-  bool survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local, float eta_scale,
+  bool survives_roulette(const PathState& ps, float u_roulette, RGB& beta, RGB& local, float eta_scale,
                          double correction, float adjoint, float& survival) const;
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
   void report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival);
@@ -367,13 +373,12 @@ struct WavefrontEngine::Impl {
   static LightSampleContext previous_vertex(const PathState& ps) {
     return LightSampleContext{ps.prev_p, vec3(0.0f), ps.prev_ng, ps.prev_ng};
   }
-  float sample1(const PathState& ps, uint32_t dim) const {
-    return sample_1d(SamplerKey{opt.seed, ps.pixel, ps.sample}, dim);
-  }
+  SamplerKey sampler_key(const PathState& ps) const { return SamplerKey{opt.seed, ps.pixel, ps.sample}; }
+  float sample1(const PathState& ps, uint32_t dim) const { return sample_1d(sampler_key(ps), dim); }
   // Always inlined, as sample_2d is (core/sampler.h): GCC outlined it once
   // sample_direct_light drew the light_choice pair with it.
   [[gnu::always_inline]] vec2 sample2(const PathState& ps, uint32_t dim) const {
-    return sample_2d(SamplerKey{opt.seed, ps.pixel, ps.sample}, dim);
+    return sample_2d(sampler_key(ps), dim);
   }
   size_t memory_bytes() const;
 };

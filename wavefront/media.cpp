@@ -163,6 +163,7 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
                  bounce_dims(ps.depth)};
   // The throughput-reset image (recorder debug, bounce N) starts at this vertex.
   v.beta = int(ps.depth) == opt.throughput_reset_bounce ? RGB(1.0f) : ff.beta;
+  v.u_continuation = sample_4d(sampler_key(ps), v.dims.bsdf_dir);
   if (hooks.guide) {
     v.guide_region = hooks.guide->region(v.si.p);
     if (v.guided()) v.guide_fraction = guide_share(v.guide_region);
@@ -179,7 +180,7 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
   double correction = 1.0;
   if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c->roulette;
   float survival = 1.0f;
-  if (!survives_roulette(ps, v.dims.roulette, beta, local, ps.eta_scale, correction, -1.0f, survival) ||
+  if (!survives_roulette(ps, v.u_continuation.w, beta, local, ps.eta_scale, correction, -1.0f, survival) ||
       !is_finite(beta) || is_black(beta))
     return end_path(slot, out);
   if (observer) {
@@ -202,12 +203,12 @@ void WavefrontEngine::Impl::scatter_in_medium(const Ray& ray, const FreeFlight& 
 std::optional<PhaseContinuation> WavefrontEngine::Impl::sample_phase_continuation(const MediumVertex& v) const {
   if (!v.guided()) {
     PhaseContinuation c;
-    c.wi = sample_henyey_greenstein(v.si.wo, v.g, sample2(v.ps, v.dims.bsdf_dir), &c.pdf);
+    c.wi = sample_henyey_greenstein(v.si.wo, v.g, vec2(v.u_continuation), &c.pdf);
     if (!(c.pdf > 0.0f)) return std::nullopt;
     c.phase = c.mis_pdf = c.pdf;
     return c;
   }
-  GuidedDraw u{0.0f, sample2(v.ps, v.dims.bsdf_dir)};
+  GuidedDraw u{0.0f, vec2(v.u_continuation)};
   if (opt.guiding.mixing == GuideMixing::OneSampleMIS)
     return sample_guided_phase_mis(v.si.wo, v.g, *hooks.guide, v.guide_region, v.guide_fraction, u);
   u.u_guide = sample2(v.ps, v.dims.guide_dir);

@@ -65,6 +65,12 @@ constexpr BounceDims bounce_dims(uint32_t depth) {
   };
 }
 
+// A vertex's continuation draws its numbers four at once (sample_4d: the
+// shading stage draws a chunk of hits' fours in vector lanes): bsdf_dir,
+// bsdf_lobe and roulette, in a row from an even dimension.
+static_assert(bounce_dims(0).bsdf_dir % 2 == 0 && bounce_dims(0).bsdf_lobe == bounce_dims(0).bsdf_dir + 2 &&
+              bounce_dims(0).roulette == bounce_dims(0).bsdf_dir + 3);
+
 // True when NEE's light_choice pair (light_choice, light_prim) decides
 // nothing, so that the engine need not draw it: one light, not an area light
 // (sample_li reads the primitive number only to pick a shape's triangle), and

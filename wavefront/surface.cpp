@@ -11,7 +11,8 @@
 namespace theia {
 
 template <bool kObserve>
-void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, ShadeOutput& out) {
+void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, const vec4& u_continuation,
+                                         ShadeOutput& out) {
   PathState& ps = pool[slot];
   // An "interface" surface (by its own material, not a mix's choice), neither
   // a light nor a holdout: the ray goes on as it was, and the crossing's
@@ -36,7 +37,7 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   if (add_surface_emission<kObserve>(slot, ray, si, out)) return;  // a virtual light: the ray went on
   ++out.vertices;
 
-  ShadingPoint v{ps, slot, si, make_bsdf(scene, si, footprint(si))};
+  ShadingPoint v{ps, slot, si, make_bsdf(scene, si, footprint(si)), u_continuation};
   // An "interface" surface: continue the ray as it was, without a bounce.
   if (bsdf_is_passthrough(v.bsdf)) return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
   v.ns = v.bsdf.shading.n;
@@ -101,7 +102,7 @@ void WavefrontEngine::Impl::continue_path(ShadingPoint& v, const Continuation& c
   if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c.roulette;
   const float adjoint = pool.pixel_estimate.empty() ? -1.0f : adjoint_survival(v, c, beta);
   float survival = 1.0f;
-  if (!survives_roulette(ps, v.dims.roulette, beta, local, eta_scale, correction, adjoint, survival) ||
+  if (!survives_roulette(ps, v.u_continuation.w, beta, local, eta_scale, correction, adjoint, survival) ||
       !is_finite(beta) ||
       is_black(beta))
     return finish_path<kObserve>(slot, out);
@@ -242,12 +243,12 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
 std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v,
                                                                       DeferredPdf* defer) const {
   if (!v.guided()) {
-    std::optional<BSDFSample> bs = bsdf_sample(v.bsdf, v.si.wo, sample1(v.ps, v.dims.bsdf_lobe),
-                                               sample2(v.ps, v.dims.bsdf_dir), TransportMode::Radiance, defer);
+    std::optional<BSDFSample> bs = bsdf_sample(v.bsdf, v.si.wo, v.u_continuation.z, vec2(v.u_continuation),
+                                               TransportMode::Radiance, defer);
     if (!bs) return std::nullopt;
     return Continuation{*bs, bs->pdf_deferred ? kDeferredPdf : bs->pdf, 1.0};
   }
-  GuidedDraw u{sample1(v.ps, v.dims.bsdf_lobe), sample2(v.ps, v.dims.bsdf_dir)};
+  GuidedDraw u{v.u_continuation.z, vec2(v.u_continuation)};
   if (opt.guiding.mixing == GuideMixing::Resampled) {
     u.u_guide = sample2(v.ps, v.dims.guide_dir);
     u.u_pick = sample1(v.ps, v.dims.guide_pick);
@@ -261,14 +262,14 @@ std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const Sha
 // guided path's throughput is first corrected to what BSDF sampling would
 // have made it (`correction`, seeds/000 ch. 1 eq. 19).  `survival`: the
 // probability the path had of surviving.
-bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, uint32_t roulette_dim, RGB& beta, RGB& local,
+bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, float u_roulette, RGB& beta, RGB& local,
                                               float eta_scale, double correction, float adjoint,
                                               float& survival) const {
   if (int(ps.depth) + 1 <= opt.rr_min_depth) return true;
   const float rr = adjoint >= 0.0f ? adjoint : float(double(max_component(beta * eta_scale)) * correction);
   if (rr >= 1.0f) return true;
   const float q = std::max(0.0f, 1.0f - rr);
-  if (sample1(ps, roulette_dim) < q) return false;
+  if (u_roulette < q) return false;
   survival = 1.0f - q;
   beta /= survival;
   local /= survival;
@@ -317,7 +318,7 @@ void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const Continuation& c
   v.ps.vertex = child;
 }
 
-template void WavefrontEngine::Impl::shade_surface<true>(const Ray&, const Hit&, uint32_t, ShadeOutput&);
-template void WavefrontEngine::Impl::shade_surface<false>(const Ray&, const Hit&, uint32_t, ShadeOutput&);
+template void WavefrontEngine::Impl::shade_surface<true>(const Ray&, const Hit&, uint32_t, const vec4&, ShadeOutput&);
+template void WavefrontEngine::Impl::shade_surface<false>(const Ray&, const Hit&, uint32_t, const vec4&, ShadeOutput&);
 
 }  // namespace theia

@@ -92,6 +92,23 @@ TEST(Sobol, ReverseBitsReversesEveryBit) {
   }
 }
 
+// The vector lanes' forms of the reversal and of Sobol's dimension 1 are the
+// scalar ones.  Both dimension-1 forms are linear over GF(2), so agreeing on
+// every basis vector, as checked here, makes them the same map.
+TEST(Sobol, TheFormsWithoutTablesOrByteSwapsAreTheSame) {
+  for (uint32_t b = 0; b < 32; ++b) {
+    EXPECT_EQ(reverse_bits_by_masks(1u << b), reverse_bits(1u << b)) << b;
+    EXPECT_EQ(sampler_detail::reversed_sobol1_of_reversed_by_masks(1u << b),
+              sampler_detail::reversed_sobol1_of_reversed(1u << b))
+        << b;
+  }
+  for (uint32_t i = 0; i < 100000; ++i) {
+    const uint32_t x = uint32_t(hash(i));
+    EXPECT_EQ(reverse_bits_by_masks(x), reverse_bits(x));
+    EXPECT_EQ(sampler_detail::reversed_sobol1_of_reversed_by_masks(x), sampler_detail::reversed_sobol1_of_reversed(x));
+  }
+}
+
 TEST(Sobol, DirectionNumbersGiveKnownPoints) {
   // First points of each dimension, from the recurrences of Joe & Kuo's polynomials by hand.
   const float expect[4][8] = {{0, .5f, .25f, .75f, .125f, .625f, .375f, .875f},
@@ -147,6 +164,38 @@ TEST(Sampler, APairSamplerDrawsEverySampleOfItsPixel) {
       EXPECT_EQ(std::bit_cast<uint32_t>(u.x), std::bit_cast<uint32_t>(sample_1d(key, dim))) << dim << " " << i;
       EXPECT_EQ(std::bit_cast<uint32_t>(u.y), std::bit_cast<uint32_t>(sample_1d(key, dim + 1))) << dim << " " << i;
     }
+  }
+}
+
+// A path vertex draws its continuation's four dimensions at once, and the
+// shading stage draws a chunk of vertices' fours in vector lanes: each number
+// must be sample_1d's, bit for bit, wherever a path's dimensions lie (the
+// bounce pages start at 4 + 8 depth; page 1 lies 2^24 further), for keys of
+// every size and blocks of every length around the lane count.
+TEST(Sampler, FourDimensionsAtOnceAreEachDimensionBitForBit) {
+  const uint32_t seeds[] = {0u, 1u, 7u, 0xffffffffu};
+  const uint32_t firsts[] = {0u, 4u, 8u, 20u, 132u, (1u << 24) + 4u, (1u << 24) + 62u, 0xfffffffcu};
+  std::vector<SamplerKey> keys;
+  std::vector<uint32_t> first;
+  for (uint32_t seed : seeds)
+    for (uint32_t i = 0; i < 2000; ++i) {
+      keys.push_back({seed, uint32_t(hash(i, 1u)), i < 1000 ? i : uint32_t(hash(i, 2u))});
+      first.push_back(firsts[hash(i, seed) % std::size(firsts)]);
+    }
+  auto expect_each_dimension = [&](const vec4& u, size_t k) {
+    for (int d = 0; d < 4; ++d)
+      ASSERT_EQ(std::bit_cast<uint32_t>(u[d]), std::bit_cast<uint32_t>(sample_1d(keys[k], first[k] + uint32_t(d))))
+          << keys[k].seed << " " << keys[k].pixel << " " << keys[k].sample << " " << first[k] << " " << d;
+  };
+  for (size_t k = 0; k < keys.size(); ++k) expect_each_dimension(sample_4d(keys[k], first[k]), k);
+  std::vector<vec4> out(keys.size());
+  sample_4d(keys, first, out);
+  for (size_t k = 0; k < keys.size(); ++k) expect_each_dimension(out[k], k);
+  for (size_t length = 1; length <= 40; ++length) {
+    const size_t start = 3 * length;
+    std::vector<vec4> block(length);
+    sample_4d(std::span(keys).subspan(start, length), std::span(first).subspan(start, length), block);
+    for (size_t k = 0; k < length; ++k) expect_each_dimension(block[k], start + k);
   }
 }
 

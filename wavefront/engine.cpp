@@ -486,12 +486,17 @@ void WavefrontEngine::Impl::shade_batch(const Batch& b) {
 // The continuation's numbers (sample_dims.h) of every surface hit among
 // shading's rays [begin, end), into u[k - begin].  Drawn a chunk at a time,
 // in vector lanes, they are off each hit's chain of dependent steps: drawn
-// in the middle of it, their hashing held the chain up.
+// in the middle of it, their hashing held the chain up.  The draws read the
+// chunk's path records first, so the next chunk's are fetched here (the hits
+// scatter them, sorted by (geometry, primitive) or not).
 void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped,
                                                std::span<vec4> u) const {
   std::array<SamplerKey, kDrawChunk> key{};
   std::array<uint32_t, kDrawChunk> first{};
+  const size_t n = n_escaped + (opt.sort ? keys.size() : b.size());
   for (size_t k = begin; k < end; ++k) {
+    if (const size_t next = k + kDrawChunk; next >= n_escaped && next < n)
+      __builtin_prefetch(&pool[b.paths[hit_index(next - n_escaped)]]);
     if (k < n_escaped) continue;
     const uint32_t i = hit_index(k - n_escaped);
     if (hits[i].geom == kInvalidId) continue;
@@ -517,9 +522,9 @@ void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec
     shade_surface<false>(b.rays[i], hits[i], b.paths[i], u_continuation, out);
 }
 
-// What shading hit k (in shading order: hit_index) reads, fetched a few hits
-// ahead: sorted by (geometry, primitive) or not, hits scatter their path
-// records, and on meshes larger than the cache their triangles.
+// What shading hit k (in shading order: hit_index) reads besides its path
+// record (draw_continuations fetches those), a few hits ahead: its ray, its
+// path's cold fields, and on meshes larger than the cache its triangle.
 void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
   const size_t n = opt.sort ? keys.size() : b.size();
   if (prefetch_triangles && k + 2 * kPrefetchDistance < n)
@@ -531,10 +536,9 @@ void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
       prefetch_triangle_vertices(scene, accel, hits[j]);
     else
       __builtin_prefetch(&hits[j]);
-    __builtin_prefetch(&pool[b.paths[j]]);
     pool.prefetch_cold(b.paths[j]);
   }
-  // The path record fetched above names the observer's vertex: fetch that too.
+  // The path record (fetched a chunk ahead) names the observer's vertex: fetch that too.
   if (observer && k + kPrefetchDistance / 2 < n)
     observer->prefetch(pool[b.paths[hit_index(k + kPrefetchDistance / 2)]].vertex);
 }

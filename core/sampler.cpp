@@ -1,7 +1,5 @@
 #include "core/sampler.h"
 
-
-
 namespace theia {
 
 namespace {

@@ -125,9 +125,9 @@ inline uint32_t reversed_sobol1_of_reversed(uint32_t y) {
   return t[0][y & 0xffu] ^ t[1][(y >> 8) & 0xffu] ^ t[2][(y >> 16) & 0xffu] ^ t[3][y >> 24];
 }
 // The same without tables, for vector lanes.  Sobol's dimension 1 is the
-// Pascal matrix mod 2: by Lucas' theorem, bit i of zeta(y) is the XOR of the
-// bits j of y whose positions are subsets of i's (as 5-bit numbers), a
-// subset sum over the five bits of the position taken in five steps.
+// Pascal matrix mod 2: by Lucas' theorem, before the final reversal bit i
+// is the XOR of the bits j of y whose positions are subsets of i's (as 5-bit
+// numbers), a subset sum taken one bit of the position per step.
 constexpr uint32_t reversed_sobol1_of_reversed_by_masks(uint32_t y) {
   y ^= (y << 1) & 0xaaaaaaaau;
   y ^= (y << 2) & 0xccccccccu;

@@ -68,7 +68,7 @@ uint32_t sobol_sample(uint32_t index, uint32_t dim);
 inline constexpr uint32_t kSobolDimensions = 4;
 
 // reverse_bits by shifts and masks only (no byte swap): what a loop over many
-// values vectorizes.
+// values vectorizes, and reverse_bits itself where the target has no GFNI.
 constexpr uint32_t reverse_bits_by_masks(uint32_t x) {
   x = (x >> 16) | (x << 16);
   x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
@@ -86,10 +86,7 @@ constexpr uint32_t reverse_bits(uint32_t x) {
     return __builtin_bswap32(uint32_t(_mm_cvtsi128_si32(v)));
   }
 #endif
-  x = __builtin_bswap32(x);
-  x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
-  x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
-  return ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
+  return reverse_bits_by_masks(x);
 }
 
 // Burley's hash on bit-reversed values: bit i of the result depends only on

@@ -216,8 +216,6 @@ TEST(Filter, GaussianWeightIsFOverPdf) {
   }
 }
 
-// Mitchell and Lanczos weigh as pbrt-v4: the cell's tabulated f over the pdf,
-// +-integral(|table|) everywhere, so weights that cancel sum to exactly 0.
 // The camera stage draws its film offsets a block at a time, and the caustic
 // pass re-draws one sample's weight alone: the two must agree bit for bit.
 // The inputs cover every Gaussian segment's ends and interior, 0, the top of
@@ -250,6 +248,8 @@ TEST(Filter, ABlockOfSamplesIsEachSampleBitForBit) {
   }
 }
 
+// Mitchell and Lanczos weigh as pbrt-v4: the cell's tabulated f over the pdf,
+// +-integral(|table|) everywhere, so weights that cancel sum to exactly 0.
 TEST(Filter, SignedFilterWeightsArePlusMinusTheTableIntegral) {
   for (const Filter& f : signed_filters()) {
     const float c = f.distribution.integral() * 4.0f * f.radius.x * f.radius.y;

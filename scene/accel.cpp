@@ -741,6 +741,8 @@ int Accel::shape_index(const Hit& hit) const {
   return hit.geom < table.size() ? table[hit.geom] : -1;
 }
 
+size_t Accel::top_geometry_count() const { return impl_->top_shape.size(); }
+
 int Accel::instance_index(const Hit& hit) const {
   if (hit.geom == kInvalidId || hit.inst == kInvalidId || hit.inst >= impl_->top_instance.size()) return -1;
   return impl_->top_instance[hit.inst];

@@ -108,6 +108,7 @@ class Accel {
   // its (u, v), found again from the ray that hit (compute_interaction asks).
   vec2 quadric_uv(const Ray& ray, const Hit& hit) const;
   int shape_index(const Hit& hit) const;     // index into Scene::shapes, -1 on a miss
+  size_t top_geometry_count() const;         // top-level geometry ids are below this
   // A triangle mesh that rays pass through (an interface: intersect_passing's
   // shapes): its triangles' unit normals (scene/surface_crossing.h
   // triangle_unit_normal), computed once; nullptr for any other shape.

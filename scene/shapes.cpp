@@ -451,19 +451,22 @@ const TriangleMesh* hit_mesh(const Scene& scene, const Accel& accel, const Hit& 
 }
 }  // namespace
 
-void prefetch_triangle_indices(const Scene& scene, const Accel& accel, const Hit& hit) {
-  if (const TriangleMesh* m = hit_mesh(scene, accel, hit)) __builtin_prefetch(&m->indices[3 * size_t(hit.prim)]);
+TrianglePrefetcher::Arrays TrianglePrefetcher::arrays_of(const TriangleMesh* m) {
+  if (!m || m->indices.empty()) return {};
+  return {m->indices.data(), m->p.data(), m->n.empty() ? nullptr : m->n.data(), m->uv.empty() ? nullptr : m->uv.data()};
 }
 
-void prefetch_triangle_vertices(const Scene& scene, const Accel& accel, const Hit& hit) {
-  const TriangleMesh* m = hit_mesh(scene, accel, hit);
-  if (!m) return;
-  const uint32_t* v = &m->indices[3 * size_t(hit.prim)];
-  for (int c = 0; c < 3; ++c) {
-    __builtin_prefetch(&m->p[v[c]]);
-    if (!m->n.empty()) __builtin_prefetch(&m->n[v[c]]);
-    if (!m->uv.empty()) __builtin_prefetch(&m->uv[v[c]]);
+TrianglePrefetcher::TrianglePrefetcher(const Scene& scene, const Accel& accel) : scene_(scene), accel_(accel) {
+  top_.resize(accel.top_geometry_count());
+  for (size_t g = 0; g < top_.size(); ++g) {
+    Hit h;
+    h.geom = uint32_t(g);
+    top_[g] = arrays_of(hit_mesh(scene, accel, h));
   }
+}
+
+TrianglePrefetcher::Arrays TrianglePrefetcher::instanced(const Hit& hit) const {
+  return arrays_of(hit_mesh(scene_, accel_, hit));
 }
 
 size_t triangle_mesh_bytes(const Scene& scene) {
@@ -508,10 +511,7 @@ vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const
   if (glm::dot(w, ng) < 0.0f) offset = -offset;
   vec3 po = p + offset;
   // Round away from p so that the offset survives the addition's rounding.
-  for (int i = 0; i < 3; ++i) {
-    if (offset[i] > 0.0f) po[i] = next_float_up(po[i]);
-    else if (offset[i] < 0.0f) po[i] = next_float_down(po[i]);
-  }
+  for (int i = 0; i < 3; ++i) po[i] = next_float_toward(po[i], offset[i]);
   return po;
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/math.h"
+#include "core/prefetch.h"
 #include "core/sampling.h"
 #include "scene/accel.h"
 #include "scene/scene.h"
@@ -97,12 +98,49 @@ SurfaceInteraction compute_interaction(const Scene& scene, const Accel& accel, c
 // Shading visits a batch's hits in traced order (or, sorted, in (geometry,
 // primitive) order), and on a mesh larger than the cache neighbouring hits
 // land on distant triangles: compute_interaction then waits on the
-// triangle's indices and again on its vertices.  Ask for them ahead, the indices first and, once they have
-// arrived, the vertices they name.  No-ops for other shapes.
-// Worth it only where the meshes outgrow the cache (triangle_mesh_bytes):
-// below that they cost two calls per hit and fetch nothing.
-void prefetch_triangle_indices(const Scene& scene, const Accel& accel, const Hit& hit);
-void prefetch_triangle_vertices(const Scene& scene, const Accel& accel, const Hit& hit);
+// triangle's indices and again on its vertices.  Ask for them ahead, the
+// indices first and, once they have arrived, the vertices they name.
+// No-ops for other shapes and misses.  Worth it only where the meshes
+// outgrow the cache (triangle_mesh_bytes): below that they fetch nothing.
+// A top-level mesh's arrays are found by geometry id in a table made once,
+// not through the shape and mesh tables at every hit (a dozen loads and two
+// calls, which were a twentieth of the shade stage).
+class TrianglePrefetcher {
+ public:
+  TrianglePrefetcher(const Scene& scene, const Accel& accel);
+  void indices(const Hit& hit) const {
+    if (hit.inst != kInvalidId) return indices(instanced(hit), hit.prim);
+    if (hit.geom < top_.size()) indices(top_[hit.geom], hit.prim);
+  }
+  void vertices(const Hit& hit) const {
+    if (hit.inst != kInvalidId) return vertices(instanced(hit), hit.prim);
+    if (hit.geom < top_.size()) vertices(top_[hit.geom], hit.prim);
+  }
+
+ private:
+  struct Arrays {
+    const uint32_t* indices = nullptr;  // nullptr: not a triangle mesh (or a miss)
+    const vec3 *p = nullptr, *n = nullptr;
+    const vec2* uv = nullptr;
+  };
+  static void indices(const Arrays& a, uint32_t prim) {
+    if (a.indices) prefetch_line(a.indices + 3 * size_t(prim));
+  }
+  static void vertices(const Arrays& a, uint32_t prim) {
+    if (!a.indices) return;
+    const uint32_t* v = a.indices + 3 * size_t(prim);
+    for (int c = 0; c < 3; ++c) {
+      prefetch_line(a.p + v[c]);
+      if (a.n) prefetch_line(a.n + v[c]);
+      if (a.uv) prefetch_line(a.uv + v[c]);
+    }
+  }
+  Arrays instanced(const Hit& hit) const;  // through the shape and mesh tables
+  static Arrays arrays_of(const TriangleMesh* m);  // none for nullptr (another shape, a miss)
+  const Scene& scene_;
+  const Accel& accel_;
+  std::vector<Arrays> top_;  // by top-level geometry id
+};
 // Bytes of every triangle mesh's indices, positions, normals and uvs: what
 // compute_interaction reads from.
 size_t triangle_mesh_bytes(const Scene& scene);

@@ -30,6 +30,7 @@ void WavefrontEngine::Impl::start_path(uint32_t slot, uint32_t pixel, uint32_t s
   ps.depth = 0;
   ps.flags = kPathPrevSpecular;
   ps.alpha_only = alpha_only ? 1 : 0;
+  if (!pool.has_cold) return;
   if (!pool.curve_skip.empty()) pool.curve_skip[slot] = PrimRef{};
   if (!pool.roulette_correction.empty()) pool.roulette_correction[slot] = 1.0;
   if (!pool.pixel_estimate.empty()) pool.pixel_estimate[slot] = 0.0f;

@@ -528,12 +528,12 @@ void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec
 void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
   const size_t n = opt.sort ? keys.size() : b.size();
   if (prefetch_triangles && k + 2 * kPrefetchDistance < n)
-    prefetch_triangle_indices(scene, accel, hits[hit_index(k + 2 * kPrefetchDistance)]);
+    triangles.indices(hits[hit_index(k + 2 * kPrefetchDistance)]);
   if (k + kPrefetchDistance < n) {
     const uint32_t j = hit_index(k + kPrefetchDistance);
     __builtin_prefetch(&b.rays[j]);
     if (prefetch_triangles)
-      prefetch_triangle_vertices(scene, accel, hits[j]);
+      triangles.vertices(hits[j]);
     else
       __builtin_prefetch(&hits[j]);
     pool.prefetch_cold(b.paths[j]);

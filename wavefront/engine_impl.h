@@ -52,7 +52,7 @@ inline int direction_bin(const vec3& d) {
 
 // Triangle data larger than a core's L2 cache (2 MiB on the EPYC this was
 // measured on): beyond it shading waits on memory for neighbouring hits
-// (scene/shapes.h prefetch_triangle_indices).
+// (scene/shapes.h TrianglePrefetcher).
 inline constexpr size_t kPrefetchTrianglesAbove = size_t(2) << 20;
 
 // What one thread's shading produced, merged into the queues after the stage.
@@ -152,6 +152,7 @@ struct WavefrontEngine::Impl {
   // Shading fetches each hit's triangle ahead (scene/shapes.h) only where
   // the meshes outgrow the cache.
   bool prefetch_triangles = triangle_mesh_bytes(scene) > kPrefetchTrianglesAbove;
+  TrianglePrefetcher triangles{scene, accel};
   CausticTracer* caustics = nullptr;  // hooks.caustics when active and usable in this iteration
   std::vector<uint8_t> sealed_media;  // scene/media.h sealed_media: NEE from their vertices is always blocked
 

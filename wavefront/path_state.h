@@ -11,6 +11,7 @@
 
 #include "core/huge_pages.h"
 #include "core/math.h"
+#include "core/prefetch.h"
 #include "scene/accel.h"
 #include "scene/bsdf.h"
 #include "wavefront/film.h"
@@ -89,6 +90,7 @@ struct PathStatePool {
 #define THEIA_DECLARE_COLD_FIELD(type, name, feature, doc) std::vector<type> name;
   THEIA_PATH_COLD_FIELDS(THEIA_DECLARE_COLD_FIELD)
 #undef THEIA_DECLARE_COLD_FIELD
+  bool has_cold = false;  // any of the tables: one test per hit where none is
 
   // Every table is advised for huge pages before it is first written
   // (core/huge_pages.h): a pool is megabytes (material-testball: 5 MiB hot,
@@ -103,24 +105,17 @@ struct PathStatePool {
   if (features.feature) {                                   \
     reserve_huge(name, capacity);                           \
     name.resize(capacity);                                  \
+    has_cold = true;                                        \
   }
     THEIA_PATH_COLD_FIELDS(THEIA_ALLOCATE_COLD_FIELD)
 #undef THEIA_ALLOCATE_COLD_FIELD
   }
 
-  // GCC drops __builtin_prefetch here (the addresses come from the vectors'
-  // own pointers); on x86-64 the instruction itself stays.
-  static void prefetch_line(const void* p) {
-#if defined(__x86_64__)
-    asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
-#else
-    __builtin_prefetch(p);
-#endif
-  }
   // Fetches a slot's cold fields of the features that are on: shading visits
   // paths in hit order, so each table costs a cache miss per vertex unless
   // it is asked for a few hits ahead, as the hot record is.
   void prefetch_cold(uint32_t slot) const {
+    if (!has_cold) return;
 #define THEIA_PREFETCH_COLD_FIELD(type, name, feature, doc) \
   if (!name.empty()) prefetch_line(&name[slot]);
     THEIA_PATH_COLD_FIELDS(THEIA_PREFETCH_COLD_FIELD)

@@ -415,12 +415,13 @@ TEST(TriangleMeshes, BytesCountEveryArrayAndPrefetchAcceptsEveryHit) {
   sc.prototypes.push_back({"quad", {add_mesh(sc, quad(-1, 1, -1, 1, 0), false, false, false)}});
   sc.instances.push_back({0, translate(vec3(5, 0, 0))});
   const Accel accel(sc);
+  const TrianglePrefetcher prefetch(sc, accel);
   int kinds = 0;
   for (vec3 o : {vec3(0, 0, 1), vec3(0, 0, -2), vec3(5, 0, 1), vec3(9, 9, 9)}) {
     Ray ray{o, 0.0f, vec3(0, 0, -1), kInfinity};
     const Hit hit = accel.intersect1(ray, PrimRef{});
-    prefetch_triangle_indices(sc, accel, hit);
-    prefetch_triangle_vertices(sc, accel, hit);
+    prefetch.indices(hit);
+    prefetch.vertices(hit);
     kinds += hit.geom != kInvalidId;
     if (o == vec3(0, 0, 1)) {
       EXPECT_EQ(accel.shape_index(hit), mesh_shape);

@@ -161,7 +161,7 @@ float hair_offset(const Scene& scene, const SurfaceInteraction& si, const Frame&
 
 void set_lobes(BSDF& b) {
   const BxDF& x = b.bxdf;
-  uint8_t flags = bxdf_flags(x);
+  const uint8_t flags = b.flags = bxdf_flags(x);
   auto kind_bits = [](const TrowbridgeReitz& d) { return d.effectively_smooth() ? kLobeSpecular : kLobeGlossy; };
   switch (x.kind) {
     case BxDFKind::Diffuse:
@@ -467,24 +467,10 @@ bool bsdf_is_guidable(const BSDF& bsdf, float min_roughness) {
     return false;
   // Hair: R, TT and TRT each span both hemispheres, not the split by hemisphere bsdf_event assumes.
   if (bsdf.bxdf.kind == BxDFKind::Hair) return false;
-  if (bxdf_flags(bsdf.bxdf) & kLobeSpecular) return false;
+  if (bsdf.flags & kLobeSpecular) return false;
   for (int i = 0; i < bsdf.lobe_count; ++i)
     if (bsdf.lobes[i].roughness > min_roughness) return true;
   return false;
-}
-
-uint8_t bsdf_nondelta_kind(const BSDF& bsdf) {
-  return (bxdf_flags(bsdf.bxdf) & kLobeGlossy) ? kLobeGlossy : kLobeDiffuse;
-}
-
-RGB bsdf_albedo(const BSDF& bsdf) {
-  RGB a(0.0f);
-  for (int i = 0; i < bsdf.lobe_count; ++i) a += bsdf.lobes[i].albedo;
-  return a;
-}
-
-bool bsdf_is_specular(const BSDF& bsdf) {
-  return bsdf.lobe_count > 0 && !(bxdf_flags(bsdf.bxdf) & (kLobeDiffuse | kLobeGlossy));
 }
 
 }  // namespace theia

@@ -45,6 +45,7 @@ struct BSDF {
   MaterialKind kind = MaterialKind::Diffuse;  // the material chosen (a mix resolves to one of its parts)
   BxDF bxdf;
   int lobe_count = 0;
+  uint8_t flags = 0;  // bxdf_flags(bxdf), kept with the lobes (set_lobes)
   BxDFLobe lobes[kMaxLobes];
 };
 
@@ -147,7 +148,7 @@ float bsdf_lobe_pdf(const BSDF& bsdf, int lobe, const vec3& wo, const vec3& wi);
 // layered kinds' walk reports every non-delta exit as glossy (pbrt-v4), so
 // the label is a function of the BSDF and eq. 24's stochastic choice
 // between lobes never has two kinds to choose from.
-uint8_t bsdf_nondelta_kind(const BSDF& bsdf);
+inline uint8_t bsdf_nondelta_kind(const BSDF& bsdf) { return (bsdf.flags & kLobeGlossy) ? kLobeGlossy : kLobeDiffuse; }
 // Path-space regularisation (OPSR, simplified as in seeds/000 ch. 1 section
 // 7, eq. 25): the roughness a lobe of roughness `alpha` has at a vertex whose
 // incoming direction was sampled by a lobe of regularised roughness `prev`,
@@ -178,8 +179,14 @@ inline float sampled_roughness(const BSDFSample& s) {
   return s.is_specular() ? 0.0f : std::clamp(s.roughness, 0.0f, 1.0f);
 }
 // Directional albedo estimate for the albedo AOV (reflectance of the material).
-RGB bsdf_albedo(const BSDF& bsdf);
+inline RGB bsdf_albedo(const BSDF& bsdf) {
+  RGB a(0.0f);
+  for (int i = 0; i < bsdf.lobe_count; ++i) a += bsdf.lobes[i].albedo;
+  return a;
+}
 // True when every lobe is specular: no light sampling at this vertex.
-bool bsdf_is_specular(const BSDF& bsdf);
+inline bool bsdf_is_specular(const BSDF& bsdf) {
+  return bsdf.lobe_count > 0 && !(bsdf.flags & (kLobeDiffuse | kLobeGlossy));
+}
 
 }  // namespace theia

@@ -47,6 +47,26 @@ TEST(NextFloat, EqualsNextafterForEveryKindOfFloat) {
   EXPECT_TRUE(std::isnan(next_float_down(std::numeric_limits<float>::quiet_NaN())));
 }
 
+// The branch-free step toward a side is the two steps above, chosen by the
+// side's sign, and no step at all for a side of 0 or NaN.
+TEST(NextFloat, TowardASideIsUpOrDownOrNothing) {
+  auto same = [](float a, float b) { return std::bit_cast<uint32_t>(a) == std::bit_cast<uint32_t>(b); };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<float> values = {0.0f, -0.0f, std::numeric_limits<float>::denorm_min(),
+                               -std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::max(),
+                               -std::numeric_limits<float>::max(), kInfinity, -kInfinity, nan, -nan, 1.0f, -3.25f};
+  uint32_t x = 54321u;
+  for (int i = 0; i < 100000; ++i) {
+    x = x * 1664525u + 1013904223u;
+    values.push_back(std::bit_cast<float>(x));  // NaNs of every payload included
+  }
+  for (float v : values)
+    for (float side : {1.0f, 1e-30f, kInfinity, -1.0f, -1e-30f, -kInfinity, 0.0f, -0.0f, nan}) {
+      const float want = side > 0.0f ? next_float_up(v) : side < 0.0f ? next_float_down(v) : v;
+      EXPECT_TRUE(same(next_float_toward(v, side), want)) << v << " " << side;
+    }
+}
+
 // The warps' angles go through these polynomials rather than libm: they
 // must agree with the exact functions to float precision everywhere, and
 // give quarter turns exactly.

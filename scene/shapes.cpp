@@ -506,9 +506,10 @@ SurfaceCrossing surface_crossing(const Scene& scene, const Accel& accel, const R
 }
 
 vec3 offset_ray_origin(const vec3& p, const vec3& p_error, const vec3& ng, const vec3& w) {
-  float d = glm::dot(glm::abs(ng), p_error);
-  vec3 offset = d * ng;
-  if (glm::dot(w, ng) < 0.0f) offset = -offset;
+  // To w's side by a sign, not a branch: a batch's hits alternate between
+  // surfaces whose normals face their rays and surfaces whose normals do not.
+  const float d = glm::dot(glm::abs(ng), p_error) * (glm::dot(w, ng) < 0.0f ? -1.0f : 1.0f);
+  const vec3 offset = d * ng;
   vec3 po = p + offset;
   // Round away from p so that the offset survives the addition's rounding.
   for (int i = 0; i < 3; ++i) po[i] = next_float_toward(po[i], offset[i]);

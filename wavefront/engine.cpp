@@ -298,6 +298,7 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   if (!b.camera) stats.continuation_rays += b.size();
   if (opt.sort && !b.camera) sort_rays(b);
   trace_closest(b);  // and, in media, each ray's medium interaction
+  keyed = opt.sort || (lights.infinite_lights.empty() && !observer && pool.medium.empty());
   if (opt.sort) sort_hits(b);
   shade_batch(b);
   merge_outputs();
@@ -456,6 +457,22 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
 
 // ---------------------------------------------------------------- shade
 
+// Unsorted, where a miss only ends its path (no infinite light, observer or
+// medium sees it): the misses' paths end here and the hits' indices go to
+// `keys` in order, so that shading's loop sees only hits.
+void WavefrontEngine::Impl::set_aside_misses(const Batch& b) {
+  std::vector<uint32_t>& freed = outputs.local().freed;
+  keys.resize(b.size());
+  size_t kept = 0;
+  for (size_t i = 0; i < b.size(); ++i) {
+    if (hits[i].geom == kInvalidId)
+      freed.push_back(b.paths[i]);
+    else
+      keys[kept++] = SortPair{0, uint32_t(i)};
+  }
+  keys.resize(kept);
+}
+
 // The batch's escaped rays and surface hits in one parallel loop: a stage
 // boundary fewer per batch (each costs both threads a wait).  Unsorted, in
 // the order they were traced; sorted, the escaped rays first, then the hits
@@ -463,7 +480,8 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
 // before it is shaded.
 void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
-  const size_t n_escaped = opt.sort ? escaped.size() : 0, n = opt.sort ? n_escaped + keys.size() : b.size();
+  if (keyed && !opt.sort) set_aside_misses(b);
+  const size_t n_escaped = opt.sort ? escaped.size() : 0, n = keyed ? n_escaped + keys.size() : b.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
     std::array<vec4, kDrawChunk> u;
@@ -493,7 +511,7 @@ void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, siz
                                                std::span<vec4> u) const {
   std::array<SamplerKey, kDrawChunk> key{};
   std::array<uint32_t, kDrawChunk> first{};
-  const size_t n = n_escaped + (opt.sort ? keys.size() : b.size());
+  const size_t n = n_escaped + (keyed ? keys.size() : b.size());
   for (size_t k = begin; k < end; ++k) {
     if (const size_t next = k + kDrawChunk; next >= n_escaped && next < n)
       __builtin_prefetch(&pool[b.paths[hit_index(next - n_escaped)]]);
@@ -514,8 +532,8 @@ void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, siz
 void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec4& u_continuation, ShadeOutput& out) {
   prefetch_for_shading(b, k);
   const uint32_t i = hit_index(k);
-  if (!opt.sort && !pool.medium.empty() && blocked[i]) return;
-  if (!opt.sort && hits[i].geom == kInvalidId) return handle_escaped_ray(b.rays[i], b.paths[i], out);
+  if (!keyed && !pool.medium.empty() && blocked[i]) return;
+  if (!keyed && hits[i].geom == kInvalidId) return handle_escaped_ray(b.rays[i], b.paths[i], out);
   if (observer)
     shade_surface<true>(b.rays[i], hits[i], b.paths[i], u_continuation, out);
   else
@@ -526,7 +544,7 @@ void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec
 // record (draw_continuations fetches those), a few hits ahead: its ray, its
 // path's cold fields, and on meshes larger than the cache its triangle.
 void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
-  const size_t n = opt.sort ? keys.size() : b.size();
+  const size_t n = keyed ? keys.size() : b.size();
   if (prefetch_triangles && k + 2 * kPrefetchDistance < n)
     triangles.indices(hits[hit_index(k + 2 * kPrefetchDistance)]);
   if (k + kPrefetchDistance < n) {

@@ -42,12 +42,14 @@ struct Batch : RayQueue {
 };
 
 // Continuation rays are batched by the axis and sign of their direction's
-// largest component: rays of one bin walk the BVH alike.
+// largest component: rays of one bin walk the BVH alike.  Without branches:
+// scattered directions make each comparison a coin flip.
 inline constexpr size_t kDirectionBins = 6;
 inline int direction_bin(const vec3& d) {
-  vec3 a = glm::abs(d);
-  int axis = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
-  return 2 * axis + (d[axis] < 0.0f ? 1 : 0);
+  const vec3 a = glm::abs(d);
+  const bool x = (a.x >= a.y) & (a.x >= a.z), y = !(a.x >= a.y) & (a.y >= a.z);  // else z
+  const bool negative = (x & (d.x < 0.0f)) | (y & (d.y < 0.0f)) | (!x & !y & (d.z < 0.0f));
+  return 2 * (2 - 2 * int(x) - int(y)) + int(negative);
 }
 
 // Triangle data larger than a core's L2 cache (2 MiB on the EPYC this was
@@ -241,7 +243,9 @@ struct WavefrontEngine::Impl {
   void sort_hits(const Batch& b);           // with sorting: shading order into `keys`, misses into `escaped`
   void shade_batch(const Batch& b);         // escaped rays and surface hits
   // The batch index of the k-th hit to shade: in `keys` order when sorted, else k.
-  uint32_t hit_index(size_t k) const { return opt.sort ? keys[k].index : uint32_t(k); }
+  uint32_t hit_index(size_t k) const { return keyed ? keys[k].index : uint32_t(k); }
+  bool keyed = false;  // this batch's hits are shaded through `keys` (sorted, or its misses set aside)
+  void set_aside_misses(const Batch& b);
   void prefetch_for_shading(const Batch& b, size_t k);
   void handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out);  // escaped_rays.cpp
   // Shading draws its hits' continuation numbers this many at a time (the

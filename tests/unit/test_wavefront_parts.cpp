@@ -4,6 +4,7 @@
 #include "core/radix_sort.h"
 #include "wavefront/camera_samples.h"
 #include "wavefront/engine.h"
+#include "wavefront/engine_impl.h"
 #include "wavefront/film.h"
 #include "wavefront/path_state.h"
 #include "wavefront/queues.h"
@@ -386,6 +387,28 @@ TEST(Film, PerThreadSumsEqualLockedAddsAfterFlush) {
   EXPECT_EQ(large.memory_bytes(), large.pixel_count() * Film::kPlaneCount * sizeof(float) + locks);
   large.splat(5, 0, RGB(1.0f), kEventEmission);
   EXPECT_EQ(large.r[5], 1.0f);  // locked adds: in the plane at once
+}
+
+// Continuation rays' direction bins, chosen without branches, are the bins of
+// the axis comparisons they replace (largest |component|, ties to the
+// earlier axis; its sign), for every direction, ties and zeros included.
+TEST(DirectionBins, AreTheLargestComponentsAxisAndSign) {
+  auto reference = [](const vec3& d) {
+    const vec3 a = glm::abs(d);
+    const int axis = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+    return 2 * axis + (d[axis] < 0.0f ? 1 : 0);
+  };
+  const float values[] = {-1.0f, -0.5f, -0.0f, 0.0f, 0.5f, 1.0f};
+  for (float x : values)
+    for (float y : values)
+      for (float z : values) EXPECT_EQ(direction_bin(vec3(x, y, z)), reference(vec3(x, y, z))) << x << " " << y << " " << z;
+  uint32_t state = 99u;
+  auto next = [&] { return state = state * 1664525u + 1013904223u; };
+  for (int i = 0; i < 100000; ++i) {
+    const auto c = [&] { return static_cast<float>(static_cast<int32_t>(next())); };
+    const vec3 d{c(), c(), c()};
+    EXPECT_EQ(direction_bin(d), reference(d));
+  }
 }
 
 }  // namespace

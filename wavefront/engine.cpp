@@ -459,18 +459,24 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
 
 // Unsorted, where a miss only ends its path (no infinite light, observer or
 // medium sees it): the misses' paths end here and the hits' indices go to
-// `keys` in order, so that shading's loop sees only hits.
+// `keys` in order, so that shading's loop sees only hits.  Each ray is
+// written to both lists and counted in one: whether it hit is a coin flip,
+// which a branch would mispredict half the time.
 void WavefrontEngine::Impl::set_aside_misses(const Batch& b) {
   std::vector<uint32_t>& freed = outputs.local().freed;
-  keys.resize(b.size());
-  size_t kept = 0;
-  for (size_t i = 0; i < b.size(); ++i) {
-    if (hits[i].geom == kInvalidId)
-      freed.push_back(b.paths[i]);
-    else
-      keys[kept++] = SortPair{0, uint32_t(i)};
+  const size_t n = b.size(), first_freed = freed.size();
+  keys.resize(n);
+  freed.resize(first_freed + n);
+  size_t kept = 0, ended = first_freed;
+  for (size_t i = 0; i < n; ++i) {
+    const bool hit = hits[i].geom != kInvalidId;
+    keys[kept] = SortPair{0, uint32_t(i)};
+    freed[ended] = b.paths[i];
+    kept += hit;
+    ended += !hit;
   }
   keys.resize(kept);
+  freed.resize(ended);
 }
 
 // The batch's escaped rays and surface hits in one parallel loop: a stage

@@ -298,7 +298,7 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   if (!b.camera) stats.continuation_rays += b.size();
   if (opt.sort && !b.camera) sort_rays(b);
   trace_closest(b);  // and, in media, each ray's medium interaction
-  keyed = opt.sort || (lights.infinite_lights.empty() && !observer && pool.medium.empty());
+  keyed = opt.sort || misses_only_end_paths();
   if (opt.sort) sort_hits(b);
   shade_batch(b);
   merge_outputs();
@@ -480,10 +480,11 @@ void WavefrontEngine::Impl::set_aside_misses(const Batch& b) {
 }
 
 // The batch's escaped rays and surface hits in one parallel loop: a stage
-// boundary fewer per batch (each costs both threads a wait).  Unsorted, in
-// the order they were traced; sorted, the escaped rays first, then the hits
-// in `keys` order.  Each chunk of hits has its continuations' numbers drawn
-// before it is shaded.
+// boundary fewer per batch (each costs both threads a wait).  Sorted, the
+// escaped rays first, then the hits in `keys` order; unsorted, the hits in
+// the order they were traced, the misses set aside before (or, where a miss
+// does more than end its path, told apart among them).  Each chunk of hits
+// has its continuations' numbers drawn before it is shaded.
 void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
   if (keyed && !opt.sort) set_aside_misses(b);
@@ -532,9 +533,9 @@ void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, siz
   sample_4d(std::span(key).first(count), std::span(first).first(count), u.first(count));
 }
 
-// The k-th traced ray to shade, batch index hit_index(k): sorted, a hit
-// (sort_hits left no other); unsorted, a hit, an escaped ray, or a path that
-// already left the batch in a medium.
+// The k-th traced ray to shade, batch index hit_index(k): keyed, a hit
+// (sort_hits or set_aside_misses left no other); otherwise a hit, an escaped
+// ray, or a path that already left the batch in a medium.
 void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec4& u_continuation, ShadeOutput& out) {
   prefetch_for_shading(b, k);
   const uint32_t i = hit_index(k);

@@ -242,10 +242,11 @@ struct WavefrontEngine::Impl {
   void trace_closest(Batch& b);
   void sort_hits(const Batch& b);           // with sorting: shading order into `keys`, misses into `escaped`
   void shade_batch(const Batch& b);         // escaped rays and surface hits
-  // The batch index of the k-th hit to shade: in `keys` order when sorted, else k.
+  // The batch index of the k-th hit to shade: in `keys` order when keyed, else k.
   uint32_t hit_index(size_t k) const { return keyed ? keys[k].index : uint32_t(k); }
   bool keyed = false;  // this batch's hits are shaded through `keys` (sorted, or its misses set aside)
   void set_aside_misses(const Batch& b);
+  bool misses_only_end_paths() const;  // escaped_rays.cpp: handle_escaped does nothing else
   void prefetch_for_shading(const Batch& b, size_t k);
   void handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out);  // escaped_rays.cpp
   // Shading draws its hits' continuation numbers this many at a time (the

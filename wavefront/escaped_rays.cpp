@@ -17,6 +17,13 @@ void WavefrontEngine::Impl::handle_escaped(const Ray& ray, uint32_t slot, ShadeO
   finish_path<kObserve>(slot, out);
 }
 
+// What handle_escaped does with a miss beyond ending its path: nothing
+// without infinite lights to see it or an observer to tell (and, in media, a
+// path's ray may have left its batch without reaching its hit).
+bool WavefrontEngine::Impl::misses_only_end_paths() const {
+  return lights.infinite_lights.empty() && !observer && pool.medium.empty();
+}
+
 void WavefrontEngine::Impl::handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out) {
   if (observer)
     handle_escaped<true>(ray, slot, out);

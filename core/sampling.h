@@ -29,6 +29,12 @@ inline vec3 sample_cosine_hemisphere(vec2 u) {
   float z = safe_sqrt(1.0f - d.x * d.x - d.y * d.y);
   return {d.x, d.y, z};
 }
+// sample_cosine_hemisphere(vec2(u[i])) for every i, bit for bit, several
+// lanes at a time (the loop vectorizes): the wavefront makes a chunk of
+// hits' diffuse directions at once, off each hit's chain of dependent steps.
+inline void sample_cosine_hemisphere(std::span<const vec4> u, std::span<vec3> out) {
+  for (size_t i = 0; i < u.size(); ++i) out[i] = sample_cosine_hemisphere(vec2(u[i]));
+}
 inline float cosine_hemisphere_pdf(float cos_theta) { return std::max(cos_theta, 0.0f) * kInvPi; }
 
 inline vec3 sample_uniform_sphere(vec2 u) {

@@ -418,10 +418,10 @@ float deferred_pdf(const DeferredPdf& d) {
 }
 
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
-                                      TransportMode mode, DeferredPdf* defer) {
+                                      TransportMode mode, DeferredPdf* defer, const vec3* cosine) {
   vec3 wo = bsdf.shading.to_local(wo_world);
   if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
-  auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u, mode);
+  auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u, mode, kSampleAll, cosine);
   if (!bs) return std::nullopt;
   BSDFSample s;
   s.f = bs->f;

@@ -117,8 +117,10 @@ float deferred_pdf(const DeferredPdf& d);
 // With `defer`, such a sample keeps the walk's own f and pdf (the same ratio)
 // and leaves in *defer what deferred_pdf needs for bsdf_pdf (pdf_deferred):
 // the pdf costs a second walk, and only MIS at an emitter the ray finds reads it.
+// `cosine`: as bxdf_sample's.
 std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u,
-                                      TransportMode mode = TransportMode::Radiance, DeferredPdf* defer = nullptr);
+                                      TransportMode mode = TransportMode::Radiance, DeferredPdf* defer = nullptr,
+                                      const vec3* cosine = nullptr);
 // The scattering event of a direction chosen elsewhere (by a path-guiding
 // distribution): f, bsdf_pdf, and the lobe the direction belongs to with its
 // flags, roughness and eta, as bsdf_sample would report them.  nullopt where

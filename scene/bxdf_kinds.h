@@ -23,10 +23,11 @@ inline float pdf_of(const DiffuseBxDF&, const vec3& wo, const vec3& wi, Transpor
   if (!(flags & kSampleReflection) || !same_hemisphere(wo, wi)) return 0.0f;
   return cosine_hemisphere_pdf(std::abs(wi.z));
 }
+// `cosine`: sample_cosine_hemisphere(u), where the caller made it ahead.
 inline std::optional<BxDFSample> sample_of(const DiffuseBxDF& b, const vec3& wo, float, vec2 u, TransportMode,
-                                    uint8_t flags) {
+                                    uint8_t flags, const vec3* cosine = nullptr) {
   if (!(flags & kSampleReflection)) return std::nullopt;
-  vec3 wi = sample_cosine_hemisphere(u);
+  vec3 wi = cosine ? *cosine : sample_cosine_hemisphere(u);
   if (wo.z < 0.0f) wi.z = -wi.z;
   BxDFSample s;
   s.f = b.r * kInvPi;

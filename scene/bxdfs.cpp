@@ -124,9 +124,10 @@ float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode
 // narrow stores, which store forwarding cannot serve: 40% of bxdf_sample's
 // time on the Cornell box).
 [[gnu::always_inline]] inline std::optional<BxDFSample> sample_by_kind(const BxDF& b, const vec3& wo, float uc, vec2 u,
-                                                                       TransportMode mode, uint8_t flags) {
+                                                                       TransportMode mode, uint8_t flags,
+                                                                       const vec3* cosine) {
   switch (b.kind) {
-    case BxDFKind::Diffuse: return sample_of(b.diffuse, wo, uc, u, mode, flags);
+    case BxDFKind::Diffuse: return sample_of(b.diffuse, wo, uc, u, mode, flags, cosine);
     case BxDFKind::Conductor: return sample_of(b.conductor, wo, uc, u, mode, flags);
     case BxDFKind::Dielectric: return sample_of(b.dielectric, wo, uc, u, mode, flags);
     case BxDFKind::ThinDielectric: return sample_of(b.thin, wo, uc, u, mode, flags);
@@ -157,8 +158,8 @@ float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode
 }
 
 std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, vec2 u, TransportMode mode,
-                                      uint8_t flags) {
-  std::optional<BxDFSample> s = sample_by_kind(b, wo, uc, u, mode, flags);
+                                      uint8_t flags, const vec3* cosine) {
+  std::optional<BxDFSample> s = sample_by_kind(b, wo, uc, u, mode, flags, cosine);
   if (!usable(s)) s.reset();
   return s;
 }

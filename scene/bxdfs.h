@@ -141,9 +141,11 @@ uint8_t bxdf_flags(const BxDF& b);
 RGB bxdf_f(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode = TransportMode::Radiance);
 float bxdf_pdf(const BxDF& b, const vec3& wo, const vec3& wi, TransportMode mode = TransportMode::Radiance,
                uint8_t sample_flags = kSampleAll);
+// `cosine`: sample_cosine_hemisphere(u), where the caller made it ahead (a
+// diffuse BxDF then takes its direction instead of making it).
 std::optional<BxDFSample> bxdf_sample(const BxDF& b, const vec3& wo, float uc, vec2 u,
                                       TransportMode mode = TransportMode::Radiance,
-                                      uint8_t sample_flags = kSampleAll);
+                                      uint8_t sample_flags = kSampleAll, const vec3* cosine = nullptr);
 
 // The typed overloads for diffuse, conductor and dielectric BxDFs, which the
 // layered walk calls for its coat and base: scene/bxdf_kinds.h.

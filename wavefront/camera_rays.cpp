@@ -44,10 +44,15 @@ void WavefrontEngine::Impl::camera_rays(std::span<const PixelSample> samples, st
                                         std::span<Ray> rays) const {
   std::array<vec2, kFilmBlock> p_film, u_lens;
   const uint32_t width = uint32_t(film.width);
+  // A pixel's samples are consecutive: its centre is found once, not by a
+  // division per sample.
+  uint32_t pixel = ~0u;
+  vec2 centre(0.0f);
   for (size_t i = 0; i < samples.size(); ++i) {
     const PixelSample& s = samples[i];
+    if (s.pixel != pixel) pixel = s.pixel, centre = vec2(float(pixel % width) + 0.5f, float(pixel / width) + 0.5f);
     const vec2 offset = film_draws[i].p;
-    p_film[i] = vec2(float(s.pixel % width) + 0.5f + offset.x, float(s.pixel / width) + 0.5f + offset.y);
+    p_film[i] = centre + offset;
     // A pinhole reads no lens sample: the Sobol pair costs as much as the rest of the ray.
     const SamplerKey key{opt.seed, s.pixel, s.sample};
     u_lens[i] = camera.lens_radius > 0.0f ? sample_2d(key, CameraDims::lens) : vec2(0.5f);

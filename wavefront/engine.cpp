@@ -491,13 +491,13 @@ void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   const size_t n_escaped = opt.sort ? escaped.size() : 0, n = keyed ? n_escaped + keys.size() : b.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
-    std::array<vec4, kDrawChunk> u;
+    std::array<ContinuationDraw, kDrawChunk> draws;
     for (size_t chunk = r.begin(); chunk < r.end(); chunk += kDrawChunk) {
       const size_t end = std::min(chunk + kDrawChunk, r.end());
-      draw_continuations(b, chunk, end, n_escaped, u);
+      draw_continuations(b, chunk, end, n_escaped, draws);
       for (size_t k = chunk; k < end; ++k) {
         if (k >= n_escaped) {
-          shade_traced_ray(b, k - n_escaped, u[k - chunk], out);
+          shade_traced_ray(b, k - n_escaped, draws[k - chunk], out);
           continue;
         }
         // In the batch's sort order their path records are scattered: fetch a few ahead.
@@ -509,13 +509,14 @@ void WavefrontEngine::Impl::shade_batch(const Batch& b) {
 }
 
 // The continuation's numbers (sample_dims.h) of every surface hit among
-// shading's rays [begin, end), into u[k - begin].  Drawn a chunk at a time,
+// shading's rays [begin, end), and their cosine-weighted directions, into
+// draws[k - begin].  Drawn a chunk at a time,
 // in vector lanes, they are off each hit's chain of dependent steps: drawn
 // in the middle of it, their hashing held the chain up.  The draws read the
 // chunk's path records first, so the next chunk's are fetched here (the hits
 // scatter them, sorted by (geometry, primitive) or not).
 void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped,
-                                               std::span<vec4> u) const {
+                                               std::span<ContinuationDraw> draws) const {
   std::array<SamplerKey, kDrawChunk> key{};
   std::array<uint32_t, kDrawChunk> first{};
   const size_t n = n_escaped + (keyed ? keys.size() : b.size());
@@ -530,21 +531,25 @@ void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, siz
     first[k - begin] = bounce_dims(ps.depth).bsdf_dir;
   }
   const size_t count = end - begin;
-  sample_4d(std::span(key).first(count), std::span(first).first(count), u.first(count));
+  std::array<vec4, kDrawChunk> u;
+  std::array<vec3, kDrawChunk> cosine;
+  sample_4d(std::span(key).first(count), std::span(first).first(count), std::span(u).first(count));
+  sample_cosine_hemisphere(std::span<const vec4>(u).first(count), std::span(cosine).first(count));
+  for (size_t k = 0; k < count; ++k) draws[k] = {u[k], cosine[k]};
 }
 
 // The k-th traced ray to shade, batch index hit_index(k): keyed, a hit
 // (sort_hits or set_aside_misses left no other); otherwise a hit, an escaped
 // ray, or a path that already left the batch in a medium.
-void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const vec4& u_continuation, ShadeOutput& out) {
+void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const ContinuationDraw& draw, ShadeOutput& out) {
   prefetch_for_shading(b, k);
   const uint32_t i = hit_index(k);
   if (!keyed && !pool.medium.empty() && blocked[i]) return;
   if (!keyed && hits[i].geom == kInvalidId) return handle_escaped_ray(b.rays[i], b.paths[i], out);
   if (observer)
-    shade_surface<true>(b.rays[i], hits[i], b.paths[i], u_continuation, out);
+    shade_surface<true>(b.rays[i], hits[i], b.paths[i], draw, out);
   else
-    shade_surface<false>(b.rays[i], hits[i], b.paths[i], u_continuation, out);
+    shade_surface<false>(b.rays[i], hits[i], b.paths[i], draw, out);
 }
 
 // What shading hit k (in shading order: hit_index) reads besides its path

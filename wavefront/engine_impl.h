@@ -73,13 +73,23 @@ struct ShadeOutput {
   std::vector<Ray> retraced_rays;
 };
 
+// A surface hit's continuation numbers, drawn a chunk of hits ahead
+// (draw_continuations): bsdf_dir, bsdf_lobe and roulette (sample_dims.h),
+// and bsdf_dir's cosine-weighted direction, which a diffuse BSDF takes
+// (made ahead too: its division, polynomial and square root were on each
+// hit's chain of dependent steps).
+struct ContinuationDraw {
+  vec4 u{0.0f};
+  vec3 cosine{0.0f};  // sample_cosine_hemisphere(vec2(u))
+};
+
 // One surface vertex while it is shaded: what its steps share.
 struct ShadingPoint {
   PathState& ps;
   uint32_t slot;
   const SurfaceInteraction& si;
   BSDF bsdf;
-  vec4 u_continuation;        // the continuation's numbers (sample_dims.h): bsdf_dir, bsdf_lobe, roulette
+  const ContinuationDraw& draw;  // the continuation's numbers
   vec3 ns{0.0f};              // bump- or normal-mapped shading normal
   RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
   BounceDims dims{};
@@ -252,8 +262,9 @@ struct WavefrontEngine::Impl {
   // Shading draws its hits' continuation numbers this many at a time (the
   // vector lanes of sample_4d's span form).
   static constexpr size_t kDrawChunk = 16;
-  void draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped, std::span<vec4> u) const;
-  void shade_traced_ray(const Batch& b, size_t k, const vec4& u_continuation, ShadeOutput& out);
+  void draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped,
+                          std::span<ContinuationDraw> draws) const;
+  void shade_traced_ray(const Batch& b, size_t k, const ContinuationDraw& draw, ShadeOutput& out);
   void merge_outputs();
   void check_media_hooks() const;
   void trace_shadow_rays();                 // shadow_rays.cpp
@@ -280,16 +291,25 @@ struct WavefrontEngine::Impl {
   void handle_escaped(const Ray& ray, uint32_t slot, ShadeOutput& out);
   // ---- the surface stage's steps (surface.cpp)
   template <bool kObserve>
-  void shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, const vec4& u_continuation, ShadeOutput& out);
+  void shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, const ContinuationDraw& draw, ShadeOutput& out);
   template <bool kObserve>
-  bool add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si, ShadeOutput& out);
+  [[gnu::always_inline]] inline bool add_surface_emission(uint32_t slot, const Ray& ray, const SurfaceInteraction& si,
+                                                          ShadeOutput& out);
   template <bool kObserve>
   void prepare_vertex(ShadingPoint& v) const;
+  // Whether a vertex draws a light sample: not on a specular lobe, not
+  // before the throughput-reset bounce, and not where the sole light faces
+  // away.  Asked before sample_direct_light's call, which is the costlier
+  // part where most vertices stop here.
+  bool draws_light_sample(const ShadingPoint& v) const {
+    return !bsdf_is_specular(v.bsdf) && int(v.ps.depth) >= opt.throughput_reset_bounce &&
+           !(sole_light >= 0 && light_faces_away(lights, sole_light, v.si.p));
+  }
   template <bool kObserve>
-  void sample_direct_light(ShadingPoint& v, ShadeOutput& out);
+  void sample_direct_light(ShadingPoint& v, ShadeOutput& out);  // where draws_light_sample(v)
   std::optional<Continuation> sample_continuation(const ShadingPoint& v, DeferredPdf* defer) const;
   template <bool kObserve>
-  void continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out);
+  [[gnu::always_inline]] inline void continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out);
   bool survives_roulette(const PathState& ps, float u_roulette, RGB& beta, RGB& local, float eta_scale,
                          double correction, float adjoint, float& survival) const;
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);

@@ -11,7 +11,7 @@
 namespace theia {
 
 template <bool kObserve>
-void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, const vec4& u_continuation,
+void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32_t slot, const ContinuationDraw& draw,
                                          ShadeOutput& out) {
   PathState& ps = pool[slot];
   // An "interface" surface (by its own material, not a mix's choice), neither
@@ -37,7 +37,7 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   if (add_surface_emission<kObserve>(slot, ray, si, out)) return;  // a virtual light: the ray went on
   ++out.vertices;
 
-  ShadingPoint v{ps, slot, si, make_bsdf(scene, si, footprint(si)), u_continuation};
+  ShadingPoint v{ps, slot, si, make_bsdf(scene, si, footprint(si)), draw};
   // An "interface" surface: continue the ray as it was, without a bounce.
   if (bsdf_is_passthrough(v.bsdf)) return queue_ray(slot, si, spawn_ray(si, -si.wo), out);
   v.ns = v.bsdf.shading.n;
@@ -46,7 +46,7 @@ void WavefrontEngine::Impl::shade_surface(const Ray& ray, const Hit& hit, uint32
   if (int(ps.depth) >= opt.max_depth) return finish_path<kObserve>(slot, out);
 
   prepare_vertex<kObserve>(v);
-  sample_direct_light<kObserve>(v, out);
+  if (draws_light_sample(v)) sample_direct_light<kObserve>(v, out);
   // pdf guard: a direction with pdf 0 (or NaN) ends the path instead of dividing by it.
   // Without an observer (which reports every vertex's pdf) a layered
   // sample's MIS pdf waits for an emitter to need it (kDeferredPdf).
@@ -102,7 +102,7 @@ void WavefrontEngine::Impl::continue_path(ShadingPoint& v, const Continuation& c
   if (!pool.roulette_correction.empty()) correction = pool.roulette_correction[slot] *= c.roulette;
   const float adjoint = pool.pixel_estimate.empty() ? -1.0f : adjoint_survival(v, c, beta);
   float survival = 1.0f;
-  if (!survives_roulette(ps, v.u_continuation.w, beta, local, eta_scale, correction, adjoint, survival) ||
+  if (!survives_roulette(ps, v.draw.u.w, beta, local, eta_scale, correction, adjoint, survival) ||
       !is_finite(beta) ||
       is_black(beta))
     return finish_path<kObserve>(slot, out);
@@ -192,8 +192,6 @@ static PathVertexInfo vertex_info(const ShadingPoint& v, const vec3& wi, const R
 template <bool kObserve>
 void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& out) {
   const PathState& ps = v.ps;
-  if (bsdf_is_specular(v.bsdf) || int(ps.depth) < opt.throughput_reset_bounce) return;
-  if (sole_light >= 0 && light_faces_away(lights, sole_light, v.si.p)) return;
   const LightSampleContext ctx{v.si.p, v.si.p_error, v.si.ng, v.ns};
   // light_choice and light_prim are one pair of slots (sample_dims.h): one
   // draw of the pair gives both numbers, bit for bit the two 1D draws, for
@@ -243,12 +241,12 @@ void WavefrontEngine::Impl::sample_direct_light(ShadingPoint& v, ShadeOutput& ou
 std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const ShadingPoint& v,
                                                                       DeferredPdf* defer) const {
   if (!v.guided()) {
-    std::optional<BSDFSample> bs = bsdf_sample(v.bsdf, v.si.wo, v.u_continuation.z, vec2(v.u_continuation),
-                                               TransportMode::Radiance, defer);
+    std::optional<BSDFSample> bs = bsdf_sample(v.bsdf, v.si.wo, v.draw.u.z, vec2(v.draw.u), TransportMode::Radiance,
+                                               defer, &v.draw.cosine);
     if (!bs) return std::nullopt;
     return Continuation{*bs, bs->pdf_deferred ? kDeferredPdf : bs->pdf, 1.0};
   }
-  GuidedDraw u{v.u_continuation.z, vec2(v.u_continuation)};
+  GuidedDraw u{v.draw.u.z, vec2(v.draw.u)};
   if (opt.guiding.mixing == GuideMixing::Resampled) {
     u.u_guide = sample2(v.ps, v.dims.guide_dir);
     u.u_pick = sample1(v.ps, v.dims.guide_pick);
@@ -318,7 +316,9 @@ void WavefrontEngine::Impl::report_vertex(ShadingPoint& v, const Continuation& c
   v.ps.vertex = child;
 }
 
-template void WavefrontEngine::Impl::shade_surface<true>(const Ray&, const Hit&, uint32_t, const vec4&, ShadeOutput&);
-template void WavefrontEngine::Impl::shade_surface<false>(const Ray&, const Hit&, uint32_t, const vec4&, ShadeOutput&);
+template void WavefrontEngine::Impl::shade_surface<true>(const Ray&, const Hit&, uint32_t, const ContinuationDraw&,
+                                                        ShadeOutput&);
+template void WavefrontEngine::Impl::shade_surface<false>(const Ray&, const Hit&, uint32_t, const ContinuationDraw&,
+                                                         ShadeOutput&);
 
 }  // namespace theia

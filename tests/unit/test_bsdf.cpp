@@ -363,3 +363,29 @@ TEST(LayeredBxDF, DeferredPdfIsTheWholeBxDFsPdfBitForBit) {
     }
   EXPECT_GT(nonzero, 600);
 }
+
+// A diffuse sample given its cosine-weighted direction made ahead (the
+// wavefront's draw) is the sample that makes it, bit for bit, from either
+// side of the surface; other kinds ignore the direction.
+TEST(BxDFSample, DiffuseFromADirectionMadeAheadIsTheSame) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  const BxDF diffuse = DiffuseBxDF{RGB(0.7f, 0.5f, 0.3f)};
+  const BxDF conductor = ConductorBxDF{};
+  for (int i = 0; i < 2000; ++i) {
+    const vec2 u(u01(rng), u01(rng));
+    const vec3 wo = glm::normalize(vec3(u01(rng) - 0.5f, u01(rng) - 0.5f, (i % 2 ? 1.0f : -1.0f) * (0.05f + u01(rng))));
+    const vec3 ahead = sample_cosine_hemisphere(u);
+    for (const BxDF* b : {&diffuse, &conductor}) {
+      const auto made = bxdf_sample(*b, wo, 0.5f, u);
+      const auto given = bxdf_sample(*b, wo, 0.5f, u, TransportMode::Radiance, kSampleAll, &ahead);
+      ASSERT_EQ(made.has_value(), given.has_value());
+      if (!made) continue;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(std::bit_cast<uint32_t>(made->wi[c]), std::bit_cast<uint32_t>(given->wi[c]));
+        EXPECT_EQ(std::bit_cast<uint32_t>(made->f[c]), std::bit_cast<uint32_t>(given->f[c]));
+      }
+      EXPECT_EQ(std::bit_cast<uint32_t>(made->pdf), std::bit_cast<uint32_t>(given->pdf));
+    }
+  }
+}

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <random>
 
 using namespace theia;
@@ -234,4 +235,26 @@ TEST(PowerHeuristic, WeightsOfTwoStrategiesSumToOne) {
   EXPECT_FLOAT_EQ(power_heuristic(1, 1e-25f, 1, 1e-25f), 0.5f);
   EXPECT_FLOAT_EQ(power_heuristic(1, 3e20f, 1, 1e20f), 0.9f);
   EXPECT_FLOAT_EQ(power_heuristic(2, 0.5f, 1, 3.0f), 0.1f);
+}
+
+// The span form the wavefront draws a chunk of hits' diffuse directions
+// with is the one-sample warp bit for bit, at every chunk length (the
+// vector loop's body and its scalar tail alike), the disk's centre and the
+// square's edges included.
+TEST(CosineHemisphere, SpanFormIsTheWarpBitForBit) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+  std::vector<vec4> u;
+  for (float e : {0.0f, 0.5f, kOneMinusEpsilon, 0.25f, 1e-30f})
+    for (float f : {0.0f, 0.5f, kOneMinusEpsilon, 0.75f}) u.push_back(vec4(e, f, 0.0f, 0.0f));
+  while (u.size() < 4099) u.push_back(vec4(u01(rng), u01(rng), u01(rng), u01(rng)));
+  for (size_t n : {size_t(1), size_t(7), size_t(16), size_t(17), u.size()}) {
+    std::vector<vec3> out(n);
+    sample_cosine_hemisphere(std::span<const vec4>(u).first(n), out);
+    for (size_t i = 0; i < n; ++i) {
+      const vec3 w = sample_cosine_hemisphere(vec2(u[i]));
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(std::bit_cast<uint32_t>(out[i][c]), std::bit_cast<uint32_t>(w[c])) << "n " << n << " i " << i << " c " << c;
+    }
+  }
 }

@@ -298,8 +298,10 @@ void WavefrontEngine::Impl::process_batch(Batch& b) {
   if (!b.camera) stats.continuation_rays += b.size();
   if (opt.sort && !b.camera) sort_rays(b);
   trace_closest(b);  // and, in media, each ray's medium interaction
-  keyed = opt.sort || misses_only_end_paths();
-  if (opt.sort) sort_hits(b);
+  if (opt.sort)
+    sort_hits(b);
+  else
+    set_aside_misses(b);
   shade_batch(b);
   merge_outputs();
 }
@@ -457,38 +459,45 @@ void WavefrontEngine::Impl::sort_hits(const Batch& b) {
 
 // ---------------------------------------------------------------- shade
 
-// Unsorted, where a miss only ends its path (no infinite light, observer or
-// medium sees it): the misses' paths end here and the hits' indices go to
-// `keys` in order, so that shading's loop sees only hits.  Each ray is
-// written to both lists and counted in one: whether it hit is a coin flip,
-// which a branch would mispredict half the time.
+// Unsorted: the hits' indices go to `keys` in the order they were traced,
+// so that shading's loop sees only hits, as it does sorted.  A miss's path
+// ends here where that is all a miss does (misses_only_end_paths); else the
+// miss goes to `escaped`, shaded first, as sorted batches' are.  Paths that
+// left the batch in a medium leave the list.  Each ray's index is written
+// to both lists and counted in one: whether it hit is a coin flip, which a
+// branch would mispredict half the time.
 void WavefrontEngine::Impl::set_aside_misses(const Batch& b) {
-  std::vector<uint32_t>& freed = outputs.local().freed;
-  const size_t n = b.size(), first_freed = freed.size();
+  const size_t n = b.size();
+  const bool media = !pool.medium.empty();
   keys.resize(n);
-  freed.resize(first_freed + n);
-  size_t kept = 0, ended = first_freed;
+  missed.resize(n);
+  size_t kept = 0, n_missed = 0;
   for (size_t i = 0; i < n; ++i) {
-    const bool hit = hits[i].geom != kInvalidId;
+    const bool stays = !media || !blocked[i], hit = hits[i].geom != kInvalidId;
     keys[kept] = SortPair{0, uint32_t(i)};
-    freed[ended] = b.paths[i];
-    kept += hit;
-    ended += !hit;
+    missed[n_missed] = uint32_t(i);
+    kept += stays & hit;
+    n_missed += stays & !hit;
   }
   keys.resize(kept);
-  freed.resize(ended);
+  missed.resize(n_missed);
+  queue_clear(escaped);
+  if (misses_only_end_paths()) {
+    std::vector<uint32_t>& freed = outputs.local().freed;
+    for (uint32_t i : missed) freed.push_back(b.paths[i]);
+    return;
+  }
+  for (uint32_t i : missed) escaped.rays.push_back(b.rays[i]), escaped.paths.push_back(b.paths[i]);
 }
 
 // The batch's escaped rays and surface hits in one parallel loop: a stage
-// boundary fewer per batch (each costs both threads a wait).  Sorted, the
-// escaped rays first, then the hits in `keys` order; unsorted, the hits in
-// the order they were traced, the misses set aside before (or, where a miss
-// does more than end its path, told apart among them).  Each chunk of hits
-// has its continuations' numbers drawn before it is shaded.
+// boundary fewer per batch (each costs both threads a wait).  The escaped
+// rays first, then the hits in `keys` order (sort_hits' or
+// set_aside_misses').  Each chunk of hits has its continuations' numbers
+// drawn before it is shaded.
 void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
-  if (keyed && !opt.sort) set_aside_misses(b);
-  const size_t n_escaped = opt.sort ? escaped.size() : 0, n = keyed ? n_escaped + keys.size() : b.size();
+  const size_t n_escaped = escaped.size(), n = n_escaped + keys.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
     std::array<ContinuationDraw, kDrawChunk> draws;
@@ -519,13 +528,12 @@ void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, siz
                                                std::span<ContinuationDraw> draws) const {
   std::array<SamplerKey, kDrawChunk> key{};
   std::array<uint32_t, kDrawChunk> first{};
-  const size_t n = n_escaped + (keyed ? keys.size() : b.size());
+  const size_t n = n_escaped + keys.size();
   for (size_t k = begin; k < end; ++k) {
     if (const size_t next = k + kDrawChunk; next >= n_escaped && next < n)
       __builtin_prefetch(&pool[b.paths[hit_index(next - n_escaped)]]);
     if (k < n_escaped) continue;
     const uint32_t i = hit_index(k - n_escaped);
-    if (hits[i].geom == kInvalidId) continue;
     const PathState& ps = pool[b.paths[i]];
     key[k - begin] = sampler_key(ps);
     first[k - begin] = bounce_dims(ps.depth).bsdf_dir;
@@ -538,14 +546,10 @@ void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, siz
   for (size_t k = 0; k < count; ++k) draws[k] = {u[k], cosine[k]};
 }
 
-// The k-th traced ray to shade, batch index hit_index(k): keyed, a hit
-// (sort_hits or set_aside_misses left no other); otherwise a hit, an escaped
-// ray, or a path that already left the batch in a medium.
+// The k-th surface hit to shade, batch index hit_index(k).
 void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const ContinuationDraw& draw, ShadeOutput& out) {
   prefetch_for_shading(b, k);
   const uint32_t i = hit_index(k);
-  if (!keyed && !pool.medium.empty() && blocked[i]) return;
-  if (!keyed && hits[i].geom == kInvalidId) return handle_escaped_ray(b.rays[i], b.paths[i], out);
   if (observer)
     shade_surface<true>(b.rays[i], hits[i], b.paths[i], draw, out);
   else
@@ -556,7 +560,7 @@ void WavefrontEngine::Impl::shade_traced_ray(const Batch& b, size_t k, const Con
 // record (draw_continuations fetches those), a few hits ahead: its ray, its
 // path's cold fields, and on meshes larger than the cache its triangle.
 void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
-  const size_t n = keyed ? keys.size() : b.size();
+  const size_t n = keys.size();
   if (prefetch_triangles && k + 2 * kPrefetchDistance < n)
     triangles.indices(hits[hit_index(k + 2 * kPrefetchDistance)]);
   if (k + kPrefetchDistance < n) {
@@ -576,7 +580,7 @@ void WavefrontEngine::Impl::prefetch_for_shading(const Batch& b, size_t k) {
 size_t WavefrontEngine::Impl::memory_bytes() const {
   size_t bytes = pool.memory_bytes() + queue_bytes(shadows) + queue_bytes(shadows_sorted) + queue_bytes(escaped) +
                  queue_bytes(sorted) + (keys.capacity() + scratch.capacity()) * sizeof(SortPair) +
-                 hits.capacity() * sizeof(Hit);
+                 (order.capacity() + missed.capacity()) * sizeof(uint32_t) + hits.capacity() * sizeof(Hit);
   for (const Batch& b : filling) bytes += queue_bytes(b);
   for (const Batch& b : full) bytes += queue_bytes(b);
   for (const Batch& b : spare) bytes += queue_bytes(b);

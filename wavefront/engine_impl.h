@@ -179,6 +179,7 @@ struct WavefrontEngine::Impl {
   // Scratch reused from batch to batch.
   std::vector<SortPair> keys, scratch;
   std::vector<uint32_t> order;
+  std::vector<uint32_t> missed;  // set_aside_misses: the batch indices of the misses
   std::vector<Hit> hits;
   std::vector<PrimRef> batch_skips;  // the curve skips gathered in a batch's ray order
   // Per shadow ray while trace_shadow_rays runs; in scenes with media, per
@@ -251,11 +252,10 @@ struct WavefrontEngine::Impl {
   void sort_rays(Batch& b);
   void trace_closest(Batch& b);
   void sort_hits(const Batch& b);           // with sorting: shading order into `keys`, misses into `escaped`
+  void set_aside_misses(const Batch& b);    // without: the same in trace order
   void shade_batch(const Batch& b);         // escaped rays and surface hits
-  // The batch index of the k-th hit to shade: in `keys` order when keyed, else k.
-  uint32_t hit_index(size_t k) const { return keyed ? keys[k].index : uint32_t(k); }
-  bool keyed = false;  // this batch's hits are shaded through `keys` (sorted, or its misses set aside)
-  void set_aside_misses(const Batch& b);
+  // The batch index of the k-th hit to shade (sort_hits' or set_aside_misses' order).
+  uint32_t hit_index(size_t k) const { return keys[k].index; }
   bool misses_only_end_paths() const;  // escaped_rays.cpp: handle_escaped does nothing else
   void prefetch_for_shading(const Batch& b, size_t k);
   void handle_escaped_ray(const Ray& ray, uint32_t slot, ShadeOutput& out);  // escaped_rays.cpp

@@ -38,10 +38,19 @@ EngineSizes engine_sizes(const EngineOptions& o, uint64_t pixels, int threads) {
   EngineSizes s;
   s.max_paths = o.max_paths > 0 ? o.max_paths : size_t(paths);
   s.lanes = std::clamp<size_t>(size_t(std::max(threads, 1)), 1, s.max_paths);
-  // Continuation rays spread over six direction bins: a batch of an eighth
-  // of a lane's pool fills.
-  s.batch_size = o.batch_size > 0 ? o.batch_size : std::max<size_t>(s.lane_paths() / 8, 1024);
+  s.batch_size = o.batch_size > 0 ? o.batch_size : default_batch_size(s.lane_paths(), o.sort);
   return s;
+}
+
+// Unsorted, 1024 rays, whatever the pool: a batch's rays were spawned by
+// hits shaded close together (camera batches are in pixel order), so they
+// start near each other and Embree traces them faster than a larger
+// batch's, and what shading touches between two traces stays small.  Sorted,
+// an eighth of the pool (continuation rays spread over six direction bins
+// fill it), so that sorting has rays to order.
+size_t default_batch_size(size_t paths, bool sort) {
+  constexpr size_t kUnsortedBatch = 1024;
+  return sort ? std::max<size_t>(paths / 8, kUnsortedBatch) : kUnsortedBatch;
 }
 
 static bool has_layered_material(const Scene& scene) {
@@ -197,7 +206,7 @@ void WavefrontEngine::Impl::begin_iteration(uint32_t s_begin, uint32_t s_end, ui
 }
 
 // EngineHooks::observed_pool_share: batches sized for the paths that live
-// (an eighth, as engine_sizes does for the pool), the refill at the same
+// (default_batch_size, as engine_sizes does for the pool), the refill at the same
 // occupancy of them.  Unobserved, the pool's own sizes.  The floor is the
 // engine's, shared by its lanes.
 void WavefrontEngine::Impl::cap_live_paths() {
@@ -207,7 +216,7 @@ void WavefrontEngine::Impl::cap_live_paths() {
   if (observer && hooks.observed_pool_share > 0.0f) {
     const size_t share = size_t(double(hooks.observed_pool_share) * double(pool.capacity()));
     live_cap = std::clamp(share, std::min(min_live, pool.capacity()), pool.capacity());
-    if (opt.batch_size == 0 && live_cap < pool.capacity()) sizes.batch_size = std::max<size_t>(live_cap / 8, 1024);
+    if (opt.batch_size == 0 && live_cap < pool.capacity()) sizes.batch_size = default_batch_size(live_cap, opt.sort);
   }
   refill_below = size_t(opt.occupancy_threshold * float(live_cap));
 }

@@ -117,6 +117,9 @@ struct EngineSizes {
   size_t lane_paths() const { return max_paths / lanes; }
 };
 EngineSizes engine_sizes(const EngineOptions& options, uint64_t pixels, int threads);
+// Rays per batch where the options leave it to the engine, for a lane of
+// `paths` live paths (engine_sizes).
+size_t default_batch_size(size_t paths, bool sort);
 
 // Per-pixel samples of one iteration (adaptive sampling).  Pixel p renders
 // samples [begin[p], begin[p] + offset[p+1] - offset[p]); those at or past

@@ -177,6 +177,14 @@ TEST(EngineSizes, FollowTheFrameUnlessSet) {
   EXPECT_EQ(small.lanes, 2u);
   EXPECT_EQ(small.lane_paths(), small.max_paths / 2);
   EXPECT_GE(small.lane_paths(), small.batch_size * 6);
+  // Unsorted, batches of 1024 rays at any frame size; sorted, an eighth of
+  // a lane's pool, so that a production frame's sort has rays to order.
+  EXPECT_EQ(small.batch_size, 1024u);
+  EXPECT_EQ(big.batch_size, 1024u);
+  o.sort = true;
+  EXPECT_EQ(engine_sizes(o, 1920 * 1080, 2).batch_size, big.lane_paths() / 8);
+  EXPECT_EQ(engine_sizes(o, 64 * 64, 2).batch_size, std::max<size_t>(small.lane_paths() / 8, 1024));
+  o.sort = false;
   EXPECT_EQ(engine_sizes(o, 64 * 64, 1).lanes, 1u);
   // A farm node's 64 threads: the floor of 2^14 paths a lane holds for any
   // frame (past 32 threads it was clamped below it: 2^13 a lane at 64).

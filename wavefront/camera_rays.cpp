@@ -2,7 +2,6 @@
 #include "wavefront/camera_samples.h"
 #include "wavefront/engine_impl.h"
 
-#include <tbb/parallel_for.h>
 
 namespace theia {
 
@@ -107,7 +106,7 @@ void WavefrontEngine::Impl::generate_camera_rays(size_t count) {
     b.paths.assign(slots.begin() + lo, slots.begin() + hi);
     full.push_back(std::move(b));
   }
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& r) {
+  stage_loop(count, 1024, [&](const tbb::blocked_range<size_t>& r) {
     start_camera_paths(first, r.begin(), r.end(), slots, first_batch);
   });
   next_camera = first + count;

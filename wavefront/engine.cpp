@@ -427,7 +427,7 @@ void WavefrontEngine::Impl::trace_closest(Batch& b) {
   const bool media = !pool.medium.empty();
   if (media) blocked.assign(n, 0);
   ScopedTimer timer(stats.phases[Phase::Trace]);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kTraceGrain), [&](const tbb::blocked_range<size_t>& r) {
+  stage_loop(n, kTraceGrain, [&](const tbb::blocked_range<size_t>& r) {
     std::span<const PrimRef> skips;
     if (!batch_skips.empty()) skips = std::span<const PrimRef>(batch_skips.data() + r.begin(), r.size());
     accel.intersect(std::span<const Ray>(b.rays.data() + r.begin(), r.size()),
@@ -507,7 +507,7 @@ void WavefrontEngine::Impl::set_aside_misses(const Batch& b) {
 void WavefrontEngine::Impl::shade_batch(const Batch& b) {
   ScopedTimer timer(stats.phases[Phase::Shade]);
   const size_t n_escaped = escaped.size(), n = n_escaped + keys.size();
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kShadeGrain), [&](const tbb::blocked_range<size_t>& r) {
+  stage_loop(n, kShadeGrain, [&](const tbb::blocked_range<size_t>& r) {
     ShadeOutput& out = outputs.local();
     std::array<ContinuationDraw, kDrawChunk> draws;
     for (size_t chunk = r.begin(); chunk < r.end(); chunk += kDrawChunk) {
@@ -620,6 +620,7 @@ WavefrontEngine::WavefrontEngine(const RenderableScene& rs, Film& film, const En
     Impl& l = *lanes_.back();
     l.lane_count = sizes_.lanes;
     if (sizes_.lanes > 1) l.arena = std::make_unique<tbb::task_arena>(1);
+    l.stage_threads = sizes_.lanes > 1 ? 1 : threads;
     if (i == 0) continue;
     if (options.capture_rays) l.opt.capture_rays = &l.captured_rays;
     if (options.capture_camera_rays) l.opt.capture_camera_rays = &l.captured_camera_rays;

@@ -22,6 +22,7 @@
 #include "wavefront/sample_dims.h"
 
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <array>
@@ -212,6 +213,22 @@ struct WavefrontEngine::Impl {
   // parallel loops run on the lane's own thread, in order, and never take
   // (or hand over) another lane's work.
   std::unique_ptr<tbb::task_arena> arena;
+  // Threads a stage's loop may use: 1 with more than one lane (or one
+  // thread); all of them for a render's only lane on more threads (one
+  // with fewer paths than threads).
+  int stage_threads = 1;
+  // A stage's loop over [0, n), `body` taking tbb::blocked_range chunks of
+  // about `grain`: tbb::parallel_for where the lane has threads to spare,
+  // else one call over the whole range, in the order a one-thread
+  // parallel_for takes the chunks, without its task set-up at every batch
+  // (about 1% of the bench scene's CPU at 1024-ray batches).
+  template <class Body>
+  void stage_loop(size_t n, size_t grain, Body&& body) const {
+    if (stage_threads > 1)
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n, grain), body);
+    else if (n > 0)
+      body(tbb::blocked_range<size_t>(0, n, grain));
+  }
   // A lane's own for EngineOptions::capture_rays and its kin.
   std::vector<Ray> captured_rays, captured_camera_rays, captured_shadow_rays;
   uint32_t sample_begin = 0, sample_count = 0;

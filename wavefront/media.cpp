@@ -11,7 +11,6 @@
 #include "scene/microfacet.h"
 #include "scene/surface_crossing.h"
 
-#include <tbb/parallel_for.h>
 
 #include <bit>
 
@@ -258,7 +257,7 @@ void WavefrontEngine::Impl::sample_direct_light_in_medium(const MediumVertex& v,
 void WavefrontEngine::Impl::attenuate_shadow_rays_in_media() {
   ShadowQueue& s = shadows;
   ScopedTimer timer(stats.phases[Phase::TraceShadow]);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, s.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+  stage_loop(s.size(), 64, [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
       const PrimRef skip = s.skip.empty() ? PrimRef{} : s.skip[i];
       const RGB T = shadow_transmittance(s.rays[i], s.medium[i], skip, hash(opt.seed, s.pixel[i], s.sample[i]));

@@ -2,7 +2,6 @@
 // unoccluded one (it was computed when the ray was queued).
 #include "wavefront/engine_impl.h"
 
-#include <tbb/parallel_for.h>
 
 namespace theia {
 
@@ -28,7 +27,7 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
     attenuate_shadow_rays_in_media();
   } else {
     ScopedTimer timer(stats.phases[Phase::TraceShadow]);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+    stage_loop(n, 256, [&](const tbb::blocked_range<size_t>& r) {
       std::span<const PrimRef> skips;
       if (!s.skip.empty()) skips = std::span<const PrimRef>(s.skip.data() + r.begin(), r.size());
       accel.occluded(std::span<const Ray>(s.rays.data() + r.begin(), r.size()),
@@ -38,7 +37,7 @@ void WavefrontEngine::Impl::trace_shadow_rays() {
   {
     ScopedTimer timer(stats.phases[Phase::Shade]);
     apply_deferred_nee_mis();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    stage_loop(n, 1024, [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (observer && i + kObserverPrefetch < n) observer->prefetch(s.vertex[i + kObserverPrefetch]);
         if (!blocked[i]) film.splat(s.pixel[i], s.sample[i], s.contribution[i], s.event.empty() ? 0 : s.event[i]);

@@ -6,7 +6,6 @@
 
 #include "scene/surface_crossing.h"
 
-#include <tbb/parallel_for.h>
 
 namespace theia {
 
@@ -171,7 +170,7 @@ float WavefrontEngine::Impl::scattering_pdf(const ShadingPoint& v, const vec3& w
 void WavefrontEngine::Impl::apply_deferred_nee_mis() {
   ShadowQueue& s = shadows;
   if (s.deferred_mis.empty()) return;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, s.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+  stage_loop(s.size(), 1024, [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i < r.end(); ++i) {
       const DeferredNeeMIS& d = s.deferred_mis[i];
       if (blocked[i] || d.region == kNoGuideRegion) continue;

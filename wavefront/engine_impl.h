@@ -327,8 +327,24 @@ struct WavefrontEngine::Impl {
   std::optional<Continuation> sample_continuation(const ShadingPoint& v, DeferredPdf* defer) const;
   template <bool kObserve>
   [[gnu::always_inline]] inline void continue_path(ShadingPoint& v, const Continuation& c, ShadeOutput& out);
+  // Russian roulette on the throughput (times eta_scale), as pbrt-v4 does it;
+  // a survivor's throughput and local factor carry the compensation.  A
+  // guided path's throughput is first corrected to what BSDF sampling would
+  // have made it (`correction`, seeds/000 ch. 1 eq. 19).  `survival`: the
+  // probability the path had of surviving.  Inline: every continuation
+  // takes it, between the pdf's division and the spawn.
   bool survives_roulette(const PathState& ps, float u_roulette, RGB& beta, RGB& local, float eta_scale,
-                         double correction, float adjoint, float& survival) const;
+                         double correction, float adjoint, float& survival) const {
+    if (int(ps.depth) + 1 <= opt.rr_min_depth) return true;
+    const float rr = adjoint >= 0.0f ? adjoint : float(double(max_component(beta * eta_scale)) * correction);
+    if (rr >= 1.0f) return true;
+    const float q = std::max(0.0f, 1.0f - rr);
+    if (u_roulette < q) return false;
+    survival = 1.0f - q;
+    beta /= survival;
+    local /= survival;
+    return true;
+  }
   float adjoint_survival(const ShadingPoint& v, const Continuation& c, const RGB& beta);
   void report_vertex(ShadingPoint& v, const Continuation& c, const RGB& local, float survival);
   float scattering_pdf(const ShadingPoint& v, const vec3& wi) const;

@@ -254,25 +254,6 @@ std::optional<Continuation> WavefrontEngine::Impl::sample_continuation(const Sha
   return sample_guided_mis(v.bsdf, v.si.wo, *hooks.guide, v.guide_region, v.guide_fraction, u);
 }
 
-// Russian roulette on the throughput (times eta_scale), as pbrt-v4 does it;
-// a survivor's throughput and local factor carry the compensation.  A
-// guided path's throughput is first corrected to what BSDF sampling would
-// have made it (`correction`, seeds/000 ch. 1 eq. 19).  `survival`: the
-// probability the path had of surviving.
-bool WavefrontEngine::Impl::survives_roulette(const PathState& ps, float u_roulette, RGB& beta, RGB& local,
-                                              float eta_scale, double correction, float adjoint,
-                                              float& survival) const {
-  if (int(ps.depth) + 1 <= opt.rr_min_depth) return true;
-  const float rr = adjoint >= 0.0f ? adjoint : float(double(max_component(beta * eta_scale)) * correction);
-  if (rr >= 1.0f) return true;
-  const float q = std::max(0.0f, 1.0f - rr);
-  if (u_roulette < q) return false;
-  survival = 1.0f - q;
-  beta /= survival;
-  local /= survival;
-  return true;
-}
-
 // Adjoint-driven roulette (seeds/000 ch. 1 section 4.2, Vorba and Krivanek
 // 2016): the continuation's expected contribution, its throughput times the
 // radiance the field expects from its direction, against the path's pixel

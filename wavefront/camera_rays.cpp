@@ -2,7 +2,6 @@
 #include "wavefront/camera_samples.h"
 #include "wavefront/engine_impl.h"
 
-
 namespace theia {
 
 namespace {

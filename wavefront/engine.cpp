@@ -528,9 +528,9 @@ void WavefrontEngine::Impl::shade_batch(const Batch& b) {
 
 // The continuation's numbers (sample_dims.h) of every surface hit among
 // shading's rays [begin, end), and their cosine-weighted directions, into
-// draws[k - begin].  Drawn a chunk at a time,
-// in vector lanes, they are off each hit's chain of dependent steps: drawn
-// in the middle of it, their hashing held the chain up.  The draws read the
+// draws[k - begin].  Drawn a chunk at a time, in vector lanes, they are off
+// each hit's chain of dependent steps: drawn in the middle of it, their
+// hashing held the chain up.  The draws read the
 // chunk's path records first, so the next chunk's are fetched here (the hits
 // scatter them, sorted by (geometry, primitive) or not).
 void WavefrontEngine::Impl::draw_continuations(const Batch& b, size_t begin, size_t end, size_t n_escaped,

@@ -90,9 +90,9 @@ struct ShadingPoint {
   uint32_t slot;
   const SurfaceInteraction& si;
   BSDF bsdf;
-  const ContinuationDraw& draw;  // the continuation's numbers
-  vec3 ns{0.0f};              // bump- or normal-mapped shading normal
-  RGB beta{0.0f};             // throughput before this vertex (reset to 1 at the throughput-reset bounce)
+  const ContinuationDraw& draw;  // the continuation's numbers, drawn ahead
+  vec3 ns{0.0f};                 // bump- or normal-mapped shading normal
+  RGB beta{0.0f};                // throughput before this vertex (reset to 1 at the throughput-reset bounce)
   BounceDims dims{};
   uint8_t caustic_flags = 0;  // kPathCausticReceiver / kPathCausticCaster at this vertex
   bool guidable = false;      // bsdf_is_guidable: the engine guides here when it has a guide

@@ -11,7 +11,6 @@
 #include "scene/microfacet.h"
 #include "scene/surface_crossing.h"
 
-
 #include <bit>
 
 namespace theia {

@@ -2,7 +2,6 @@
 // unoccluded one (it was computed when the ray was queued).
 #include "wavefront/engine_impl.h"
 
-
 namespace theia {
 
 // Shadow rays are visited in ray order, their vertices live wherever the

@@ -6,7 +6,6 @@
 
 #include "scene/surface_crossing.h"
 
-
 namespace theia {
 
 template <bool kObserve>

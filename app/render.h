@@ -45,8 +45,9 @@ void declare_options(V& v, RenderOptions& o) {
   v.image("seed", o.seed, "Random seed");
   v.image("max_depth", o.max_depth, "Maximum path depth (default: the scene's)");
   v.order("batch_size", o.batch_size,
-          "Rays per batch of each thread's wavefront (0: sized from the frame and thread count)");
-  v.order("max_paths", o.max_paths, "Paths in flight, all threads' together (0: sized from the frame and thread count)");
+          "Rays per batch of each thread's wavefront (0: 1024; sorted, an eighth of a thread's paths)");
+  v.order("max_paths", o.max_paths,
+          "Paths in flight, all threads' together (0: 8192 a thread; sorted, sized from the frame and thread count)");
   v.order("sort", o.sort, "Sort rays and hits (--sort on|off, --no-sort)");
   v.image("throughput_reset_bounce", o.throughput_reset_bounce,
           "Render the 'throughput reset at bounce N' image as the beauty (default: off)");

@@ -29,12 +29,16 @@ uint64_t hit_sort_key(const Hit& h) {
 }  // namespace
 
 EngineSizes engine_sizes(const EngineOptions& o, uint64_t pixels, int threads) {
-  // A pool of 2^19 paths keeps both cores of a production frame busy; a
-  // small frame's whole iteration fits in far fewer.  Below 2^14 paths a
-  // lane's batches are too small to sort: that floor, one per thread, wins
-  // over both, and past 32 threads raises the ceiling with it.
-  const uint64_t floor = (uint64_t(1) << 14) * uint64_t(std::max(threads, 1));
-  const uint64_t paths = std::clamp<uint64_t>(pixels * 4, floor, std::max<uint64_t>(floor, uint64_t(1) << 19));
+  const uint64_t lanes = uint64_t(std::max(threads, 1));
+  uint64_t paths = uint64_t(kUnsortedLanePaths) * lanes;
+  if (o.sort) {
+    // A pool of 2^19 paths keeps both cores of a production frame busy; a
+    // small frame's whole iteration fits in far fewer.  Below 2^14 paths a
+    // lane's batches are too small to sort: that floor, one per thread, wins
+    // over both, and past 32 threads raises the ceiling with it.
+    const uint64_t floor = (uint64_t(1) << 14) * lanes;
+    paths = std::clamp<uint64_t>(pixels * 4, floor, std::max<uint64_t>(floor, uint64_t(1) << 19));
+  }
   EngineSizes s;
   s.max_paths = o.max_paths > 0 ? o.max_paths : size_t(paths);
   s.lanes = std::clamp<size_t>(size_t(std::max(threads, 1)), 1, s.max_paths);

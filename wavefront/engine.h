@@ -108,8 +108,8 @@ struct EngineHooks {
 };
 
 // The pool and batch sizes a render uses: `options`' where set, otherwise
-// sized from the frame's samples per iteration and the thread count, so that
-// a small image does not hold a production frame's queues.
+// sized from the thread count (sorted, from the frame's samples per iteration
+// too, so that a small image does not hold a production frame's queues).
 struct EngineSizes {
   size_t max_paths = 0;   // all lanes' paths
   size_t batch_size = 0;  // rays per batch of one lane
@@ -117,6 +117,10 @@ struct EngineSizes {
   size_t lane_paths() const { return max_paths / lanes; }
 };
 EngineSizes engine_sizes(const EngineOptions& options, uint64_t pixels, int threads);
+// An unsorted lane's paths at any frame size: enough to keep its six
+// direction bins' batches of 1024 rays full, few enough that their records
+// stay in the core's cache (a sorted lane's pool grows with the frame).
+inline constexpr size_t kUnsortedLanePaths = size_t(1) << 13;
 // Rays per batch where the options leave it to the engine, for a lane of
 // `paths` live paths (engine_sizes).
 size_t default_batch_size(size_t paths, bool sort);

@@ -128,13 +128,14 @@ TEST(Guiding, FieldFrozenAfterTrainingSamples) {
 
 // Training iterations (the recorder attached) keep at most a quarter of the
 // pool's paths in flight (EngineHooks::observed_pool_share); the iterations
-// after training fill the whole pool again.  160 x 160 pixels: a pool of
-// 102,400 paths (4 per pixel), 25,600 while training.
+// after training fill the whole pool again.  A pool of 102,400 paths (a
+// sorted render's for 160 x 160 pixels: 4 per pixel), 25,600 while training.
 TEST(Guiding, TrainingKeepsAQuarterOfThePoolInFlight) {
   Scene scene = load_test_scene_file(kCornell);
   scene.film.width = scene.film.height = 160;
   RenderConfig c = guided_config(16);
   c.threads = 1;
+  c.max_paths = 102400;
   c.guiding.training_spp = 16;  // every iteration trains: 1 x8, 2, 4, 2
   RenderResult trained = render_scene(scene, c);
   ASSERT_EQ(trained.log["paths"]["pool"].get<size_t>(), 102400u);

@@ -169,23 +169,27 @@ TEST(SampleDims, SurfacePageKeepsItsLayoutAndNothingOverlaps) {
 
 TEST(EngineSizes, FollowTheFrameUnlessSet) {
   EngineOptions o;
+  // Unsorted, a lane holds kUnsortedLanePaths at any frame size, in batches
+  // of 1024 rays: continuation rays over its six bins fill a batch.
+  for (uint64_t pixels : {uint64_t(64 * 64), uint64_t(1920 * 1080)}) {
+    EngineSizes s = engine_sizes(o, pixels, 2);
+    EXPECT_EQ(s.lanes, 2u);
+    EXPECT_EQ(s.lane_paths(), kUnsortedLanePaths);
+    EXPECT_EQ(s.batch_size, 1024u);
+    EXPECT_GE(s.lane_paths(), s.batch_size * 6);
+  }
+  EXPECT_EQ(engine_sizes(o, 64 * 64, 1).lanes, 1u);
+  EXPECT_EQ(engine_sizes(o, 64 * 64, 64).lane_paths(), kUnsortedLanePaths);
+  // Sorted, the pool follows the frame, and batches are an eighth of a
+  // lane's pool, so that a production frame's sort has rays to order.
+  o.sort = true;
   EngineSizes small = engine_sizes(o, 64 * 64, 2), big = engine_sizes(o, 1920 * 1080, 2);
   EXPECT_LT(small.max_paths, big.max_paths);
   EXPECT_EQ(big.max_paths, size_t(1) << 19);
   EXPECT_GE(small.max_paths, size_t(2) << 14);  // 2^14 paths a lane
-  // One lane a thread; continuation rays over a lane's six bins fill a batch.
-  EXPECT_EQ(small.lanes, 2u);
   EXPECT_EQ(small.lane_paths(), small.max_paths / 2);
-  EXPECT_GE(small.lane_paths(), small.batch_size * 6);
-  // Unsorted, batches of 1024 rays at any frame size; sorted, an eighth of
-  // a lane's pool, so that a production frame's sort has rays to order.
-  EXPECT_EQ(small.batch_size, 1024u);
-  EXPECT_EQ(big.batch_size, 1024u);
-  o.sort = true;
-  EXPECT_EQ(engine_sizes(o, 1920 * 1080, 2).batch_size, big.lane_paths() / 8);
-  EXPECT_EQ(engine_sizes(o, 64 * 64, 2).batch_size, std::max<size_t>(small.lane_paths() / 8, 1024));
-  o.sort = false;
-  EXPECT_EQ(engine_sizes(o, 64 * 64, 1).lanes, 1u);
+  EXPECT_EQ(big.batch_size, big.lane_paths() / 8);
+  EXPECT_EQ(small.batch_size, std::max<size_t>(small.lane_paths() / 8, 1024));
   // A farm node's 64 threads: the floor of 2^14 paths a lane holds for any
   // frame (past 32 threads it was clamped below it: 2^13 a lane at 64).
   for (uint64_t pixels : {uint64_t(64 * 64), uint64_t(1920 * 1080)}) {
@@ -193,6 +197,7 @@ TEST(EngineSizes, FollowTheFrameUnlessSet) {
     EXPECT_EQ(many.lanes, 64u);
     EXPECT_EQ(many.lane_paths(), size_t(1) << 14);
   }
+  o.sort = false;
   o.max_paths = 12345;
   o.batch_size = 77;
   EngineSizes set = engine_sizes(o, 64 * 64, 2);

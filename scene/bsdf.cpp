@@ -351,11 +351,6 @@ void bsdf_roughen(BSDF& bsdf, float gamma, float prev) {
   set_lobes(bsdf);
 }
 
-// Which lobe (see BSDF) a pair of local directions belongs to.
-static int lobe_of(const BSDF& bsdf, const vec3& wo, const vec3& wi) {
-  return (bsdf.lobe_count == 2 && !same_hemisphere(wo, wi)) ? 1 : 0;
-}
-
 RGB bsdf_f(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world, TransportMode mode) {
   vec3 wo = bsdf.shading.to_local(wo_world), wi = bsdf.shading.to_local(wi_world);
   if (wo.z == 0.0f) return RGB(0.0f);
@@ -417,31 +412,23 @@ float deferred_pdf(const DeferredPdf& d) {
   return bxdf_pdf(BxDF(b), d.wo, d.wi, d.mode);
 }
 
-std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
-                                      TransportMode mode, DeferredPdf* defer, const vec3* cosine) {
+std::optional<BSDFSample> any_bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
+                                          TransportMode mode, DeferredPdf* defer, const vec3* cosine) {
   vec3 wo = bsdf.shading.to_local(wo_world);
   if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
   auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u, mode, kSampleAll, cosine);
   if (!bs) return std::nullopt;
-  BSDFSample s;
-  s.f = bs->f;
-  s.pdf = bs->pdf;
-  if (bs->pdf_is_proportional && !bs->is_specular() && defer) {
+  RGB f = bs->f;
+  float pdf = bs->pdf;
+  const bool proportional = bs->pdf_is_proportional && !bs->is_specular();
+  if (proportional && defer) {
     *defer = DeferredPdf{bsdf.bxdf, wo, bs->wi, mode};
-    s.pdf_deferred = true;
-  } else if (bs->pdf_is_proportional && !bs->is_specular()) {
-    float pdf = bxdf_pdf(bsdf.bxdf, wo, bs->wi, mode);
+  } else if (proportional) {
+    pdf = bxdf_pdf(bsdf.bxdf, wo, bs->wi, mode);
     if (!(pdf > 0.0f)) return std::nullopt;
-    s.f = bs->f * (pdf / bs->pdf);
-    s.pdf = pdf;
+    f = bs->f * (pdf / bs->pdf);
   }
-  s.wi = bsdf.shading.from_local(bs->wi);
-  s.lobe = lobe_of(bsdf, wo, bs->wi);
-  s.flags = bs->flags;
-  s.roughness = bsdf.lobes[s.lobe].roughness;
-  s.eta = bs->eta;
-  if (!is_finite(s.f) || !(s.pdf > 0.0f) || is_black(s.f)) return std::nullopt;
-  return s;
+  return world_sample(bsdf, wo, *bs, f, pdf, proportional && defer);
 }
 
 std::optional<BSDFSample> bsdf_event(const BSDF& bsdf, const vec3& wo_world, const vec3& wi_world) {

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "scene/accel.h"
+#include "scene/bxdf_kinds.h"
 #include "scene/bxdfs.h"
 #include "scene/scene.h"
 #include "scene/shapes.h"
@@ -118,9 +119,46 @@ float deferred_pdf(const DeferredPdf& d);
 // and leaves in *defer what deferred_pdf needs for bsdf_pdf (pdf_deferred):
 // the pdf costs a second walk, and only MIS at an emitter the ray finds reads it.
 // `cosine`: as bxdf_sample's.
-std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u,
-                                      TransportMode mode = TransportMode::Radiance, DeferredPdf* defer = nullptr,
-                                      const vec3* cosine = nullptr);
+inline std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u,
+                                             TransportMode mode = TransportMode::Radiance,
+                                             DeferredPdf* defer = nullptr, const vec3* cosine = nullptr);
+// bsdf_sample for every kind (bsdf_sample takes the diffuse one inline).
+std::optional<BSDFSample> any_bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u, TransportMode mode,
+                                          DeferredPdf* defer, const vec3* cosine);
+
+// Which lobe (see BSDF) a pair of local directions belongs to.
+inline int lobe_of(const BSDF& bsdf, const vec3& wo, const vec3& wi) {
+  return (bsdf.lobe_count == 2 && !same_hemisphere(wo, wi)) ? 1 : 0;
+}
+// bsdf_sample's last step: the BxDF's sample `bs` (at local wo, of value f
+// and density pdf) in world space, with its lobe; nullopt where it carries
+// nothing.
+inline std::optional<BSDFSample> world_sample(const BSDF& bsdf, const vec3& wo, const BxDFSample& bs, const RGB& f,
+                                              float pdf, bool pdf_deferred) {
+  BSDFSample s;
+  s.f = f;
+  s.pdf = pdf;
+  s.pdf_deferred = pdf_deferred;
+  s.wi = bsdf.shading.from_local(bs.wi);
+  s.lobe = lobe_of(bsdf, wo, bs.wi);
+  s.flags = bs.flags;
+  s.roughness = bsdf.lobes[s.lobe].roughness;
+  s.eta = bs.eta;
+  if (!is_finite(s.f) || !(s.pdf > 0.0f) || is_black(s.f)) return std::nullopt;
+  return s;
+}
+// Inline for the commonest BSDF, a diffuse one: called out of line, with
+// its sample passed back through memory twice, it took a seventh of the
+// shading stage on the bench scene.
+inline std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
+                                             TransportMode mode, DeferredPdf* defer, const vec3* cosine) {
+  if (bsdf.bxdf.kind != BxDFKind::Diffuse) return any_bsdf_sample(bsdf, wo_world, u_lobe, u, mode, defer, cosine);
+  const vec3 wo = bsdf.shading.to_local(wo_world);
+  if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
+  const std::optional<BxDFSample> bs = bxdf_kinds::sample_of(bsdf.bxdf.diffuse, wo, u_lobe, u, mode, kSampleAll, cosine);
+  if (!bs) return std::nullopt;
+  return world_sample(bsdf, wo, *bs, bs->f, bs->pdf, false);
+}
 // The scattering event of a direction chosen elsewhere (by a path-guiding
 // distribution): f, bsdf_pdf, and the lobe the direction belongs to with its
 // flags, roughness and eta, as bsdf_sample would report them.  nullopt where

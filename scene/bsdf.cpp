@@ -412,10 +412,8 @@ float deferred_pdf(const DeferredPdf& d) {
   return bxdf_pdf(BxDF(b), d.wo, d.wi, d.mode);
 }
 
-std::optional<BSDFSample> any_bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
-                                          TransportMode mode, DeferredPdf* defer, const vec3* cosine) {
-  vec3 wo = bsdf.shading.to_local(wo_world);
-  if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
+std::optional<BSDFSample> any_bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u, TransportMode mode,
+                                          DeferredPdf* defer, const vec3* cosine) {
   auto bs = bxdf_sample(bsdf.bxdf, wo, u_lobe, u, mode, kSampleAll, cosine);
   if (!bs) return std::nullopt;
   RGB f = bs->f;

@@ -122,7 +122,8 @@ float deferred_pdf(const DeferredPdf& d);
 inline std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u,
                                              TransportMode mode = TransportMode::Radiance,
                                              DeferredPdf* defer = nullptr, const vec3* cosine = nullptr);
-// bsdf_sample for every kind (bsdf_sample takes the diffuse one inline).
+// bsdf_sample of every kind but diffuse (which bsdf_sample makes inline),
+// from the local `wo` (shading frame, wo.z != 0).
 std::optional<BSDFSample> any_bsdf_sample(const BSDF& bsdf, const vec3& wo, float u_lobe, vec2 u, TransportMode mode,
                                           DeferredPdf* defer, const vec3* cosine);
 
@@ -152,9 +153,9 @@ inline std::optional<BSDFSample> world_sample(const BSDF& bsdf, const vec3& wo, 
 // shading stage on the bench scene.
 inline std::optional<BSDFSample> bsdf_sample(const BSDF& bsdf, const vec3& wo_world, float u_lobe, vec2 u,
                                              TransportMode mode, DeferredPdf* defer, const vec3* cosine) {
-  if (bsdf.bxdf.kind != BxDFKind::Diffuse) return any_bsdf_sample(bsdf, wo_world, u_lobe, u, mode, defer, cosine);
   const vec3 wo = bsdf.shading.to_local(wo_world);
   if (wo.z == 0.0f || bsdf.lobe_count == 0) return std::nullopt;
+  if (bsdf.bxdf.kind != BxDFKind::Diffuse) return any_bsdf_sample(bsdf, wo, u_lobe, u, mode, defer, cosine);
   const std::optional<BxDFSample> bs = bxdf_kinds::sample_of(bsdf.bxdf.diffuse, wo, u_lobe, u, mode, kSampleAll, cosine);
   if (!bs) return std::nullopt;
   return world_sample(bsdf, wo, *bs, bs->f, bs->pdf, false);
